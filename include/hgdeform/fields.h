@@ -1,0 +1,41 @@
+// Typed access to the fields of a pcl::PCLPointCloud2 blob, whatever their declared types.
+#pragma once
+
+#include <pcl/PCLPointCloud2.h>
+
+#include <cstddef>
+#include <cstdint>
+#include <string>
+
+namespace hgd {
+
+/// Size in bytes of one value of a pcl::PCLPointField datatype (INT8 … FLOAT64); 0 if unknown.
+std::size_t datatypeSize(std::uint8_t datatype);
+
+/// Index of the field called `name` in cloud.fields, or -1.
+int findField(const pcl::PCLPointCloud2& cloud, const std::string& name);
+
+/// The value of element `element` of `field` at `point`, converted to double.
+double readValue(const pcl::PCLPointCloud2& cloud, std::size_t point, const pcl::PCLPointField& field,
+                 std::size_t element = 0);
+
+/// Stores `value` at `point` converted to the field's declared type (rounded and clamped for
+/// integer types).
+void writeValue(pcl::PCLPointCloud2& cloud, std::size_t point, const pcl::PCLPointField& field, double value,
+                std::size_t element = 0);
+
+/// Appends a FLOAT32 scalar field called `name` (or reuses an existing field of that name) and
+/// returns its index. Existing data is kept; the new field is zero until written.
+int addFloatField(pcl::PCLPointCloud2& cloud, const std::string& name);
+
+/// Name of the x/y/z or normal component field actually used by a cloud: normals are
+/// "normal_x" in PCD/PCL and "nx" in PLY; both are recognised.
+struct XyzFields {
+  int x = -1, y = -1, z = -1;
+  int nx = -1, ny = -1, nz = -1;
+  bool hasXyz() const { return x >= 0 && y >= 0 && z >= 0; }
+  bool hasNormals() const { return nx >= 0 && ny >= 0 && nz >= 0; }
+};
+XyzFields findXyzFields(const pcl::PCLPointCloud2& cloud);
+
+}  // namespace hgd

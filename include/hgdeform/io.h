@@ -1,0 +1,39 @@
+// Reading and writing shapes: PLY (ascii, binary LE/BE), PCD (ascii, binary,
+// binary_compressed) and OBJ, with errors that name the file and the problem.
+#pragma once
+
+#include <stdexcept>
+#include <string>
+
+#include "hgdeform/shape.h"
+
+namespace hgd {
+
+/// Every I/O failure. what() reads "<path>: <problem>", e.g.
+/// "scan.pcd: truncated data: header declares 307200 points, file holds 1024".
+class IoError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// The format named by a path's extension (case-insensitive .ply/.pcd/.obj); throws IoError
+/// naming the path for any other extension.
+FileFormat formatFromPath(const std::string& path);
+
+/// Reads a PLY, PCD or OBJ file (chosen by extension). Throws IoError when the file is
+/// missing, unreadable, empty, has a malformed header, truncated or non-numeric data, no
+/// points, or no x/y/z fields. Sizes declared in headers are checked against the file's size
+/// before anything is allocated.
+Shape readShape(const std::string& path);
+
+/// Options for writeShape.
+struct WriteOptions {
+  Encoding encoding = Encoding::Binary;
+};
+
+/// Writes a shape as PLY, PCD or OBJ (by the extension of `path`), atomically: the data goes
+/// to a temporary file in the same directory which is renamed over `path` only when complete.
+/// Refuses (IoError) to write over `shape.path`, the file the shape was read from.
+void writeShape(const std::string& path, const Shape& shape, const WriteOptions& options = {});
+
+}  // namespace hgd

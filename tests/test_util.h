@@ -1,0 +1,86 @@
+// Helpers shared by the test suites.
+#pragma once
+
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "hgdeform/geometry.h"
+#include "hgdeform/regions.h"
+#include "hgdeform/shape.h"
+
+namespace hgdtest {
+
+/// A fresh directory under the system temp dir, removed when the object dies.
+class TempDir {
+ public:
+  TempDir() {
+    std::random_device rd;
+    path_ = std::filesystem::temp_directory_path() /
+            ("hgdeform-test-" + std::to_string(rd()) + std::to_string(rd()));
+    std::filesystem::create_directories(path_);
+  }
+  ~TempDir() {
+    std::error_code ec;
+    std::filesystem::remove_all(path_, ec);
+  }
+  std::string file(const std::string& name) const { return (path_ / name).string(); }
+  const std::filesystem::path& path() const { return path_; }
+  /// Names of the files in the directory (to check that nothing was left behind).
+  std::vector<std::string> list() const {
+    std::vector<std::string> out;
+    for (const auto& e : std::filesystem::directory_iterator(path_))
+      out.push_back(e.path().filename().string());
+    return out;
+  }
+
+ private:
+  std::filesystem::path path_;
+};
+
+inline void writeText(const std::string& path, const std::string& text) {
+  std::ofstream out(path, std::ios::binary);
+  out << text;
+}
+
+/// Runs a shell command, returns its exit status; stdout+stderr in `output`.
+inline int run(const std::string& command, std::string& output) {
+  const std::string full = command + " 2>&1";
+  FILE* pipe = popen(full.c_str(), "r");
+  if (!pipe) return -1;
+  char buf[4096];
+  output.clear();
+  std::size_t got;
+  while ((got = fread(buf, 1, sizeof buf, pipe)) > 0) output.append(buf, got);
+  const int status = pclose(pipe);
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+/// Indices of finite points whose world coordinate along `axis` is <= hi / >= lo.
+inline std::vector<int> pointsWhere(const hgd::Geometry& g, int axis, double lo, double hi) {
+  std::vector<int> out;
+  for (std::size_t i = 0; i < g.size(); ++i) {
+    const double v = g.world(i)[axis];
+    if (v >= lo && v <= hi) out.push_back(static_cast<int>(i));
+  }
+  return out;
+}
+
+inline std::string datasetsDir() {
+  return HGD_DATA_DIR;
+}
+inline std::string sharedDatasetsDir() {
+  return HGD_SHARED_DATA_DIR;
+}
+inline bool exists(const std::string& p) {
+  return std::filesystem::exists(p);
+}
+
+}  // namespace hgdtest
