@@ -1,0 +1,45 @@
+// The computational view of a shape: its finite points (NaNs dropped, index maps kept), in a
+// local frame so that georeferenced coordinates keep float precision.
+#pragma once
+
+#include <pcl/point_cloud.h>
+#include <pcl/point_types.h>
+
+#include <Eigen/Core>
+#include <vector>
+
+#include "hgdeform/shape.h"
+
+namespace hgd {
+
+struct Geometry {
+  /// Finite points, relative to `origin` (world = local + origin).
+  pcl::PointCloud<pcl::PointXYZ>::Ptr points{new pcl::PointCloud<pcl::PointXYZ>};
+  /// Normals from the file (finite, non-zero), or empty when the file has none.
+  pcl::PointCloud<pcl::Normal>::Ptr file_normals{new pcl::PointCloud<pcl::Normal>};
+  /// Faces with indices into `points` (faces touching a non-finite vertex are dropped).
+  std::vector<pcl::Vertices> faces;
+  Eigen::Vector3d origin = Eigen::Vector3d::Zero();
+  std::vector<int> raw_index;     ///< finite point -> index in the file
+  std::vector<int> finite_index;  ///< index in the file -> finite point, or -1 for NaN/inf points
+
+  std::size_t size() const { return points->size(); }
+  bool hasFileNormals() const { return !file_normals->empty(); }
+  /// World coordinates of finite point i.
+  Eigen::Vector3d world(std::size_t i) const { return (*points)[i].getVector3fMap().cast<double>() + origin; }
+};
+
+/// Extracts the finite points (and normals, faces) of a shape. Throws IoError naming the file
+/// when it has no x/y/z fields or no finite point.
+Geometry extractGeometry(const Shape& shape);
+
+/// Writes positions (local frame of `geometry`) and, when given and the shape has normal
+/// fields, normals back into the shape's x/y/z (and normal) fields at their declared types.
+/// Points that were not finite are left untouched.
+void storePositions(Shape& shape, const Geometry& geometry, const std::vector<Eigen::Vector3f>& positions,
+                    const std::vector<Eigen::Vector3f>* normals = nullptr);
+
+/// Axis-aligned bounding-box diagonal of the finite points (0 for a single point).
+double boundingBoxDiagonal(const Geometry& geometry);
+
+}  // namespace hgd

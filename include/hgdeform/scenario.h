@@ -1,0 +1,77 @@
+// Scenario files (SCENARIO.md): which parts of a shape are handles and how the manipulated
+// one moves. One parser, used by the CLI, the batch runner and the viewer alike.
+#pragma once
+
+#include <Eigen/Core>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace hgd {
+
+/// A scenario that does not parse or does not fit its shape. what() reads
+/// "<file>: <json path>: <problem>", e.g. "s.json: /fixed/1/sphere/radius: must be a positive number".
+class ScenarioError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// A region of a shape: a sphere, an axis-aligned box, or explicit point indices (file order).
+struct Region {
+  enum class Kind { Sphere, Box, Indices };
+  Kind kind = Kind::Indices;
+  Eigen::Vector3d center = Eigen::Vector3d::Zero();  // sphere
+  double radius = 0;                                 // sphere
+  Eigen::Vector3d min = Eigen::Vector3d::Zero();     // box
+  Eigen::Vector3d max = Eigen::Vector3d::Zero();     // box
+  std::vector<long long> indices;                    // indices
+  std::string json_path;                             // where it was read, e.g. "/fixed/0"
+
+  static Region sphere(const Eigen::Vector3d& c, double r);
+  static Region box(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi);
+  static Region fromIndices(std::vector<long long> idx);
+};
+
+/// Direct manipulation: the manipulated handle's point nearest `from` is dragged to `to`.
+struct DragMove {
+  Eigen::Vector3d from = Eigen::Vector3d::Zero();
+  Eigen::Vector3d to = Eigen::Vector3d::Zero();
+};
+
+/// Frame metaphor: the manipulated handle gets this rigid motion exactly:
+/// x -> R(axis, degrees) (x - center) + center + translate; center defaults to the handle's
+/// barycentre.
+struct FrameMove {
+  Eigen::Vector3d translate = Eigen::Vector3d::Zero();
+  Eigen::Vector3d axis = Eigen::Vector3d::UnitZ();
+  double degrees = 0;
+  std::optional<Eigen::Vector3d> center;
+};
+
+struct Move {
+  enum class Kind { Drag, Frame };
+  Kind kind = Kind::Drag;
+  DragMove drag;
+  FrameMove frame;
+};
+
+struct Scenario {
+  std::vector<Region> fixed;
+  Region manipulated;
+  std::vector<Region> joints;
+  std::optional<int> clusters;
+  std::vector<Move> moves;  // applied in order; empty = no move
+  std::string path;         // file it came from (for messages)
+};
+
+/// Parses scenario JSON text. `name` is used in messages (a file name).
+Scenario parseScenario(const std::string& json_text, const std::string& name);
+
+/// Reads and parses a scenario file.
+Scenario readScenario(const std::string& path);
+
+/// Serialises a scenario as SCENARIO.md JSON (what the viewer saves).
+std::string scenarioToJson(const Scenario& scenario);
+
+}  // namespace hgd
