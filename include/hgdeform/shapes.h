@@ -1,0 +1,39 @@
+// Procedural shapes for tests, benchmarks and demos: the paper's test scenes made from
+// nothing, so that they run on a clean clone.
+#pragma once
+
+#include <Eigen/Core>
+#include <vector>
+
+#include "hgdeform/shape.h"
+
+namespace hgd {
+namespace shapes {
+
+/// Builds a point-cloud Shape (float x y z nx ny nz) from points and normals.
+Shape cloudShape(const std::vector<Eigen::Vector3f>& points, const std::vector<Eigen::Vector3f>& normals);
+
+/// Surface of a box-section bar along x: [0, length] x [-w/2, w/2] x [-w/2, w/2], sampled on a
+/// grid of spacing `h` (end caps included), with outward normals.
+Shape bar(float length = 1.0f, float width = 0.1f, float h = 0.01f);
+
+/// Surface of a closed cylinder along x, radius r, sampled at spacing ~h.
+Shape cylinder(float length = 1.0f, float radius = 0.1f, float h = 0.01f);
+
+/// A bumpy plane in z = 0 over [0, 1] x [0, 1]: `bumps` x `bumps` Gaussian bumps of height
+/// `height`, sampled at spacing h, normals up.
+Shape bumpyPlane(int bumps = 4, float height = 0.06f, float h = 0.01f);
+
+/// A fork lying in the xy plane: a base bar along x from 0 to 0.4, then two parallel prongs
+/// from 0.4 to 1.2, separated by `gap` (surfaces of box-section bars of width w).
+Shape fork(float gap = 0.04f, float w = 0.06f, float h = 0.01f);
+
+/// A bumpy sphere (radius 1, bumps of relative height `amp`), about n points, golden-spiral
+/// sampled: the benchmark shape for any size.
+Shape bumpySphere(std::size_t n, float amp = 0.1f);
+
+/// Triangle mesh of the same bar as bar(): vertices on the grid, two triangles per cell.
+Shape barMesh(float length = 1.0f, float width = 0.1f, float h = 0.01f);
+
+}  // namespace shapes
+}  // namespace hgd

@@ -1,0 +1,233 @@
+#include "hgdeform/neighbors.h"
+
+#include <pcl/features/normal_3d.h>
+#include <pcl/kdtree/kdtree_flann.h>
+
+#include <algorithm>
+#include <cmath>
+#include <queue>
+
+namespace hgd {
+
+KnnTable computeKnn(const pcl::PointCloud<pcl::PointXYZ>& points, int k) {
+  KnnTable t;
+  const std::size_t n = points.size();
+  t.k = std::max(0, std::min<int>(k, static_cast<int>(n) - 1));
+  if (t.k == 0) return t;
+  auto cloud = points.makeShared();
+  pcl::KdTreeFLANN<pcl::PointXYZ> tree(false);  // unsorted results: we sort ourselves
+  tree.setInputCloud(cloud);
+  t.index.resize(n * static_cast<std::size_t>(t.k));
+  const long long nn = static_cast<long long>(n);
+#pragma omp parallel
+  {
+    pcl::Indices idx;
+    std::vector<float> d2;
+    std::vector<std::pair<float, int>> order;
+#pragma omp for schedule(dynamic, 1024)
+    for (long long i = 0; i < nn; ++i) {
+      tree.nearestKSearch(points[static_cast<std::size_t>(i)], t.k + 1, idx, d2);
+      order.clear();
+      for (std::size_t m = 0; m < idx.size(); ++m)
+        if (idx[m] != i) order.emplace_back(d2[m], idx[m]);
+      std::sort(order.begin(), order.end());
+      int* row = t.index.data() + static_cast<std::size_t>(i) * static_cast<std::size_t>(t.k);
+      for (int m = 0; m < t.k; ++m)
+        row[m] = m < static_cast<int>(order.size())
+                     ? order[static_cast<std::size_t>(m)].second
+                     : static_cast<int>(i);  // fewer found: self-loops are ignored later
+    }
+  }
+  return t;
+}
+
+pcl::PointCloud<pcl::Normal>::Ptr estimateNormals(const pcl::PointCloud<pcl::PointXYZ>& points,
+                                                  const KnnTable& knn, int k_normals, bool use_viewpoint,
+                                                  const Eigen::Vector3f& viewpoint) {
+  const std::size_t n = points.size();
+  pcl::PointCloud<pcl::Normal>::Ptr normals(new pcl::PointCloud<pcl::Normal>);
+  normals->resize(n);
+  const int kn = std::min(k_normals, knn.k);
+  const long long nn = static_cast<long long>(n);
+#pragma omp parallel
+  {
+    pcl::Indices idx;
+#pragma omp for schedule(static)
+    for (long long i = 0; i < nn; ++i) {
+      idx.assign(1, static_cast<int>(i));
+      const int* row = knn.row(static_cast<std::size_t>(i));
+      idx.insert(idx.end(), row, row + kn);
+      Eigen::Vector4f plane(0, 0, 1, 0);
+      float curvature = 0;
+      if (idx.size() < 3 || !pcl::computePointNormal(points, idx, plane, curvature) || !plane.allFinite())
+        plane = Eigen::Vector4f(0, 0, 1, 0);  // degenerate neighbourhood: any direction will do
+      auto& out = (*normals)[static_cast<std::size_t>(i)];
+      out.normal_x = plane[0];
+      out.normal_y = plane[1];
+      out.normal_z = plane[2];
+      out.curvature = curvature;
+    }
+  }
+  if (use_viewpoint) {
+    for (std::size_t i = 0; i < n; ++i) {
+      auto& nv = (*normals)[i];
+      if (nv.getNormalVector3fMap().dot(viewpoint - points[i].getVector3fMap()) < 0)
+        nv.getNormalVector3fMap() *= -1.0f;
+    }
+    return normals;
+  }
+
+  // Minimum-spanning-tree propagation (Prim) over the symmetric kNN graph with weights
+  // 1 - |n_i . n_j|: flips follow the smoothest path, so creases are crossed last.
+  const NeighborGraph g = knnGraph(knn, kn, nullptr);
+  std::vector<char> done(n, 0);
+  std::vector<int> order(n);
+  for (std::size_t i = 0; i < n; ++i) order[i] = static_cast<int>(i);
+  // Seeds: outermost (largest x) first, so that each piece starts from a point whose outward
+  // direction is known.
+  std::sort(order.begin(), order.end(), [&](int a, int b) { return points[a].x > points[b].x; });
+  using Item = std::pair<float, std::pair<int, int>>;  // weight, (to, from)
+  std::priority_queue<Item, std::vector<Item>, std::greater<Item>> heap;
+  for (int seed : order) {
+    if (done[static_cast<std::size_t>(seed)]) continue;
+    auto& sn = (*normals)[static_cast<std::size_t>(seed)];
+    if (sn.normal_x < 0) sn.getNormalVector3fMap() *= -1.0f;
+    heap.push({0.0f, {seed, seed}});
+    while (!heap.empty()) {
+      const auto [w, e] = heap.top();
+      heap.pop();
+      const auto [to, from] = e;
+      (void)w;
+      if (done[static_cast<std::size_t>(to)]) continue;
+      done[static_cast<std::size_t>(to)] = 1;
+      auto nt = (*normals)[static_cast<std::size_t>(to)].getNormalVector3fMap();
+      if (to != from && nt.dot((*normals)[static_cast<std::size_t>(from)].getNormalVector3fMap()) < 0)
+        nt *= -1.0f;
+      for (const int* j = g.begin(static_cast<std::size_t>(to)); j != g.end(static_cast<std::size_t>(to));
+           ++j) {
+        if (done[static_cast<std::size_t>(*j)]) continue;
+        const float d = std::abs(nt.dot((*normals)[static_cast<std::size_t>(*j)].getNormalVector3fMap()));
+        heap.push({1.0f - d, {*j, to}});
+      }
+    }
+  }
+  return normals;
+}
+
+pcl::PointCloud<pcl::Normal>::Ptr meshNormals(const pcl::PointCloud<pcl::PointXYZ>& points,
+                                              const std::vector<pcl::Vertices>& faces) {
+  const std::size_t n = points.size();
+  std::vector<Eigen::Vector3f> acc(n, Eigen::Vector3f::Zero());
+  for (const auto& f : faces) {
+    const auto& v = f.vertices;
+    // Fan triangulation; the cross product's length is twice the area: area weighting.
+    for (std::size_t t = 1; t + 1 < v.size(); ++t) {
+      const Eigen::Vector3f a = points[v[0]].getVector3fMap(), b = points[v[t]].getVector3fMap(),
+                            c = points[v[t + 1]].getVector3fMap();
+      const Eigen::Vector3f fn = (b - a).cross(c - a);
+      acc[v[0]] += fn;
+      acc[v[t]] += fn;
+      acc[v[t + 1]] += fn;
+    }
+  }
+  pcl::PointCloud<pcl::Normal>::Ptr normals(new pcl::PointCloud<pcl::Normal>);
+  normals->resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const float len = acc[i].norm();
+    (*normals)[i].getNormalVector3fMap() =
+        len > 0 ? Eigen::Vector3f(acc[i] / len)
+                : Eigen::Vector3f::Constant(std::numeric_limits<float>::quiet_NaN());
+  }
+  return normals;
+}
+
+namespace {
+// Builds a symmetric CSR graph from a directed edge generator, removing self-loops and repeats.
+template <typename ForEachEdge>
+NeighborGraph symmetricGraph(std::size_t n, ForEachEdge&& for_each_edge) {
+  NeighborGraph g;
+  g.offsets.assign(n + 1, 0);
+  for_each_edge([&](int i, int j) {
+    ++g.offsets[static_cast<std::size_t>(i) + 1];
+    ++g.offsets[static_cast<std::size_t>(j) + 1];
+  });
+  for (std::size_t i = 0; i < n; ++i) g.offsets[i + 1] += g.offsets[i];
+  g.adj.resize(static_cast<std::size_t>(g.offsets[n]));
+  std::vector<int> fill(g.offsets.begin(), g.offsets.end() - 1);
+  for_each_edge([&](int i, int j) {
+    g.adj[static_cast<std::size_t>(fill[static_cast<std::size_t>(i)]++)] = j;
+    g.adj[static_cast<std::size_t>(fill[static_cast<std::size_t>(j)]++)] = i;
+  });
+  // Sort and deduplicate each row, compacting in place.
+  int write = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const int b = g.offsets[i], e = g.offsets[i + 1];
+    std::sort(g.adj.begin() + b, g.adj.begin() + e);
+    const int row_start = write;
+    for (int m = b; m < e; ++m)
+      if (m == b || g.adj[static_cast<std::size_t>(m)] != g.adj[static_cast<std::size_t>(m - 1)])
+        g.adj[static_cast<std::size_t>(write++)] = g.adj[static_cast<std::size_t>(m)];
+    g.offsets[i] = row_start;
+  }
+  g.offsets[n] = write;
+  g.adj.resize(static_cast<std::size_t>(write));
+  g.adj.shrink_to_fit();
+  return g;
+}
+}  // namespace
+
+NeighborGraph knnGraph(const KnnTable& knn, int k, const pcl::PointCloud<pcl::Normal>* normals) {
+  const std::size_t n = knn.size();
+  const int kk = std::min(k, knn.k);
+  return symmetricGraph(n, [&](auto&& emit) {
+    for (std::size_t i = 0; i < n; ++i) {
+      const int* row = knn.row(i);
+      for (int m = 0; m < kk; ++m) {
+        const int j = row[m];
+        if (j == static_cast<int>(i)) continue;
+        if (normals && (*normals)[i].getNormalVector3fMap().dot(
+                           (*normals)[static_cast<std::size_t>(j)].getNormalVector3fMap()) < 0)
+          continue;
+        emit(static_cast<int>(i), j);
+      }
+    }
+  });
+}
+
+NeighborGraph ringGraph(std::size_t n, const std::vector<pcl::Vertices>& faces) {
+  return symmetricGraph(n, [&](auto&& emit) {
+    for (const auto& f : faces) {
+      const auto& v = f.vertices;
+      for (std::size_t m = 0; m < v.size(); ++m) {
+        const int a = static_cast<int>(v[m]), b = static_cast<int>(v[(m + 1) % v.size()]);
+        if (a != b) emit(a, b);
+      }
+    }
+  });
+}
+
+int connectedComponents(const NeighborGraph& graph, std::vector<int>& label) {
+  const std::size_t n = graph.size();
+  label.assign(n, -1);
+  int count = 0;
+  std::vector<int> stack;
+  for (std::size_t s = 0; s < n; ++s) {
+    if (label[s] >= 0) continue;
+    label[s] = count;
+    stack.assign(1, static_cast<int>(s));
+    while (!stack.empty()) {
+      const int v = stack.back();
+      stack.pop_back();
+      for (const int* j = graph.begin(static_cast<std::size_t>(v));
+           j != graph.end(static_cast<std::size_t>(v)); ++j)
+        if (label[static_cast<std::size_t>(*j)] < 0) {
+          label[static_cast<std::size_t>(*j)] = count;
+          stack.push_back(*j);
+        }
+    }
+    ++count;
+  }
+  return count;
+}
+
+}  // namespace hgd

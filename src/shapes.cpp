@@ -1,0 +1,219 @@
+#include "hgdeform/shapes.h"
+
+#include <cmath>
+#include <cstring>
+#include <map>
+#include <tuple>
+
+namespace hgd {
+namespace shapes {
+
+Shape cloudShape(const std::vector<Eigen::Vector3f>& points, const std::vector<Eigen::Vector3f>& normals) {
+  Shape s;
+  auto& c = s.cloud;
+  const char* names[6] = {"x", "y", "z", "nx", "ny", "nz"};
+  const int nf = normals.empty() ? 3 : 6;
+  for (int f = 0; f < nf; ++f) {
+    pcl::PCLPointField pf;
+    pf.name = names[f];
+    pf.offset = static_cast<std::uint32_t>(4 * f);
+    pf.datatype = pcl::PCLPointField::FLOAT32;
+    pf.count = 1;
+    c.fields.push_back(pf);
+  }
+  c.point_step = static_cast<std::uint32_t>(4 * nf);
+  c.width = static_cast<std::uint32_t>(points.size());
+  c.height = 1;
+  c.row_step = c.point_step * c.width;
+  c.is_dense = true;
+  c.data.resize(static_cast<std::size_t>(c.row_step));
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    float v[6];
+    for (int k = 0; k < 3; ++k) v[k] = points[i][k];
+    if (nf == 6)
+      for (int k = 0; k < 3; ++k) v[3 + k] = normals[i][k];
+    std::memcpy(c.data.data() + i * c.point_step, v, c.point_step);
+  }
+  s.path = "<procedural>";
+  return s;
+}
+
+namespace {
+// Samples the surface of an axis-aligned box [lo, hi] on a grid of spacing ~h, without
+// duplicating edge points; normals outward (edges take the first face's normal).
+void boxSurface(const Eigen::Vector3f& lo, const Eigen::Vector3f& hi, float h,
+                std::vector<Eigen::Vector3f>& p, std::vector<Eigen::Vector3f>& n) {
+  int cells[3];
+  for (int a = 0; a < 3; ++a) cells[a] = std::max(1, static_cast<int>(std::lround((hi[a] - lo[a]) / h)));
+  std::map<std::tuple<int, int, int>, bool> seen;
+  for (int axis = 0; axis < 3; ++axis)
+    for (int side = 0; side < 2; ++side) {
+      const int u = (axis + 1) % 3, v = (axis + 2) % 3;
+      for (int i = 0; i <= cells[u]; ++i)
+        for (int j = 0; j <= cells[v]; ++j) {
+          int g[3];
+          g[axis] = side ? cells[axis] : 0;
+          g[u] = i;
+          g[v] = j;
+          if (!seen.emplace(std::make_tuple(g[0], g[1], g[2]), true).second) continue;
+          Eigen::Vector3f x;
+          for (int a = 0; a < 3; ++a) x[a] = lo[a] + (hi[a] - lo[a]) * static_cast<float>(g[a]) / cells[a];
+          Eigen::Vector3f nv = Eigen::Vector3f::Zero();
+          for (int a = 0; a < 3; ++a) {
+            if (g[a] == 0) nv[a] -= 1;
+            if (g[a] == cells[a]) nv[a] += 1;
+          }
+          p.push_back(x);
+          n.push_back(nv.normalized());
+        }
+    }
+}
+}  // namespace
+
+Shape bar(float length, float width, float h) {
+  std::vector<Eigen::Vector3f> p, n;
+  boxSurface({0, -width / 2, -width / 2}, {length, width / 2, width / 2}, h, p, n);
+  return cloudShape(p, n);
+}
+
+Shape cylinder(float length, float radius, float h) {
+  std::vector<Eigen::Vector3f> p, n;
+  const int around = std::max(8, static_cast<int>(std::lround(2 * M_PI * radius / h)));
+  const int along = std::max(1, static_cast<int>(std::lround(length / h)));
+  for (int i = 0; i <= along; ++i)
+    for (int k = 0; k < around; ++k) {
+      const float a = static_cast<float>(2 * M_PI * k / around);
+      p.emplace_back(length * static_cast<float>(i) / along, radius * std::cos(a), radius * std::sin(a));
+      n.emplace_back(0, std::cos(a), std::sin(a));
+    }
+  for (int side = 0; side < 2; ++side) {
+    const float x = side ? length : 0;
+    const int rings = std::max(1, static_cast<int>(std::lround(radius / h)));
+    for (int r = 0; r < rings; ++r) {
+      const float rr = radius * static_cast<float>(r) / rings;
+      const int m = std::max(1, static_cast<int>(std::lround(2 * M_PI * rr / h)));
+      for (int k = 0; k < m; ++k) {
+        const float a = static_cast<float>(2 * M_PI * k / m);
+        p.emplace_back(x, rr * std::cos(a), rr * std::sin(a));
+        n.emplace_back(side ? 1.0f : -1.0f, 0, 0);
+      }
+    }
+  }
+  return cloudShape(p, n);
+}
+
+Shape bumpyPlane(int bumps, float height, float h) {
+  std::vector<Eigen::Vector3f> p, n;
+  const int cells = std::max(2, static_cast<int>(std::lround(1.0f / h)));
+  const float sigma = 0.25f / bumps;
+  auto f = [&](float x, float y, Eigen::Vector2f& grad) {
+    float z = 0;
+    grad.setZero();
+    for (int i = 0; i < bumps; ++i)
+      for (int j = 0; j < bumps; ++j) {
+        const float cx = (i + 0.5f) / bumps, cy = (j + 0.5f) / bumps;
+        const float dx = x - cx, dy = y - cy;
+        const float e = height * std::exp(-(dx * dx + dy * dy) / (2 * sigma * sigma));
+        z += e;
+        grad += Eigen::Vector2f(-dx, -dy) * e / (sigma * sigma);
+      }
+    return z;
+  };
+  for (int i = 0; i <= cells; ++i)
+    for (int j = 0; j <= cells; ++j) {
+      const float x = static_cast<float>(i) / cells, y = static_cast<float>(j) / cells;
+      Eigen::Vector2f g;
+      const float z = f(x, y, g);
+      p.emplace_back(x, y, z);
+      n.push_back(Eigen::Vector3f(-g.x(), -g.y(), 1).normalized());
+    }
+  return cloudShape(p, n);
+}
+
+Shape fork(float gap, float w, float h) {
+  std::vector<Eigen::Vector3f> p, n;
+  const float half = gap / 2 + w;  // the base spans both prongs
+  boxSurface({0, -half, -w / 2}, {0.4f, half, w / 2}, h, p, n);
+  std::vector<Eigen::Vector3f> q, m;
+  boxSurface({0.4f + h, gap / 2, -w / 2}, {1.2f, gap / 2 + w, w / 2}, h, q, m);
+  boxSurface({0.4f + h, -gap / 2 - w, -w / 2}, {1.2f, -gap / 2, w / 2}, h, q, m);
+  // Drop the prongs' inner end caps (they sit against the base).
+  for (std::size_t i = 0; i < q.size(); ++i)
+    if (!(q[i].x() < 0.4f + 1.5f * h && m[i].x() < -0.5f)) {
+      p.push_back(q[i]);
+      n.push_back(m[i]);
+    }
+  return cloudShape(p, n);
+}
+
+Shape bumpySphere(std::size_t count, float amp) {
+  std::vector<Eigen::Vector3f> p(count), n(count);
+  const double golden = M_PI * (3.0 - std::sqrt(5.0));
+  for (std::size_t i = 0; i < count; ++i) {
+    const double z = 1.0 - 2.0 * (static_cast<double>(i) + 0.5) / static_cast<double>(count);
+    const double r = std::sqrt(1.0 - z * z), th = golden * static_cast<double>(i);
+    const Eigen::Vector3d d(r * std::cos(th), r * std::sin(th), z);
+    const double bump = 1.0 + amp * std::sin(6 * d.x()) * std::sin(6 * d.y()) * std::sin(6 * d.z());
+    p[i] = (d * bump).cast<float>();
+    n[i] = d.cast<float>();  // close enough for a benchmark shape; the field needs only orientation
+  }
+  return cloudShape(p, n);
+}
+
+Shape barMesh(float length, float width, float h) {
+  // A box mesh: each face gridded, vertices shared along edges through a map.
+  const Eigen::Vector3f lo(0, -width / 2, -width / 2), hi(length, width / 2, width / 2);
+  int cells[3];
+  for (int a = 0; a < 3; ++a) cells[a] = std::max(1, static_cast<int>(std::lround((hi[a] - lo[a]) / h)));
+  std::map<std::tuple<int, int, int>, int> index;
+  std::vector<Eigen::Vector3f> p;
+  auto vertex = [&](int g0, int g1, int g2) {
+    auto [it, added] = index.emplace(std::make_tuple(g0, g1, g2), static_cast<int>(p.size()));
+    if (added) {
+      const int g[3] = {g0, g1, g2};
+      Eigen::Vector3f x;
+      for (int a = 0; a < 3; ++a) x[a] = lo[a] + (hi[a] - lo[a]) * static_cast<float>(g[a]) / cells[a];
+      p.push_back(x);
+    }
+    return it->second;
+  };
+  std::vector<pcl::Vertices> faces;
+  for (int axis = 0; axis < 3; ++axis)
+    for (int side = 0; side < 2; ++side) {
+      const int u = (axis + 1) % 3, v = (axis + 2) % 3;
+      for (int i = 0; i < cells[u]; ++i)
+        for (int j = 0; j < cells[v]; ++j) {
+          int q[4];
+          const int du[4] = {0, 1, 1, 0}, dv[4] = {0, 0, 1, 1};
+          for (int c = 0; c < 4; ++c) {
+            int g[3];
+            g[axis] = side ? cells[axis] : 0;
+            g[u] = i + du[c];
+            g[v] = j + dv[c];
+            q[c] = vertex(g[0], g[1], g[2]);
+          }
+          // (u, v, axis) is right-handed: counter-clockwise seen from +axis on the far side.
+          auto tri = [&](int a, int b, int c) {
+            pcl::Vertices t;
+            t.vertices.resize(3);
+            t.vertices[0] = a;
+            t.vertices[1] = b;
+            t.vertices[2] = c;
+            faces.push_back(std::move(t));
+          };
+          if (side) {
+            tri(q[0], q[1], q[2]);
+            tri(q[0], q[2], q[3]);
+          } else {
+            tri(q[0], q[2], q[1]);
+            tri(q[0], q[3], q[2]);
+          }
+        }
+    }
+  Shape s = cloudShape(p, {});
+  s.polygons = std::move(faces);
+  return s;
+}
+
+}  // namespace shapes
+}  // namespace hgd
