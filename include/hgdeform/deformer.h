@@ -1,0 +1,154 @@
+// The deformer façade, in libigl's precompute / solve style:
+//
+//   hgd::Deformer d(geometry, handles, options);   // field, sample, clusters, solver set-up
+//   d.drag(from, to);                              // one interactive frame (direct manipulation)
+//   d.setHandleTransform(T);                       // or: frame metaphor, T given exactly
+//   d.deformedPoints();                            // #P deformed positions (geometry's local frame)
+//   d.writeDeformed(shape);                        // into the shape's x/y/z (+ normals)
+//
+// A frame (drag / setHandleTransform) allocates nothing proportional to the shape's size.
+#pragma once
+
+#include <Eigen/Geometry>
+#include <string>
+#include <vector>
+
+#include "hgdeform/clustering.h"
+#include "hgdeform/geometry.h"
+#include "hgdeform/harmonic_field.h"
+#include "hgdeform/interpolation.h"
+#include "hgdeform/regions.h"
+#include "hgdeform/scenario.h"
+#include "hgdeform/solver.h"
+
+namespace hgd {
+
+struct DeformOptions {
+  FieldOptions field;
+  ClusterOptions clusters;
+  SolverWeights weights;
+  GaussNewtonOptions gauss_newton;
+  double drag_tolerance = 1e-4;  ///< dragTo(): stop when the picked point is this close (× diagonal)
+  double max_drag_step = 0.02;   ///< dragTo(): the cursor moves at most this much per frame (× diagonal)
+  int max_drag_frames = 3000;    ///< dragTo(): frames at most
+};
+
+struct BuildTimings {
+  double field_ms = 0, sampling_ms = 0, clusters_ms = 0, setup_ms = 0;
+  FieldTimings field;
+  double total() const { return field_ms + sampling_ms + clusters_ms + setup_ms; }
+};
+
+/// What a replayed drag did.
+struct DragResult {
+  int frames = 0;
+  int iterations = 0;            ///< Gauss–Newton iterations over all frames
+  int max_frame_iterations = 0;  ///< the most any one frame took
+  double error = 0;              ///< final distance of the picked point from the target (world units)
+  bool reached = false;
+  double solve_ms = 0, interpolation_ms = 0;
+  SolveStats last;
+};
+
+class Deformer {
+ public:
+  Deformer(const Geometry& geometry, const Handles& handles, const DeformOptions& options = {});
+  Deformer(const Deformer&) = delete;
+  Deformer& operator=(const Deformer&) = delete;
+
+  /// One interactive frame of direct manipulation: the manipulated handle's point nearest
+  /// `from` (world coordinates, deformed shape) is pulled towards `to`. Continuing a drag
+  /// (`from` equal to the previous `to`) keeps the picked point.
+  SolveStats drag(const Eigen::Vector3d& from, const Eigen::Vector3d& to);
+
+  /// A whole drag replayed (SCENARIO.md "drag"): frames with the cursor moving from the picked
+  /// point to `to`, then held there, until the picked point is within tolerance.
+  DragResult dragTo(const Eigen::Vector3d& from, const Eigen::Vector3d& to);
+
+  /// Frame metaphor: the manipulated handle gets the rigid (or affine) transform T, world
+  /// coordinates, relative to the rest shape, exactly.
+  SolveStats setHandleTransform(const Eigen::Affine3d& transform);
+
+  /// The manipulated handle's current transform (world coordinates, relative to rest).
+  Eigen::Affine3d handleTransform() const;
+
+  /// Back to the rest shape.
+  void reset();
+
+  const std::vector<Eigen::Vector3f>& deformedPoints() const { return positions_; }
+  const std::vector<Eigen::Vector3f>& deformedNormals() const { return out_normals_; }
+  Eigen::Vector3d deformedWorld(std::size_t i) const {
+    return positions_[i].cast<double>() + geometry_.origin;
+  }
+  /// Stores the deformed positions (and normals, where the shape has normal fields).
+  void writeDeformed(Shape& shape) const;
+
+  const Geometry& geometry() const { return geometry_; }
+  const Handles& handles() const { return handles_; }
+  const std::vector<float>& field() const { return phi_; }
+  const HarmonicField& harmonicField() const { return field_; }
+  const Clustering& clustering() const { return clustering_; }
+  const InterpolationTable& interpolationTable() const { return table_; }
+  /// Cluster transforms in the solver's normalised frame (about each rest barycentre).
+  const std::vector<Transform>& clusterTransforms() const { return solver_.transforms(); }
+  Energies energies() const { return solver_.energies(); }
+  const BuildTimings& buildTimings() const { return build_; }
+  double lastInterpolationMs() const { return interp_ms_; }
+  int picked() const { return picked_; }
+  double diagonal() const { return 1.0 / scale_; }
+
+ private:
+  void setupSolver(bool manipulated_constant);
+  SolveStats dragFrame(const Eigen::Vector3d& to);
+  Eigen::Vector3d pickedWorld() const;
+  void updateShape();
+  Eigen::Vector3d normalise(const Eigen::Vector3d& local) const { return (local - center_) * scale_; }
+  Eigen::Vector3d currentNormalised(int cluster, const Eigen::Vector3d& rest) const;
+  void pick(const Eigen::Vector3d& world);
+
+  Geometry geometry_;
+  Handles handles_;
+  DeformOptions options_;
+  HarmonicField field_;
+  std::vector<float> phi_;
+  Clustering clustering_;
+  InterpolationTable table_;
+  ClusterSolver solver_;
+  bool frame_mode_ = false;
+  Eigen::Vector3d center_ = Eigen::Vector3d::Zero();
+  double scale_ = 1;
+  // Shape matching of the manipulated handle.
+  std::vector<Eigen::Vector3d> manip_rest_, manip_target_;
+  std::vector<double> manip_weight_;
+  int picked_ = -1;
+  Eigen::Vector3d last_to_ = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+  // Per-frame buffers.
+  std::vector<LocalAffine> local_;
+  std::vector<Eigen::Vector3f> positions_, out_normals_;
+  BuildTimings build_;
+  double interp_ms_ = 0;
+};
+
+/// What `hgdeform deform` reports (see report.h for the JSON).
+struct DeformReport {
+  std::size_t points = 0;
+  std::size_t sample = 0;
+  std::size_t clusters = 0;
+  int isoclusters = 0;
+  std::size_t unreachable = 0;
+  int iterations = 0;
+  int frames = 0;
+  int max_frame_iterations = 0;
+  bool reached = true;
+  double handle_error = 0;  ///< world units; drags only
+  Energies energy;
+  double read_ms = 0, build_ms = 0, field_ms = 0, sampling_ms = 0, clusters_ms = 0, solve_ms = 0,
+         solve_per_iteration_ms = 0, interpolation_ms = 0, total_ms = 0;
+  BuildTimings build;
+};
+
+/// The whole of `hgdeform deform` on a shape already read: handles from the scenario, the
+/// deformer built, every move replayed, positions (and normals) stored back into `shape`.
+DeformReport deformShape(Shape& shape, const Scenario& scenario, const DeformOptions& options = {});
+
+}  // namespace hgd

@@ -1,0 +1,307 @@
+#include "hgdeform/deformer.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+#include "timer.h"
+
+namespace hgd {
+
+namespace {
+constexpr std::size_t kMaxMatchPoints = 32;  // shape-matching points besides the picked one
+constexpr double kPinWeight = 1e4;           // relative weight of the barycentre pin
+}  // namespace
+
+Deformer::Deformer(const Geometry& geometry, const Handles& handles, const DeformOptions& options)
+    : geometry_(geometry), handles_(handles), options_(options) {
+  if (handles_.manipulated.empty()) throw std::invalid_argument("Deformer: the manipulated handle is empty");
+  if (handles_.fixed.empty()) throw std::invalid_argument("Deformer: no fixed handle");
+  if (!handles_.joints.empty())
+    throw std::invalid_argument("Deformer: skeletal mode (joints) is not supported by this version");
+  Stopwatch sw;
+  field_.setInputCloud(geometry_.points);
+  if (geometry_.hasFileNormals()) field_.setInputNormals(geometry_.file_normals);
+  if (!geometry_.faces.empty()) field_.setPolygons(geometry_.faces);
+  field_.setOptions(options_.field);
+  field_.setHandles(handles_.fixed, handles_.manipulated);
+  field_.compute(phi_);
+  build_.field = field_.timings();
+  build_.field_ms = sw.lap();
+
+  const auto& pts = *geometry_.points;
+  const std::vector<int> sample = sampleSurface(pts, handles_, options_.clusters.samples);
+  build_.sampling_ms = sw.lap();
+  clustering_ =
+      buildClusters(pts, field_.normals(), phi_, handles_, field_.unreachable(), sample, options_.clusters);
+  table_ = buildInterpolation(pts, field_.normals(), phi_, handles_, clustering_);
+  build_.clusters_ms = sw.lap();
+
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(INFINITY), hi = -lo;
+  for (const auto& p : pts) {
+    lo = lo.cwiseMin(p.getVector3fMap().cast<double>());
+    hi = hi.cwiseMax(p.getVector3fMap().cast<double>());
+  }
+  center_ = 0.5 * (lo + hi);
+  const double diag = (hi - lo).norm();
+  scale_ = diag > 0 ? 1.0 / diag : 1.0;
+  setupSolver(false);
+  local_.resize(clustering_.clusters.size());
+  positions_.resize(pts.size());
+  out_normals_.resize(pts.size());
+  updateShape();
+  build_.setup_ms = sw.lap();
+}
+
+void Deformer::setupSolver(bool manipulated_constant) {
+  std::vector<Transform> previous = solver_.transforms();
+  int n_iso = 0;
+  for (const auto& cl : clustering_.clusters) n_iso += cl.kind == ClusterKind::Iso;
+  std::vector<SolverCluster> sc(clustering_.clusters.size());
+  for (std::size_t c = 0; c < sc.size(); ++c) {
+    const Cluster& cl = clustering_.clusters[c];
+    sc[c].barycenter = normalise(cl.barycenter);
+    sc[c].points.reserve(cl.members.size());
+    for (int i : cl.members)
+      sc[c].points.push_back(
+          normalise((*geometry_.points)[static_cast<std::size_t>(i)].getVector3fMap().cast<double>()));
+    sc[c].constant = cl.kind == ClusterKind::Fixed || cl.kind == ClusterKind::Static ||
+                     (cl.kind == ClusterKind::Manipulated && manipulated_constant);
+    sc[c].rot_weight = cl.kind == ClusterKind::Manipulated && options_.weights.mhc_per_cluster > 0
+                           ? std::max(1.0, options_.weights.mhc_per_cluster * n_iso)
+                           : 1.0;
+  }
+  solver_.setup(std::move(sc), clustering_.adjacency, clustering_.manipulated, options_.weights);
+  if (previous.size() == clustering_.clusters.size()) solver_.setTransforms(previous);
+  frame_mode_ = manipulated_constant;
+  picked_ = -1;
+}
+
+Eigen::Vector3d Deformer::currentNormalised(int cluster, const Eigen::Vector3d& rest) const {
+  const Transform& t = solver_.transforms()[static_cast<std::size_t>(cluster)];
+  const Eigen::Vector3d g = normalise(clustering_.clusters[static_cast<std::size_t>(cluster)].barycenter);
+  return t.A * (rest - g) + g + t.t;
+}
+
+void Deformer::pick(const Eigen::Vector3d& world) {
+  const Eigen::Vector3f local = (world - geometry_.origin).cast<float>();
+  float best = INFINITY;
+  picked_ = handles_.manipulated.front();
+  for (int i : handles_.manipulated) {
+    const float d = (positions_[static_cast<std::size_t>(i)] - local).squaredNorm();
+    if (d < best) {
+      best = d;
+      picked_ = i;
+    }
+  }
+  // Shape matching on (a subsample of) the handle's cluster points plus the picked point.
+  const auto& members = clustering_.clusters[static_cast<std::size_t>(clustering_.manipulated)].members;
+  const std::size_t stride =
+      std::max<std::size_t>(1, (members.size() + kMaxMatchPoints - 1) / kMaxMatchPoints);
+  manip_rest_.clear();
+  manip_weight_.clear();
+  for (std::size_t k = 0; k < members.size(); k += stride) {
+    if (members[k] == picked_) continue;
+    manip_rest_.push_back(
+        normalise((*geometry_.points)[static_cast<std::size_t>(members[k])].getVector3fMap().cast<double>()));
+    manip_weight_.push_back(1.0);
+  }
+  manip_rest_.push_back(
+      normalise((*geometry_.points)[static_cast<std::size_t>(picked_)].getVector3fMap().cast<double>()));
+  manip_weight_.push_back(options_.weights.picked);
+  // The paper's t_MC = c - c0: the handle's weighted barycentre goes exactly to the targets'
+  // weighted barycentre. Imposed as one extra matching point of overwhelming weight, so that
+  // only A_MC is left to the energy.
+  double wsum = 0;
+  Eigen::Vector3d c0 = Eigen::Vector3d::Zero();
+  for (std::size_t k = 0; k < manip_rest_.size(); ++k) {
+    c0 += manip_weight_[k] * manip_rest_[k];
+    wsum += manip_weight_[k];
+  }
+  manip_rest_.push_back(c0 / wsum);
+  manip_weight_.push_back(kPinWeight * wsum);
+  manip_target_.resize(manip_rest_.size());
+}
+
+SolveStats Deformer::drag(const Eigen::Vector3d& from, const Eigen::Vector3d& to) {
+  if (!to.allFinite() || !from.allFinite()) throw std::invalid_argument("drag: target is not finite");
+  if (frame_mode_) setupSolver(false);
+  if (picked_ < 0 || from != last_to_) pick(from);
+  const SolveStats st = dragFrame(to);
+  updateShape();
+  return st;
+}
+
+SolveStats Deformer::dragFrame(const Eigen::Vector3d& to) {
+  const int mc = clustering_.manipulated;
+  // Targets: the picked point at the cursor, the other points where they are now, and the
+  // pin at the weighted barycentre of those targets.
+  const std::size_t picked_slot = manip_rest_.size() - 2, pin = manip_rest_.size() - 1;
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  double wsum = 0;
+  for (std::size_t k = 0; k < pin; ++k) {
+    manip_target_[k] =
+        k == picked_slot ? normalise(to - geometry_.origin) : currentNormalised(mc, manip_rest_[k]);
+    c += manip_weight_[k] * manip_target_[k];
+    wsum += manip_weight_[k];
+  }
+  manip_target_[pin] = c / wsum;
+  solver_.setManipulation(manip_rest_, manip_target_, manip_weight_);
+  const SolveStats st = solver_.solve(options_.gauss_newton);
+  last_to_ = to;
+  return st;
+}
+
+Eigen::Vector3d Deformer::pickedWorld() const {
+  const Eigen::Vector3d rest =
+      normalise((*geometry_.points)[static_cast<std::size_t>(picked_)].getVector3fMap().cast<double>());
+  return currentNormalised(clustering_.manipulated, rest) / scale_ + center_ + geometry_.origin;
+}
+
+DragResult Deformer::dragTo(const Eigen::Vector3d& from, const Eigen::Vector3d& to) {
+  DragResult r;
+  if (!to.allFinite() || !from.allFinite()) throw std::invalid_argument("drag: target is not finite");
+  if (frame_mode_) setupSolver(false);
+  pick(from);
+  const Eigen::Vector3d start = deformedWorld(static_cast<std::size_t>(picked_));
+  last_to_ = from;
+  const double diag = 1.0 / scale_;
+  const int path_frames =
+      std::max(1, static_cast<int>(std::ceil((to - start).norm() / (options_.max_drag_step * diag))));
+  // Frames between the first and the last change only the solver's state: the shape is
+  // interpolated once at the end (the result is the same; the replay is faster).
+  auto frame = [&](const Eigen::Vector3d& next) {
+    const SolveStats st = dragFrame(next);
+    ++r.frames;
+    r.iterations += st.iterations;
+    r.max_frame_iterations = std::max(r.max_frame_iterations, st.iterations);
+    r.solve_ms += st.ms;
+    r.last = st;
+  };
+  for (int f = 1; f <= path_frames; ++f) frame(start + (to - start) * (static_cast<double>(f) / path_frames));
+  const double tol = options_.drag_tolerance * diag;
+  while (r.frames < options_.max_drag_frames && (pickedWorld() - to).norm() > tol) frame(to);
+  updateShape();
+  r.interpolation_ms = interp_ms_;
+  r.error = (deformedWorld(static_cast<std::size_t>(picked_)) - to).norm();
+  r.reached = r.error <= tol;
+  return r;
+}
+
+SolveStats Deformer::setHandleTransform(const Eigen::Affine3d& transform) {
+  if (!transform.matrix().allFinite())
+    throw std::invalid_argument("setHandleTransform: transform is not finite");
+  if (!frame_mode_) setupSolver(true);
+  const Eigen::Matrix3d a = transform.linear();
+  const Eigen::Vector3d o = geometry_.origin;
+  // The world transform in the solver's normalised frame, about the cluster's barycentre.
+  const Eigen::Vector3d shift = scale_ * (a * (center_ + o) + transform.translation() - o - center_);
+  const int mc = clustering_.manipulated;
+  const Eigen::Vector3d g = normalise(clustering_.clusters[static_cast<std::size_t>(mc)].barycenter);
+  solver_.setConstantTransform(mc, Transform{a, a * g + shift - g});
+  const SolveStats st = solver_.solve(options_.gauss_newton);
+  updateShape();
+  return st;
+}
+
+Eigen::Affine3d Deformer::handleTransform() const {
+  const int mc = clustering_.manipulated;
+  const Transform& t = solver_.transforms()[static_cast<std::size_t>(mc)];
+  const Eigen::Vector3d g = normalise(clustering_.clusters[static_cast<std::size_t>(mc)].barycenter);
+  const Eigen::Vector3d shift = t.t + g - t.A * g;  // normalised: x -> A x + shift
+  const Eigen::Vector3d o = geometry_.origin;
+  Eigen::Affine3d w = Eigen::Affine3d::Identity();
+  w.linear() = t.A;
+  w.translation() = shift / scale_ - t.A * (center_ + o) + o + center_;
+  return w;
+}
+
+void Deformer::reset() {
+  solver_.reset();
+  picked_ = -1;
+  if (frame_mode_) setupSolver(false);
+  solver_.reset();
+  updateShape();
+}
+
+void Deformer::updateShape() {
+  Stopwatch sw;
+  const auto& tr = solver_.transforms();
+  for (std::size_t c = 0; c < tr.size(); ++c) {
+    const Eigen::Vector3d g = normalise(clustering_.clusters[c].barycenter);
+    const Eigen::Matrix3d& a = tr[c].A;
+    local_[c].A = a.cast<float>();
+    local_[c].b = (center_ - a * center_ + (g + tr[c].t - a * g) / scale_).cast<float>();
+  }
+  interpolate(table_, local_, *geometry_.points, &field_.normals(), positions_, &out_normals_);
+  interp_ms_ = sw.ms();
+}
+
+void Deformer::writeDeformed(Shape& shape) const {
+  storePositions(shape, geometry_, positions_, &out_normals_);
+}
+
+DeformReport deformShape(Shape& shape, const Scenario& scenario, const DeformOptions& options) {
+  Stopwatch total;
+  DeformReport rep;
+  const Geometry geometry = extractGeometry(shape);
+  const Handles handles = resolveHandles(scenario, geometry);
+  DeformOptions opt = options;
+  if (scenario.clusters) opt.clusters.isoclusters = *scenario.clusters;
+  if (shape.isOrganized()) {
+    opt.field.orient_to_viewpoint = true;
+    opt.field.viewpoint = (shape.sensor_origin.head<3>().cast<double>() - geometry.origin).cast<float>();
+  }
+  Deformer d(geometry, handles, opt);
+  const BuildTimings& b = d.buildTimings();
+  rep.build = b;
+  rep.build_ms = total.ms();  // everything before the first solve
+  rep.field_ms = b.field_ms;
+  rep.sampling_ms = b.sampling_ms;
+  rep.clusters_ms = b.clusters_ms;
+  rep.points = geometry.size();
+  rep.sample = d.clustering().sample.size();
+  rep.clusters = d.clustering().clusters.size();
+  rep.isoclusters = opt.clusters.isoclusters;
+  rep.unreachable = d.harmonicField().unreachable().size();
+
+  for (const Move& m : scenario.moves) {
+    if (m.kind == Move::Kind::Drag) {
+      const DragResult r = d.dragTo(m.drag.from, m.drag.to);
+      rep.frames += r.frames;
+      rep.iterations += r.iterations;
+      rep.max_frame_iterations = std::max(rep.max_frame_iterations, r.max_frame_iterations);
+      rep.solve_ms += r.solve_ms;
+      rep.interpolation_ms += r.interpolation_ms;
+      rep.handle_error = r.error;
+      rep.reached = rep.reached && r.reached;
+    } else {
+      const FrameMove& f = m.frame;
+      Eigen::Vector3d center;
+      if (f.center) {
+        center = *f.center;
+      } else {  // the handle's current barycentre
+        center.setZero();
+        for (int i : handles.manipulated) center += d.deformedWorld(static_cast<std::size_t>(i));
+        center /= static_cast<double>(handles.manipulated.size());
+      }
+      Eigen::Affine3d motion = Eigen::Affine3d::Identity();
+      motion.translate(center + f.translate);
+      motion.rotate(Eigen::AngleAxisd(f.degrees * M_PI / 180.0, f.axis.normalized()));
+      motion.translate(-center);
+      const SolveStats st = d.setHandleTransform(motion * d.handleTransform());
+      rep.frames += 1;
+      rep.iterations += st.iterations;
+      rep.max_frame_iterations = std::max(rep.max_frame_iterations, st.iterations);
+      rep.solve_ms += st.ms;
+      rep.interpolation_ms += d.lastInterpolationMs();
+    }
+  }
+  rep.energy = d.energies();
+  rep.solve_per_iteration_ms = rep.iterations > 0 ? rep.solve_ms / rep.iterations : 0;
+  d.writeDeformed(shape);
+  rep.total_ms = total.ms();
+  return rep;
+}
+
+}  // namespace hgd

@@ -1,0 +1,156 @@
+#include "hgdeform/report.h"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <random>
+
+#include "hgdeform/fields.h"
+#include "hgdeform/io.h"
+
+namespace hgd {
+
+namespace {
+// A perceptual-ish blue -> cyan -> yellow -> red map.
+Eigen::Vector3f colourMap(float v) {
+  v = std::clamp(std::isfinite(v) ? v : 0.0f, 0.0f, 1.0f);
+  const Eigen::Vector3f stops[4] = {
+      {0.23f, 0.30f, 0.75f}, {0.35f, 0.80f, 0.90f}, {0.95f, 0.85f, 0.30f}, {0.71f, 0.02f, 0.15f}};
+  const float x = v * 3.0f;
+  const int k = std::min(2, static_cast<int>(x));
+  const float t = x - static_cast<float>(k);
+  return (1 - t) * stops[k] + t * stops[k + 1];
+}
+}  // namespace
+
+void storeField(Shape& shape, const Geometry& geometry, const std::vector<float>& values,
+                const std::string& name, bool color) {
+  const int fi = addFloatField(shape.cloud, name);
+  const std::size_t n = shape.size();
+  for (std::size_t i = 0; i < n; ++i) {
+    const int k = geometry.finite_index[i];
+    writeValue(shape.cloud, i, shape.cloud.fields[static_cast<std::size_t>(fi)],
+               k >= 0 ? values[static_cast<std::size_t>(k)] : std::numeric_limits<float>::quiet_NaN());
+  }
+  if (!color) return;
+  if (shape.format == FileFormat::Pcd || findField(shape.cloud, "rgb") >= 0) {
+    const int ci = addFloatField(shape.cloud, "rgb");
+    for (std::size_t i = 0; i < n; ++i) {
+      const int k = geometry.finite_index[i];
+      const Eigen::Vector3f c = colourMap(k >= 0 ? values[static_cast<std::size_t>(k)] : 0.0f) * 255.0f;
+      const std::uint32_t packed = (static_cast<std::uint32_t>(c.x()) << 16) |
+                                   (static_cast<std::uint32_t>(c.y()) << 8) |
+                                   static_cast<std::uint32_t>(c.z());
+      std::memcpy(shape.cloud.data.data() + i * shape.cloud.point_step +
+                      shape.cloud.fields[static_cast<std::size_t>(ci)].offset,
+                  &packed, 4);
+    }
+    return;
+  }
+  // PLY/OBJ: red/green/blue as uchar (reusing existing fields of those names, whatever their type).
+  const char* names[3] = {"red", "green", "blue"};
+  int idx[3];
+  for (int c = 0; c < 3; ++c) {
+    idx[c] = findField(shape.cloud, names[c]);
+    if (idx[c] < 0) {
+      idx[c] = addFloatField(shape.cloud, names[c]);
+      shape.cloud.fields[static_cast<std::size_t>(idx[c])].datatype =
+          pcl::PCLPointField::UINT8;  // first byte used
+    }
+  }
+  const bool float_colour =
+      shape.cloud.fields[static_cast<std::size_t>(idx[0])].datatype == pcl::PCLPointField::FLOAT32;
+  for (std::size_t i = 0; i < n; ++i) {
+    const int k = geometry.finite_index[i];
+    const Eigen::Vector3f c = colourMap(k >= 0 ? values[static_cast<std::size_t>(k)] : 0.0f);
+    for (int ch = 0; ch < 3; ++ch)
+      writeValue(shape.cloud, i, shape.cloud.fields[static_cast<std::size_t>(idx[ch])],
+                 float_colour ? c[ch] : c[ch] * 255.0f);
+  }
+}
+
+std::string reportJson(const DeformReport& r) {
+  nlohmann::json j;
+  j["points"] = r.points;
+  j["sample"] = r.sample;
+  j["clusters"] = r.clusters;
+  j["isoclusters"] = r.isoclusters;
+  j["unreachable"] = r.unreachable;
+  j["iterations"] = r.iterations;
+  j["frames"] = r.frames;
+  j["max_frame_iterations"] = r.max_frame_iterations;
+  j["handle_error"] = r.handle_error;
+  j["reached"] = r.reached;
+  j["energy"] = {{"detail", r.energy.detail},
+                 {"prop", r.energy.prop},
+                 {"manip", r.energy.manip},
+                 {"length", r.energy.length},
+                 {"total", r.energy.total()}};
+  j["ms"] = {{"read", r.read_ms},
+             {"build", r.build_ms},
+             {"field", r.field_ms},
+             {"normals", r.build.field.normals_ms},
+             {"knn", r.build.field.knn_ms},
+             {"laplacian", r.build.field.graph_ms + r.build.field.laplacian_ms},
+             {"field_solve", r.build.field.solve_ms},
+             {"sampling", r.sampling_ms},
+             {"clusters", r.clusters_ms},
+             {"solve", r.solve_ms},
+             {"solve_per_iteration", r.solve_per_iteration_ms},
+             {"interpolation", r.interpolation_ms},
+             {"total", r.total_ms}};
+  return j.dump(2) + "\n";
+}
+
+void writeTextAtomically(const std::string& path, const std::string& text) {
+  namespace fs = std::filesystem;
+  const fs::path target(path);
+  const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
+  std::random_device rd;
+  const fs::path tmp = dir / ("." + target.filename().string() + ".tmp-" + std::to_string(::getpid()) + "-" +
+                              std::to_string(rd()));
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out) throw IoError(path + ": cannot write (" + std::strerror(errno) + ")");
+    out << text;
+    out.flush();
+    if (!out) {
+      std::error_code ec;
+      fs::remove(tmp, ec);
+      throw IoError(path + ": write failed");
+    }
+  }
+  std::error_code ec;
+  fs::rename(tmp, target, ec);
+  if (ec) {
+    fs::remove(tmp, ec);
+    throw IoError(path + ": cannot rename temporary file into place (" + ec.message() + ")");
+  }
+}
+
+void writeReportJson(const std::string& path, const DeformReport& report) {
+  writeTextAtomically(path, reportJson(report));
+}
+
+std::string summaryLine(const DeformReport& r) {
+  char buf[512];
+  std::snprintf(
+      buf, sizeof buf,
+      "%zu points, %zu clusters, %d frames, %d Gauss-Newton iterations (max %d per frame), handle error "
+      "%.3g; "
+      "build %.0f ms (field %.0f, sampling %.0f, clusters %.0f), solve %.1f ms (%.3f per iteration), "
+      "interpolation %.1f ms, total %.0f ms",
+      r.points, r.clusters, r.frames, r.iterations, r.max_frame_iterations, r.handle_error, r.build_ms,
+      r.field_ms, r.sampling_ms, r.clusters_ms, r.solve_ms, r.solve_per_iteration_ms, r.interpolation_ms,
+      r.total_ms);
+  return buf;
+}
+
+}  // namespace hgd

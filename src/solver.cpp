@@ -1,0 +1,354 @@
+#include "hgdeform/solver.h"
+
+#include <cmath>
+#include <stdexcept>
+
+#include "timer.h"
+
+namespace hgd {
+
+namespace {
+using Mat34 = Eigen::Matrix<double, 3, 4>;
+using Vec12 = Eigen::Matrix<double, 12, 1>;
+using Mat12 = Eigen::Matrix<double, 12, 12>;
+
+Mat34 toU(const Transform& tr) {
+  Mat34 u;
+  u.leftCols<3>() = tr.A;
+  u.col(3) = tr.t;
+  return u;
+}
+
+// The six Rot residuals and their Jacobian with respect to (a1, a2, a3).
+void rotResiduals(const Eigen::Matrix3d& a, Eigen::Matrix<double, 6, 1>& r, Eigen::Matrix<double, 6, 9>& j) {
+  const Eigen::Vector3d c1 = a.col(0), c2 = a.col(1), c3 = a.col(2);
+  r << c1.dot(c2), c1.dot(c3), c2.dot(c3), c1.dot(c1) - 1, c2.dot(c2) - 1, c3.dot(c3) - 1;
+  j.setZero();
+  j.block<1, 3>(0, 0) = c2.transpose();
+  j.block<1, 3>(0, 3) = c1.transpose();
+  j.block<1, 3>(1, 0) = c3.transpose();
+  j.block<1, 3>(1, 6) = c1.transpose();
+  j.block<1, 3>(2, 3) = c3.transpose();
+  j.block<1, 3>(2, 6) = c2.transpose();
+  j.block<1, 3>(3, 0) = 2 * c1.transpose();
+  j.block<1, 3>(4, 3) = 2 * c2.transpose();
+  j.block<1, 3>(5, 6) = 2 * c3.transpose();
+}
+
+// (S ⊗ I3) for the ordering u = [a1; a2; a3; t].
+Mat12 kron(const Eigen::Matrix4d& s) {
+  Mat12 k = Mat12::Zero();
+  for (int a = 0; a < 4; ++a)
+    for (int b = 0; b < 4; ++b) k.block<3, 3>(3 * a, 3 * b) = s(a, b) * Eigen::Matrix3d::Identity();
+  return k;
+}
+}  // namespace
+
+double rotationResidual(const Eigen::Matrix3d& a) {
+  Eigen::Matrix<double, 6, 1> r;
+  Eigen::Matrix<double, 6, 9> j;
+  rotResiduals(a, r, j);
+  return r.squaredNorm();
+}
+
+void ClusterSolver::setup(std::vector<SolverCluster> clusters, const std::vector<std::pair<int, int>>& edges,
+                          int manipulated, const SolverWeights& weights) {
+  clusters_ = std::move(clusters);
+  manipulated_ = manipulated;
+  w_ = weights;
+  const int nc = static_cast<int>(clusters_.size());
+  var_.assign(static_cast<std::size_t>(nc), -1);
+  int nv = 0;
+  for (int c = 0; c < nc; ++c)
+    if (!clusters_[static_cast<std::size_t>(c)].constant) {
+      var_[static_cast<std::size_t>(c)] = nv;
+      nv += 12;
+    }
+  transforms_.assign(static_cast<std::size_t>(nc), Transform{});
+  x_ = Eigen::VectorXd::Zero(nv);
+  reset();
+
+  pairs_.clear();
+  for (const auto& [i, j] : edges) {
+    if (i == j) continue;
+    const auto& ci = clusters_[static_cast<std::size_t>(i)];
+    const auto& cj = clusters_[static_cast<std::size_t>(j)];
+    if (ci.constant && cj.constant) continue;
+    Pair p{i,
+           j,
+           Eigen::Matrix4d::Zero(),
+           Eigen::Matrix4d::Zero(),
+           Eigen::Matrix4d::Zero(),
+           Eigen::Vector4d::Zero(),
+           Eigen::Vector4d::Zero(),
+           0,
+           (ci.barycenter - cj.barycenter).norm()};
+    for (const auto* cl : {&ci, &cj})
+      for (const auto& x : cl->points) {
+        Eigen::Vector4d yi, yj;
+        yi << x - ci.barycenter, 1;
+        yj << x - cj.barycenter, 1;
+        p.sii += yi * yi.transpose();
+        p.sij += yi * yj.transpose();
+        p.sjj += yj * yj.transpose();
+        p.mi += yi;
+        p.mj += yj;
+        p.count += 1;
+      }
+    pairs_.push_back(p);
+  }
+  manip_active_ = false;
+  pattern_ready_ = false;
+}
+
+void ClusterSolver::reset() {
+  for (std::size_t c = 0; c < clusters_.size(); ++c) {
+    if (var_[c] < 0) continue;
+    transforms_[c] = Transform{};
+    x_.segment<12>(var_[c]) << 1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0;
+  }
+}
+
+void ClusterSolver::setTransforms(const std::vector<Transform>& transforms) {
+  if (transforms.size() != clusters_.size())
+    throw std::invalid_argument("ClusterSolver: wrong number of transforms");
+  transforms_ = transforms;
+  for (std::size_t c = 0; c < clusters_.size(); ++c) {
+    if (var_[c] < 0) continue;
+    for (int k = 0; k < 3; ++k) x_.segment<3>(var_[c] + 3 * k) = transforms[c].A.col(k);
+    x_.segment<3>(var_[c] + 9) = transforms[c].t;
+  }
+}
+
+void ClusterSolver::setManipulation(const std::vector<Eigen::Vector3d>& rest,
+                                    const std::vector<Eigen::Vector3d>& target,
+                                    const std::vector<double>& weight) {
+  if (manipulated_ < 0 || var_[static_cast<std::size_t>(manipulated_)] < 0)
+    throw std::logic_error("ClusterSolver: no free manipulated cluster");
+  if (rest.size() != target.size() || rest.size() != weight.size())
+    throw std::invalid_argument("ClusterSolver: rest, target and weight sizes differ");
+  const Eigen::Vector3d g = clusters_[static_cast<std::size_t>(manipulated_)].barycenter;
+  Eigen::Matrix4d s = Eigen::Matrix4d::Zero();
+  Eigen::Matrix<double, 4, 3> b = Eigen::Matrix<double, 4, 3>::Zero();
+  double c = 0;
+  for (std::size_t k = 0; k < rest.size(); ++k) {
+    Eigen::Vector4d y;
+    y << rest[k] - g, 1;
+    const Eigen::Vector3d z = target[k] - g;
+    s += weight[k] * y * y.transpose();
+    b += weight[k] * y * z.transpose();
+    c += weight[k] * z.squaredNorm();
+  }
+  const bool structure_changed = !manip_active_ || s != manip_s_;
+  manip_s_ = s;
+  manip_b_ = b;
+  manip_c_ = c;
+  manip_active_ = true;
+  if (structure_changed) pattern_ready_ = false;
+}
+
+void ClusterSolver::clearManipulation() {
+  if (manip_active_) pattern_ready_ = false;
+  manip_active_ = false;
+}
+
+void ClusterSolver::setConstantTransform(int cluster, const Transform& transform) {
+  if (var_.at(static_cast<std::size_t>(cluster)) >= 0)
+    throw std::logic_error("ClusterSolver: cluster is not constant");
+  transforms_[static_cast<std::size_t>(cluster)] = transform;
+}
+
+void ClusterSolver::unpack(const Eigen::VectorXd& x) {
+  for (std::size_t c = 0; c < clusters_.size(); ++c) {
+    if (var_[c] < 0) continue;
+    const auto u = x.segment<12>(var_[c]);
+    for (int k = 0; k < 3; ++k) transforms_[c].A.col(k) = u.segment<3>(3 * k);
+    transforms_[c].t = u.segment<3>(9);
+  }
+}
+
+Eigen::Vector3d ClusterSolver::translationOf(const Eigen::VectorXd& x, int cluster) const {
+  const int v = var_[static_cast<std::size_t>(cluster)];
+  return v >= 0 ? Eigen::Vector3d(x.segment<3>(v + 9)) : transforms_[static_cast<std::size_t>(cluster)].t;
+}
+
+Energies ClusterSolver::evaluate(const Eigen::VectorXd& x) const {
+  auto uOf = [&](int c) -> Mat34 {
+    const int v = var_[static_cast<std::size_t>(c)];
+    if (v < 0) return toU(transforms_[static_cast<std::size_t>(c)]);
+    return Eigen::Map<const Mat34>(x.data() + v);
+  };
+  Energies e;
+  for (std::size_t c = 0; c < clusters_.size(); ++c) {
+    if (var_[c] < 0) continue;
+    const Mat34 u = uOf(static_cast<int>(c));
+    e.detail += w_.detail * clusters_[c].rot_weight * rotationResidual(u.leftCols<3>());
+  }
+  for (const auto& p : pairs_) {
+    const Mat34 ui = uOf(p.i), uj = uOf(p.j);
+    const Eigen::Vector3d d = clusters_[static_cast<std::size_t>(p.i)].barycenter -
+                              clusters_[static_cast<std::size_t>(p.j)].barycenter;
+    const double prop = (ui * p.sii * ui.transpose()).trace() - 2 * (ui * p.sij * uj.transpose()).trace() +
+                        (uj * p.sjj * uj.transpose()).trace() + 2 * d.dot(ui * p.mi - uj * p.mj) +
+                        p.count * d.squaredNorm();
+    e.prop += w_.prop * std::max(prop, 0.0);
+    const Eigen::Vector3d gap = d + translationOf(x, p.i) - translationOf(x, p.j);
+    const double r = gap.norm() - p.rest_length;
+    e.length += w_.length * r * r;
+  }
+  if (manip_active_) {
+    const Mat34 u = uOf(manipulated_);
+    const double m = (u * manip_s_ * u.transpose()).trace() - 2 * (u * manip_b_).trace() + manip_c_;
+    e.manip = w_.manip * std::max(m, 0.0);
+  }
+  return e;
+}
+
+SolveStats ClusterSolver::solve(const GaussNewtonOptions& options) {
+  Stopwatch sw;
+  SolveStats st;
+  const int nv = static_cast<int>(x_.size());
+  if (nv == 0) {
+    st.converged = true;
+    st.energy = evaluate(x_);
+    return st;
+  }
+  const int nb = nv / 12;
+  auto block = [&](int c) { return var_[static_cast<std::size_t>(c)] / 12; };
+
+  if (!pattern_ready_) {
+    // Constant part of the normal equations and the sparsity pattern (all diagonal blocks, and
+    // off-diagonal blocks for adjacent free pairs).
+    std::vector<Eigen::Triplet<double>> trip;
+    auto addBlock = [&](int bi, int bj, const Mat12& m) {
+      for (int r = 0; r < 12; ++r)
+        for (int c = 0; c < 12; ++c) trip.emplace_back(12 * bi + r, 12 * bj + c, m(r, c));
+    };
+    for (int b = 0; b < nb; ++b) addBlock(b, b, Mat12::Zero());
+    for (const auto& p : pairs_) {
+      const bool fi = var_[static_cast<std::size_t>(p.i)] >= 0, fj = var_[static_cast<std::size_t>(p.j)] >= 0;
+      if (fi) addBlock(block(p.i), block(p.i), w_.prop * kron(p.sii));
+      if (fj) addBlock(block(p.j), block(p.j), w_.prop * kron(p.sjj));
+      if (fi && fj) {
+        addBlock(block(p.i), block(p.j), -w_.prop * kron(p.sij));
+        addBlock(block(p.j), block(p.i), -w_.prop * kron(p.sij.transpose()));
+      }
+    }
+    if (manip_active_) addBlock(block(manipulated_), block(manipulated_), w_.manip * kron(manip_s_));
+    h_const_.resize(nv, nv);
+    h_const_.setFromTriplets(trip.begin(), trip.end());
+    h_const_.makeCompressed();
+    h_ = h_const_;
+    ldlt_.analyzePattern(h_);
+    pattern_ready_ = true;
+  }
+
+  Energies e = evaluate(x_);
+  double energy = e.total();
+  Eigen::VectorXd grad(nv), step(nv), trial(nv);
+  // Adds a dense 12x12 (or smaller, at an offset) block into h_ at block (bi, bj).
+  auto addTo = [&](int bi, int bj, int r0, int c0, const Eigen::MatrixXd& m) {
+    for (int c = 0; c < m.cols(); ++c)
+      for (int r = 0; r < m.rows(); ++r) h_.coeffRef(12 * bi + r0 + r, 12 * bj + c0 + c) += m(r, c);
+  };
+  auto uOf = [&](int c) -> Mat34 {
+    const int v = var_[static_cast<std::size_t>(c)];
+    if (v < 0) return toU(transforms_[static_cast<std::size_t>(c)]);
+    return Eigen::Map<const Mat34>(x_.data() + v);
+  };
+
+  for (int it = 0; it < options.max_iterations; ++it) {
+    // Gradient (Jᵀr) of every term, and the varying part of JᵀJ (Rot, Length).
+    h_ = h_const_;
+    grad.setZero();
+    for (const auto& p : pairs_) {
+      const Mat34 ui = uOf(p.i), uj = uOf(p.j);
+      const Eigen::Vector3d d = clusters_[static_cast<std::size_t>(p.i)].barycenter -
+                                clusters_[static_cast<std::size_t>(p.j)].barycenter;
+      const int vi = var_[static_cast<std::size_t>(p.i)], vj = var_[static_cast<std::size_t>(p.j)];
+      if (vi >= 0) {
+        const Mat34 gi = ui * p.sii - uj * p.sij.transpose() + d * p.mi.transpose();
+        grad.segment<12>(vi) += w_.prop * Eigen::Map<const Vec12>(gi.data());
+      }
+      if (vj >= 0) {
+        const Mat34 gj = uj * p.sjj - ui * p.sij - d * p.mj.transpose();
+        grad.segment<12>(vj) += w_.prop * Eigen::Map<const Vec12>(gj.data());
+      }
+      const Eigen::Vector3d gap = d + translationOf(x_, p.i) - translationOf(x_, p.j);
+      const double len = gap.norm();
+      if (len > 1e-12) {
+        const Eigen::Vector3d dir = gap / len;
+        const double r = len - p.rest_length;
+        const Eigen::Matrix3d jj = w_.length * dir * dir.transpose();
+        if (vi >= 0) {
+          grad.segment<3>(vi + 9) += w_.length * r * dir;
+          addTo(block(p.i), block(p.i), 9, 9, jj);
+        }
+        if (vj >= 0) {
+          grad.segment<3>(vj + 9) -= w_.length * r * dir;
+          addTo(block(p.j), block(p.j), 9, 9, jj);
+        }
+        if (vi >= 0 && vj >= 0) {
+          addTo(block(p.i), block(p.j), 9, 9, -jj);
+          addTo(block(p.j), block(p.i), 9, 9, -jj);
+        }
+      }
+    }
+    for (std::size_t c = 0; c < clusters_.size(); ++c) {
+      const int v = var_[c];
+      if (v < 0) continue;
+      Eigen::Matrix<double, 6, 1> r;
+      Eigen::Matrix<double, 6, 9> j;
+      rotResiduals(uOf(static_cast<int>(c)).leftCols<3>(), r, j);
+      const double w = w_.detail * clusters_[c].rot_weight;
+      grad.segment<9>(v) += w * j.transpose() * r;
+      Eigen::Matrix<double, 9, 9> jtj = w * j.transpose() * j;
+      jtj.diagonal().array() += 1e-9;  // keeps the system definite when a block is unconstrained
+      addTo(v / 12, v / 12, 0, 0, jtj);
+    }
+    if (manip_active_) {
+      const int v = var_[static_cast<std::size_t>(manipulated_)];
+      const Mat34 g = uOf(manipulated_) * manip_s_ - manip_b_.transpose();
+      grad.segment<12>(v) += w_.manip * Eigen::Map<const Vec12>(g.data());
+    }
+    ldlt_.factorize(h_);
+    if (ldlt_.info() != Eigen::Success) throw std::runtime_error("Gauss-Newton: singular normal equations");
+    step = -ldlt_.solve(grad);
+    if (!step.allFinite()) throw std::runtime_error("Gauss-Newton: non-finite step");
+
+    // Backtracking keeps every iteration a decrease (Rot and Length are not linear).
+    double alpha = 1, trial_energy = energy;
+    Energies te;
+    bool ok = false;
+    for (int k = 0; k < 10; ++k, alpha *= 0.5) {
+      trial = x_ + alpha * step;
+      te = evaluate(trial);
+      trial_energy = te.total();
+      if (trial_energy <= energy) {
+        ok = true;
+        break;
+      }
+    }
+    ++st.iterations;
+    if (!ok) {
+      st.decreased = energy <= 1e-15;
+      st.converged = st.decreased || alpha * step.norm() < 1e-12;
+      break;
+    }
+    const double decrease = energy - trial_energy;
+    x_ = trial;
+    e = te;
+    const double previous = energy;
+    energy = trial_energy;
+    if (decrease <= options.tolerance * std::max(previous, 1e-300) || energy < 1e-15) {
+      st.converged = true;
+      break;
+    }
+  }
+  unpack(x_);
+  st.energy = e;
+  st.ms = sw.ms();
+  return st;
+}
+
+}  // namespace hgd
