@@ -77,231 +77,195 @@ std::vector<int> sampleSurface(const pcl::PointCloud<pcl::PointXYZ>& points, con
   return sample;
 }
 
-Clustering buildClusters(const pcl::PointCloud<pcl::PointXYZ>& points,
-                         const pcl::PointCloud<pcl::Normal>& normals, const std::vector<float>& phi,
-                         const Handles& handles, const std::vector<int>& unreachable,
-                         const std::vector<int>& sample, const ClusterOptions& options) {
+Clustering buildClusters(const pcl::PointCloud<pcl::PointXYZ>& points, const NeighborGraph& graph,
+                         const std::vector<float>& phi, const Handles& handles,
+                         const std::vector<int>& unreachable, const std::vector<int>& sample,
+                         const ClusterOptions& options) {
   Clustering c;
   c.sample = sample;
-  const int n_iso = std::max(0, options.isoclusters);
-  const int top = n_iso + 1;
+  const std::size_t n = points.size();
+  const int top = std::max(0, options.isoclusters) + 1;
   c.levels.resize(static_cast<std::size_t>(top) + 1);
   for (int l = 0; l <= top; ++l) c.levels[static_cast<std::size_t>(l)] = static_cast<double>(l) / top;
-  const double spacing = 1.0 / top;
-  const std::size_t m = sample.size();
+  auto slabOf = [&](std::size_t i) {
+    return std::clamp(static_cast<int>(std::floor(phi[i] * top)), 0, top - 1);
+  };
 
-  // Roles of shape points: -1 free, -2 manipulated, -3 unreachable, k >= 0 fixed handle k.
-  std::vector<int> role(points.size(), -1);
+  // Roles: -1 free, -2 manipulated, -3 unreachable, k >= 0 fixed handle k.
+  std::vector<int> role(n, -1);
   for (int i : unreachable) role[static_cast<std::size_t>(i)] = -3;
   for (std::size_t k = 0; k < handles.fixed.size(); ++k)
     for (int i : handles.fixed[k]) role[static_cast<std::size_t>(i)] = static_cast<int>(k);
   for (int i : handles.manipulated) role[static_cast<std::size_t>(i)] = -2;
+  std::vector<char> in_sample(n, 0);
+  for (int s : sample) in_sample[static_cast<std::size_t>(s)] = 1;
 
-  // Sample graph: kNN among sample points, normal-filtered, symmetric.
-  pcl::PointCloud<pcl::PointXYZ> sp;
-  pcl::PointCloud<pcl::Normal> sn;
-  sp.resize(m);
-  sn.resize(m);
-  for (std::size_t s = 0; s < m; ++s) {
-    sp[s] = points[static_cast<std::size_t>(sample[s])];
-    sn[s] = normals[static_cast<std::size_t>(sample[s])];
-  }
-  const NeighborGraph g = knnGraph(computeKnn(sp, options.k_sample), options.k_sample, &sn);
-
-  auto roleOf = [&](std::size_t s) { return role[static_cast<std::size_t>(sample[s])]; };
-  auto phiOf = [&](std::size_t s) { return static_cast<double>(phi[static_cast<std::size_t>(sample[s])]); };
-  c.sample_level.resize(m);
-  for (std::size_t s = 0; s < m; ++s) {
-    const int r = roleOf(s);
-    if (r == -2)
-      c.sample_level[s] = top;
-    else if (r >= 0 || r == -3)
-      c.sample_level[s] = 0;
-    else
-      c.sample_level[s] = std::clamp(static_cast<int>(std::lround(phiOf(s) * top)), 0, top);
-  }
-  c.sample_piece.assign(m, -1);
-
-  auto newCluster = [&](ClusterKind kind, int level, int handle) {
+  auto newCluster = [&](ClusterKind kind, int lvl, int handle) {
     Cluster cl;
     cl.id = static_cast<int>(c.clusters.size());
     cl.kind = kind;
-    cl.level = level;
-    cl.phi = c.levels[static_cast<std::size_t>(level)];
+    cl.level = lvl;
+    cl.phi = c.levels[static_cast<std::size_t>(lvl)];
     cl.handle = handle;
     c.clusters.push_back(cl);
     return cl.id;
   };
-
-  // Fixed handles: one cluster each; the level-0 region around a handle joins it by BFS.
-  std::vector<int> fixed_id(handles.fixed.size());
-  for (std::size_t k = 0; k < handles.fixed.size(); ++k)
-    fixed_id[k] = newCluster(ClusterKind::Fixed, 0, static_cast<int>(k));
-  c.manipulated = newCluster(ClusterKind::Manipulated, top, -1);
-
-  std::deque<int> queue;
-  for (std::size_t s = 0; s < m; ++s) {
-    const int r = roleOf(s);
-    if (r >= 0) {
-      c.sample_piece[s] = fixed_id[static_cast<std::size_t>(r)];
-      c.clusters[static_cast<std::size_t>(c.sample_piece[s])].members.push_back(sample[s]);
-      queue.push_back(static_cast<int>(s));
-    } else if (r == -2) {
-      c.sample_piece[s] = c.manipulated;
-      c.clusters[static_cast<std::size_t>(c.manipulated)].members.push_back(sample[s]);
-    }
-  }
-  // Level-0 free points take the fixed handle they are connected to within level 0.
-  auto grow = [&](bool within_level) {
-    while (!queue.empty()) {
-      const auto v = static_cast<std::size_t>(queue.front());
-      queue.pop_front();
-      for (const int* j = g.begin(v); j != g.end(v); ++j) {
-        const auto u = static_cast<std::size_t>(*j);
-        if (c.sample_piece[u] >= 0 || roleOf(u) == -3 || c.sample_level[u] != 0) continue;
-        if (within_level && c.sample_level[v] != 0) continue;
-        c.sample_piece[u] = c.sample_piece[v];
-        queue.push_back(static_cast<int>(u));
-      }
-    }
+  // Handle clusters: the sample points of each handle (all its points if it has fewer than 3).
+  auto handleMembers = [&](const std::vector<int>& idx, Cluster& cl) {
+    for (int i : idx)
+      if (in_sample[static_cast<std::size_t>(i)]) cl.members.push_back(i);
+    for (std::size_t k = 0; k < idx.size() && cl.members.size() < 3; ++k)
+      if (!in_sample[static_cast<std::size_t>(idx[k])]) cl.members.push_back(idx[k]);
   };
-  grow(true);
-  // Top level: everything there belongs to the manipulated handle's side.
-  for (std::size_t s = 0; s < m; ++s)
-    if (c.sample_piece[s] < 0 && c.sample_level[s] == top) c.sample_piece[s] = c.manipulated;
+  std::vector<int> fixed_id(handles.fixed.size());
+  for (std::size_t k = 0; k < handles.fixed.size(); ++k) {
+    fixed_id[k] = newCluster(ClusterKind::Fixed, 0, static_cast<int>(k));
+    handleMembers(handles.fixed[k], c.clusters.back());
+  }
+  c.manipulated = newCluster(ClusterKind::Manipulated, top, -1);
+  handleMembers(handles.manipulated, c.clusters.back());
 
-  // Isoclusters: connected pieces of each level's region; members are the points in the band.
-  std::vector<int> stack;
-  const double band = options.band * spacing;
-  for (std::size_t s = 0; s < m; ++s) {
-    const int l = c.sample_level[s];
-    if (c.sample_piece[s] >= 0 || l == 0 || l == top) continue;
-    const int id = newCluster(ClusterKind::Iso, l, -1);
-    std::vector<int> piece;
-    c.sample_piece[s] = id;
-    stack.assign(1, static_cast<int>(s));
-    while (!stack.empty()) {
-      const auto v = static_cast<std::size_t>(stack.back());
-      stack.pop_back();
-      piece.push_back(static_cast<int>(v));
-      for (const int* j = g.begin(v); j != g.end(v); ++j) {
-        const auto u = static_cast<std::size_t>(*j);
-        if (c.sample_piece[u] < 0 && c.sample_level[u] == l && roleOf(u) == -1) {
-          c.sample_piece[u] = id;
-          stack.push_back(static_cast<int>(u));
-        }
-      }
-    }
-    const double v_l = c.levels[static_cast<std::size_t>(l)];
-    auto& members = c.clusters[static_cast<std::size_t>(id)].members;
-    for (int v : piece)
-      if (std::abs(phiOf(static_cast<std::size_t>(v)) - v_l) <= band)
-        members.push_back(sample[static_cast<std::size_t>(v)]);
-    if (members.size() < 3) {  // a thin piece: take the points nearest the isovalue
-      std::sort(piece.begin(), piece.end(), [&](int a, int b) {
-        return std::abs(phiOf(static_cast<std::size_t>(a)) - v_l) <
-               std::abs(phiOf(static_cast<std::size_t>(b)) - v_l);
-      });
-      members.clear();
-      for (std::size_t q = 0; q < piece.size() && q < 3; ++q)
-        members.push_back(sample[static_cast<std::size_t>(piece[q])]);
-    }
-    std::sort(members.begin(), members.end());
-  }
-  // Level-0 points cut off from their handle within level 0: nearest fixed handle over the graph.
-  for (std::size_t s = 0; s < m; ++s)
-    if (c.sample_piece[s] >= 0 &&
-        c.clusters[static_cast<std::size_t>(c.sample_piece[s])].kind == ClusterKind::Fixed)
-      queue.push_back(static_cast<int>(s));
-  grow(false);
-  // Whatever is left (unreachable parts): static clusters, one per connected piece.
-  for (std::size_t s = 0; s < m; ++s) {
-    if (c.sample_piece[s] >= 0) continue;
-    const int id = newCluster(ClusterKind::Static, 0, -1);
-    c.sample_piece[s] = id;
-    stack.assign(1, static_cast<int>(s));
-    while (!stack.empty()) {
-      const auto v = static_cast<std::size_t>(stack.back());
-      stack.pop_back();
-      c.clusters[static_cast<std::size_t>(id)].members.push_back(sample[v]);
-      for (const int* j = g.begin(v); j != g.end(v); ++j)
-        if (c.sample_piece[static_cast<std::size_t>(*j)] < 0) {
-          c.sample_piece[static_cast<std::size_t>(*j)] = id;
-          stack.push_back(*j);
-        }
-    }
-  }
-  for (auto& cl : c.clusters) {
-    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-    for (int i : cl.members) sum += points[static_cast<std::size_t>(i)].getVector3fMap().cast<double>();
-    if (!cl.members.empty()) cl.barycenter = sum / static_cast<double>(cl.members.size());
-  }
-
-  // Adjacency: pieces joined by a sample edge across levels.
-  for (std::size_t s = 0; s < m; ++s)
-    for (const int* j = g.begin(s); j != g.end(s); ++j) {
+  // Isolines: the points on either side of an edge that crosses v_l, per level.
+  std::vector<std::vector<int>> on_line(static_cast<std::size_t>(top));
+  for (std::size_t i = 0; i < n; ++i) {
+    if (role[i] == -3) continue;
+    for (const int* j = graph.begin(i); j != graph.end(i); ++j) {
       const auto u = static_cast<std::size_t>(*j);
-      const int a = c.sample_piece[s], b = c.sample_piece[u];
-      if (a >= b || c.sample_level[s] == c.sample_level[u]) continue;
-      if (c.clusters[static_cast<std::size_t>(a)].kind == ClusterKind::Static ||
-          c.clusters[static_cast<std::size_t>(b)].kind == ClusterKind::Static)
-        continue;
-      c.adjacency.emplace_back(a, b);
+      if (!(phi[i] < phi[u])) continue;
+      // Levels l with phi_i < v_l <= phi_u.
+      const int lo = std::max(1, static_cast<int>(std::floor(phi[i] * top)) + 1);
+      const int hi = std::min(top - 1, static_cast<int>(std::floor(phi[u] * top)));
+      for (int l = lo; l <= hi; ++l) {
+        if (!(phi[i] < c.levels[static_cast<std::size_t>(l)] &&
+              c.levels[static_cast<std::size_t>(l)] <= phi[u]))
+          continue;
+        on_line[static_cast<std::size_t>(l)].push_back(static_cast<int>(i));
+        on_line[static_cast<std::size_t>(l)].push_back(static_cast<int>(u));
+      }
     }
-  std::sort(c.adjacency.begin(), c.adjacency.end());
-  c.adjacency.erase(std::unique(c.adjacency.begin(), c.adjacency.end()), c.adjacency.end());
-
-  // For interpolation: the nearest piece one level up (down) from each sample point, found by
-  // a breadth-first search that starts at level boundaries and stays within a level.
-  auto nearestAcross = [&](int dir, std::vector<int>& out) {
-    out.assign(m, -1);
-    std::deque<int> q;
-    for (std::size_t s = 0; s < m; ++s) {
-      if (c.clusters[static_cast<std::size_t>(c.sample_piece[s])].kind == ClusterKind::Static) continue;
-      float best = INFINITY;
-      for (const int* j = g.begin(s); j != g.end(s); ++j) {
-        const auto u = static_cast<std::size_t>(*j);
-        if (c.sample_level[u] - c.sample_level[s] != dir) continue;
-        const float d = (sp[u].getVector3fMap() - sp[s].getVector3fMap()).squaredNorm();
-        if (d < best) {
-          best = d;
-          out[s] = c.sample_piece[u];
+  }
+  // Contours: connected pieces of each isoline; every piece of enough points is an isocluster.
+  std::vector<int> down(n, -1), up(n, -1);
+  std::vector<int> mark(n, -1), comp(n, -1), stack, members;
+  std::deque<int> down_queue, up_queue;
+  for (int l = 1; l < top; ++l) {
+    auto& line = on_line[static_cast<std::size_t>(l)];
+    std::sort(line.begin(), line.end());
+    line.erase(std::unique(line.begin(), line.end()), line.end());
+    for (int i : line) mark[static_cast<std::size_t>(i)] = l;
+    const double v = c.levels[static_cast<std::size_t>(l)];
+    for (int seed : line) {
+      if (comp[static_cast<std::size_t>(seed)] == l) continue;  // comp doubles as "visited at level l"
+      members.clear();
+      comp[static_cast<std::size_t>(seed)] = l;
+      stack.assign(1, seed);
+      while (!stack.empty()) {
+        const auto x = static_cast<std::size_t>(stack.back());
+        stack.pop_back();
+        members.push_back(static_cast<int>(x));
+        for (const int* j = graph.begin(x); j != graph.end(x); ++j) {
+          const auto u = static_cast<std::size_t>(*j);
+          if (mark[u] == l && comp[u] != l) {
+            comp[u] = l;
+            stack.push_back(static_cast<int>(u));
+          }
         }
       }
-      if (out[s] >= 0) q.push_back(static_cast<int>(s));
+      if (static_cast<int>(members.size()) < options.min_contour) continue;
+      const int id = newCluster(ClusterKind::Iso, l, -1);
+      Cluster& cl = c.clusters.back();
+      for (int m : members)
+        if (in_sample[static_cast<std::size_t>(m)]) cl.members.push_back(m);
+      if (cl.members.size() < 3) {  // a short contour: its points nearest the isovalue
+        std::sort(members.begin(), members.end(), [&](int a, int b) {
+          return std::abs(phi[static_cast<std::size_t>(a)] - v) <
+                 std::abs(phi[static_cast<std::size_t>(b)] - v);
+        });
+        for (std::size_t k = 0; k < members.size() && cl.members.size() < 3; ++k)
+          if (!in_sample[static_cast<std::size_t>(members[k])]) cl.members.push_back(members[k]);
+      }
+      // The contour seeds the searches of the slabs on either side of it.
+      for (int m : members) {
+        const auto x = static_cast<std::size_t>(m);
+        if (slabOf(x) == l && down[x] < 0) {
+          down[x] = id;
+          down_queue.push_back(m);
+        } else if (slabOf(x) == l - 1 && up[x] < 0) {
+          up[x] = id;
+          up_queue.push_back(m);
+        }
+      }
     }
+  }
+  // Handles seed the outermost slabs.
+  for (std::size_t i = 0; i < n; ++i) {
+    if (role[i] >= 0 && slabOf(i) == 0) {
+      down[i] = fixed_id[static_cast<std::size_t>(role[i])];
+      down_queue.push_front(static_cast<int>(i));
+    }
+    if (role[i] == -2 && slabOf(i) == top - 1) {
+      up[i] = c.manipulated;
+      up_queue.push_front(static_cast<int>(i));
+    }
+  }
+  // Nearest contour along the surface within each slab.
+  auto spread = [&](std::deque<int>& q, std::vector<int>& label, int offset) {
     while (!q.empty()) {
-      const auto v = static_cast<std::size_t>(q.front());
+      const auto x = static_cast<std::size_t>(q.front());
       q.pop_front();
-      for (const int* j = g.begin(v); j != g.end(v); ++j) {
+      const int slab = c.clusters[static_cast<std::size_t>(label[x])].level - offset;
+      for (const int* j = graph.begin(x); j != graph.end(x); ++j) {
         const auto u = static_cast<std::size_t>(*j);
-        if (out[u] < 0 && c.sample_piece[u] == c.sample_piece[v]) {
-          out[u] = out[v];
+        if (label[u] < 0 && role[u] != -3 && slabOf(u) == slab) {
+          label[u] = label[x];
           q.push_back(static_cast<int>(u));
         }
       }
     }
   };
-  nearestAcross(+1, c.sample_up);
-  nearestAcross(-1, c.sample_down);
-  // A piece with no neighbour across a level boundary (possible only on a very sparse sample)
-  // falls back to any adjacent cluster one level away, else to itself.
-  for (std::size_t s = 0; s < m; ++s) {
-    for (int dir : {+1, -1}) {
-      int& slot = dir > 0 ? c.sample_up[s] : c.sample_down[s];
-      if (slot >= 0) continue;
-      const int self = c.sample_piece[s];
-      const int want = c.clusters[static_cast<std::size_t>(self)].level + dir;
-      for (const auto& e : c.adjacency) {
-        const int other = e.first == self ? e.second : (e.second == self ? e.first : -1);
-        if (other >= 0 && c.clusters[static_cast<std::size_t>(other)].level == want) {
-          slot = other;
-          break;
+  spread(down_queue, down, 0);
+  spread(up_queue, up, 1);
+  // A slab region that meets only one side (a part touching one kind of handle only) takes
+  // that side for both; parts touching no handle become static clusters.
+  for (std::size_t i = 0; i < n; ++i) {
+    if (down[i] < 0) down[i] = up[i];
+    if (up[i] < 0) up[i] = down[i];
+  }
+  for (std::size_t s = 0; s < n; ++s) {
+    if (down[s] >= 0) continue;
+    const int id = newCluster(ClusterKind::Static, 0, -1);
+    down[s] = up[s] = id;
+    stack.assign(1, static_cast<int>(s));
+    while (!stack.empty()) {
+      const auto x = static_cast<std::size_t>(stack.back());
+      stack.pop_back();
+      if (in_sample[x]) c.clusters.back().members.push_back(static_cast<int>(x));
+      for (const int* j = graph.begin(x); j != graph.end(x); ++j) {
+        const auto u = static_cast<std::size_t>(*j);
+        if (down[u] < 0) {
+          down[u] = up[u] = id;
+          stack.push_back(static_cast<int>(u));
         }
       }
-      if (slot < 0) slot = self;
     }
   }
+  for (auto& cl : c.clusters) {
+    std::sort(cl.members.begin(), cl.members.end());
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    for (int i : cl.members) sum += points[static_cast<std::size_t>(i)].getVector3fMap().cast<double>();
+    if (!cl.members.empty()) cl.barycenter = sum / static_cast<double>(cl.members.size());
+  }
+  // Adjacent clusters: the two sides of some slab region.
+  c.piece.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const int a = std::min(down[i], up[i]), b = std::max(down[i], up[i]);
+    if (a != b) c.adjacency.emplace_back(a, b);
+    c.piece[i] = phi[i] * top - slabOf(i) < 0.5 ? down[i] : up[i];
+  }
+  std::sort(c.adjacency.begin(), c.adjacency.end());
+  c.adjacency.erase(std::unique(c.adjacency.begin(), c.adjacency.end()), c.adjacency.end());
+  c.down = std::move(down);
+  c.up = std::move(up);
   return c;
 }
 

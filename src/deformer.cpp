@@ -33,8 +33,8 @@ Deformer::Deformer(const Geometry& geometry, const Handles& handles, const Defor
   const std::vector<int> sample = sampleSurface(pts, handles_, options_.clusters.samples);
   build_.sampling_ms = sw.lap();
   clustering_ =
-      buildClusters(pts, field_.normals(), phi_, handles_, field_.unreachable(), sample, options_.clusters);
-  table_ = buildInterpolation(pts, field_.normals(), phi_, handles_, clustering_);
+      buildClusters(pts, field_.graph(), phi_, handles_, field_.unreachable(), sample, options_.clusters);
+  table_ = buildInterpolation(phi_, handles_, clustering_);
   build_.clusters_ms = sw.lap();
 
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(INFINITY), hi = -lo;

@@ -303,8 +303,9 @@ SolveStats ClusterSolver::solve(const GaussNewtonOptions& options) {
       const double w = w_.detail * clusters_[c].rot_weight;
       grad.segment<9>(v) += w * j.transpose() * r;
       Eigen::Matrix<double, 9, 9> jtj = w * j.transpose() * j;
-      jtj.diagonal().array() += 1e-9;  // keeps the system definite when a block is unconstrained
       addTo(v / 12, v / 12, 0, 0, jtj);
+      // Keeps the system definite when a cluster is unconstrained (no neighbours).
+      addTo(v / 12, v / 12, 0, 0, 1e-9 * Eigen::Matrix<double, 12, 12>::Identity());
     }
     if (manip_active_) {
       const int v = var_[static_cast<std::size_t>(manipulated_)];

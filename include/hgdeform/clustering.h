@@ -34,20 +34,25 @@ struct Cluster {
 struct ClusterOptions {
   int isoclusters = 16;  ///< n isovalues, evenly spaced in (0, 1)
   int samples = 4000;    ///< target sample size
-  int k_sample = 8;      ///< neighbours in the sample graph
-  double band = 0.1;     ///< half-width of an isocluster's band, as a fraction of the isovalue spacing
+  int min_contour = 8;   ///< contours with fewer points (sampling noise) are not clusters
 };
 
-/// The clusters and everything interpolation needs to find, for a point, the two clusters
-/// that bracket its harmonic value on its own branch.
+/// The clusters and, for every point of the shape, the two clusters that bracket its harmonic
+/// value on its own branch: what interpolation needs.
+///
+/// Isovalues v_l = l / (n + 1), l = 1..n; v_0 = 0 is the fixed side, v_{n+1} = 1 the
+/// manipulated side. An isoline at v_l is traced on the neighbour graph as the points incident
+/// to an edge that crosses v_l; each connected piece of it (a contour) is one isocluster, whose
+/// members are the sample points on it. So two branches at the same harmonic value (two legs)
+/// get separate clusters. A point between v_l and v_l+1 takes, as `down`, the contour at v_l
+/// nearest to it within that slab along the surface, and as `up` the nearest at v_l+1.
 struct Clustering {
   std::vector<int> sample;  ///< sample point -> shape point index
   std::vector<Cluster> clusters;
   std::vector<std::pair<int, int>> adjacency;  ///< E_C: pairs of cluster ids, first < second
   std::vector<double> levels;                  ///< v_0 = 0, v_1..v_n isovalues, v_{n+1} = 1
-  std::vector<int> sample_level;               ///< level of each sample point
-  std::vector<int> sample_piece;               ///< cluster id of the piece each sample point lies in
-  std::vector<int> sample_up, sample_down;     ///< nearest cluster one level up / down (or -1)
+  std::vector<int> down, up;                   ///< per shape point: bracketing clusters below / above
+  std::vector<int> piece;                      ///< per shape point: the nearer of the two (for display)
   int manipulated = -1;                        ///< id of the MC cluster
 
   int isoclusters() const { return static_cast<int>(levels.size()) - 2; }
@@ -59,11 +64,11 @@ struct Clustering {
 std::vector<int> sampleSurface(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles& handles,
                                int target);
 
-/// Builds the clusters on a sample. `phi` and `normals` are per shape point; `unreachable`
-/// lists points in parts that touch no handle.
-Clustering buildClusters(const pcl::PointCloud<pcl::PointXYZ>& points,
-                         const pcl::PointCloud<pcl::Normal>& normals, const std::vector<float>& phi,
-                         const Handles& handles, const std::vector<int>& unreachable,
-                         const std::vector<int>& sample, const ClusterOptions& options);
+/// Builds the clusters. `graph` is the shape's neighbour graph (the harmonic field's), `phi`
+/// the field, `unreachable` the points in parts that touch no handle, `sample` a surface sample.
+Clustering buildClusters(const pcl::PointCloud<pcl::PointXYZ>& points, const NeighborGraph& graph,
+                         const std::vector<float>& phi, const Handles& handles,
+                         const std::vector<int>& unreachable, const std::vector<int>& sample,
+                         const ClusterOptions& options);
 
 }  // namespace hgd

@@ -23,9 +23,7 @@ struct InterpolationTable {
   std::size_t size() const { return alpha.size(); }
 };
 
-InterpolationTable buildInterpolation(const pcl::PointCloud<pcl::PointXYZ>& points,
-                                      const pcl::PointCloud<pcl::Normal>& normals,
-                                      const std::vector<float>& phi, const Handles& handles,
+InterpolationTable buildInterpolation(const std::vector<float>& phi, const Handles& handles,
                                       const Clustering& clustering);
 
 /// Applies the blended transforms: positions p -> T p, normals n -> A^-T n (renormalised).

@@ -1,0 +1,552 @@
+// End-to-end tests of the `hgdeform` command-line tool: the real executable (HGD_TOOL) is run
+// on files written into fresh temporary directories, and its outputs are read back with the
+// library.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <initializer_list>
+#include <limits>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "hgdeform/deformer.h"
+#include "hgdeform/fields.h"
+#include "hgdeform/geometry.h"
+#include "hgdeform/io.h"
+#include "hgdeform/scenario.h"
+#include "hgdeform/shapes.h"
+#include "test_util.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+using hgdtest::TempDir;
+using hgdtest::writeText;
+
+// --- helpers ---------------------------------------------------------------------------------
+
+std::string quote(const std::string& s) {
+  std::string q = "'";
+  for (char c : s) {
+    if (c == '\'')
+      q += "'\\''";
+    else
+      q += c;
+  }
+  return q + "'";
+}
+
+struct Result {
+  int code = -1;
+  std::string out;  // stdout
+  std::string err;  // stderr
+};
+
+std::string slurp(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+/// Runs `hgdeform ARGS` with stdout and stderr captured separately.
+Result cli(const std::string& args) {
+  static TempDir err_dir;  // stderr goes here, never into a directory a test inspects
+  const std::string err_file = err_dir.file("stderr.txt");
+  const std::string command = quote(HGD_TOOL) + " " + args + " 2>" + quote(err_file);
+  Result r;
+  FILE* pipe = popen(command.c_str(), "r");
+  if (!pipe) return r;
+  char buf[4096];
+  std::size_t got;
+  while ((got = fread(buf, 1, sizeof buf, pipe)) > 0) r.out.append(buf, got);
+  const int status = pclose(pipe);
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  r.err = slurp(err_file);
+  return r;
+}
+
+bool contains(const std::string& text, const std::string& part) {
+  return text.find(part) != std::string::npos;
+}
+
+std::set<std::string> listing(const TempDir& dir) {
+  const std::vector<std::string> v = dir.list();
+  return {v.begin(), v.end()};
+}
+
+double value(const hgd::Shape& s, std::size_t point, const std::string& name, std::size_t element = 0) {
+  const int i = hgd::findField(s.cloud, name);
+  if (i < 0) {
+    ADD_FAILURE() << "no field " << name;
+    return std::numeric_limits<double>::quiet_NaN();
+  }
+  return hgd::readValue(s.cloud, point, s.cloud.fields[static_cast<std::size_t>(i)], element);
+}
+
+Eigen::Vector3d position(const hgd::Shape& s, std::size_t i) {
+  return {value(s, i, "x"), value(s, i, "y"), value(s, i, "z")};
+}
+
+double diagonal(const hgd::Shape& s) {
+  return hgd::boundingBoxDiagonal(hgd::extractGeometry(s));
+}
+
+bool sameValue(double a, double b) {
+  return (std::isnan(a) && std::isnan(b)) || a == b;
+}
+
+/// Every field of `in` is in `out` with the same type, count and values (NaN == NaN).
+void expectFieldsKept(const hgd::Shape& in, const hgd::Shape& out) {
+  ASSERT_EQ(in.size(), out.size());
+  for (const auto& f : in.cloud.fields) {
+    const int k = hgd::findField(out.cloud, f.name);
+    ASSERT_GE(k, 0) << "field " << f.name << " lost";
+    const auto& g = out.cloud.fields[static_cast<std::size_t>(k)];
+    EXPECT_EQ(f.datatype, g.datatype) << f.name;
+    EXPECT_EQ(f.count, g.count) << f.name;
+    int bad = 0;
+    for (std::size_t i = 0; i < in.size(); ++i)
+      for (std::size_t e = 0; e < std::max<std::uint32_t>(f.count, 1); ++e) {
+        const double a = hgd::readValue(in.cloud, i, f, e), b = hgd::readValue(out.cloud, i, g, e);
+        if (!sameValue(a, b) && ++bad <= 5)
+          ADD_FAILURE() << "field " << f.name << " point " << i << ": " << a << " became " << b;
+      }
+  }
+}
+
+const std::string kBarScenario = R"({
+  "format": "hgdeform-scenario/1",
+  "fixed": [ { "box": { "min": [-1, -1, -1], "max": [0.045, 1, 1] } } ],
+  "manipulated": { "box": { "min": [0.955, -1, -1], "max": [2, 1, 1] } }
+})";
+
+std::string bunnyPath() {
+  return hgdtest::datasetsDir() + "/bunny_1839.ply";
+}
+std::string bunnyScenarioPath() {
+  return hgdtest::datasetsDir() + "/bunny_ears.json";
+}
+
+// --- usage -----------------------------------------------------------------------------------
+
+TEST(Cli, HelpListsCommands) {
+  const Result r = cli("--help");
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(contains(r.out, "field")) << r.out;
+  EXPECT_TRUE(contains(r.out, "deform")) << r.out;
+}
+
+TEST(Cli, FieldHelpListsOptions) {
+  const Result r = cli("field --help");
+  EXPECT_EQ(r.code, 0) << r.err;
+  for (const char* opt : {"--scenario", "--output", "--k", "--solver", "--mesh-ring", "--color", "--ascii",
+                          "--quiet", "--help"})
+    EXPECT_TRUE(contains(r.out, opt)) << opt << " missing from:\n" << r.out;
+}
+
+TEST(Cli, DeformHelpListsOptions) {
+  const Result r = cli("deform --help");
+  EXPECT_EQ(r.code, 0) << r.err;
+  for (const char* opt : {"--scenario", "--output", "--report", "--clusters", "--k", "--samples", "--solver",
+                          "--ascii", "--quiet", "--help"})
+    EXPECT_TRUE(contains(r.out, opt)) << opt << " missing from:\n" << r.out;
+}
+
+TEST(Cli, NoArgumentsIsUsageError) {
+  const Result r = cli("");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_TRUE(contains(r.err, "usage")) << r.err;
+}
+
+TEST(Cli, UnknownCommandIsUsageError) {
+  const Result r = cli("frobnicate x.ply");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_TRUE(contains(r.err, "frobnicate")) << r.err;
+}
+
+TEST(Cli, UnknownOptionIsUsageError) {
+  for (const char* cmd : {"field", "deform"}) {
+    const Result r = cli(std::string(cmd) + " in.ply -s s.json -o out.ply --bogus-option");
+    EXPECT_EQ(r.code, 2) << cmd;
+    EXPECT_TRUE(contains(r.err, "--bogus-option")) << cmd << ": " << r.err;
+  }
+}
+
+TEST(Cli, MissingRequiredOptionIsUsageError) {
+  TempDir dir;
+  hgd::writeShape(dir.file("bar.ply"), hgd::shapes::bar());
+  const Result r = cli("deform " + quote(dir.file("bar.ply")) + " -o " + quote(dir.file("out.ply")));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_TRUE(contains(r.err, "--scenario")) << r.err;
+  EXPECT_FALSE(hgdtest::exists(dir.file("out.ply")));
+}
+
+// --- field -----------------------------------------------------------------------------------
+
+class CliField : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(CliField, WritesHarmonicFieldAndKeepsFields) {
+  const std::string ext = GetParam();
+  TempDir dir;
+  const std::string input = dir.file("bar." + ext), output = dir.file("field." + ext),
+                    coloured = dir.file("coloured." + ext), scenario = dir.file("s.json");
+  hgd::writeShape(input, hgd::shapes::bar());
+  writeText(scenario, kBarScenario);
+
+  const Result r = cli("field " + quote(input) + " --scenario " + quote(scenario) + " -o " + quote(output));
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(contains(r.out, "points")) << r.out;
+  EXPECT_TRUE(contains(r.out, "ms")) << r.out;
+  ASSERT_TRUE(hgdtest::exists(output));
+
+  const hgd::Shape in = hgd::readShape(input);
+  const hgd::Shape out = hgd::readShape(output);
+  ASSERT_EQ(out.size(), in.size());
+  const int hf = hgd::findField(out.cloud, "harmonic");
+  ASSERT_GE(hf, 0) << "no 'harmonic' field";
+  EXPECT_EQ(out.cloud.fields[static_cast<std::size_t>(hf)].datatype, pcl::PCLPointField::FLOAT32);
+  EXPECT_EQ(out.cloud.fields[static_cast<std::size_t>(hf)].count, 1u);
+  std::size_t fixed = 0, manipulated = 0;
+  bool inside = false;
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    const double phi = value(out, i, "harmonic");
+    const double x = value(in, i, "x");
+    EXPECT_TRUE(phi >= 0 && phi <= 1) << "point " << i << ": " << phi;
+    if (x < 0.045) {
+      EXPECT_EQ(phi, 0.0) << "fixed point " << i;
+      ++fixed;
+    } else if (x > 0.955) {
+      EXPECT_EQ(phi, 1.0) << "manipulated point " << i;
+      ++manipulated;
+    } else if (phi > 0.2 && phi < 0.8) {
+      inside = true;
+    }
+  }
+  EXPECT_GT(fixed, 0u);
+  EXPECT_GT(manipulated, 0u);
+  EXPECT_TRUE(inside) << "the field does not vary between the handles";
+  expectFieldsKept(in, out);
+
+  // --color adds a colour map.
+  const Result rc =
+      cli("field " + quote(input) + " -s " + quote(scenario) + " --color -q -o " + quote(coloured));
+  ASSERT_EQ(rc.code, 0) << rc.err;
+  EXPECT_TRUE(rc.out.empty()) << "--quiet printed: " << rc.out;
+  const hgd::Shape col = hgd::readShape(coloured);
+  const bool rgb = hgd::findField(col.cloud, "rgb") >= 0;
+  const bool channels = hgd::findField(col.cloud, "red") >= 0 && hgd::findField(col.cloud, "green") >= 0 &&
+                        hgd::findField(col.cloud, "blue") >= 0;
+  EXPECT_TRUE(rgb || channels) << "no colour fields in " << coloured;
+  EXPECT_FALSE(hgd::findField(in.cloud, "rgb") >= 0 || hgd::findField(in.cloud, "red") >= 0);
+  EXPECT_GE(hgd::findField(col.cloud, "harmonic"), 0);
+  expectFieldsKept(in, col);
+}
+
+INSTANTIATE_TEST_SUITE_P(Cli, CliField, ::testing::Values("ply", "pcd"));
+
+// --- deform ----------------------------------------------------------------------------------
+
+TEST(CliDeform, BunnyMatchesLibraryAndReports) {
+  TempDir dir;
+  const std::string output = dir.file("bunny_out.ply"), report = dir.file("r.json");
+  const Result r = cli("deform " + quote(bunnyPath()) + " --scenario " + quote(bunnyScenarioPath()) + " -o " +
+                       quote(output) + " --report " + quote(report));
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(contains(r.out, "bunny_out.ply")) << r.out;
+
+  const hgd::Shape in = hgd::readShape(bunnyPath());
+  const hgd::Shape out = hgd::readShape(output);
+  ASSERT_EQ(in.size(), 1839u);
+  ASSERT_EQ(out.size(), in.size());
+  ASSERT_EQ(out.polygons.size(), in.polygons.size());
+  for (std::size_t i = 0; i < in.polygons.size(); ++i)
+    ASSERT_EQ(out.polygons[i].vertices, in.polygons[i].vertices) << "face " << i;
+
+  // The report.
+  nlohmann::json j;
+  ASSERT_NO_THROW(j = nlohmann::json::parse(slurp(report))) << slurp(report);
+  for (const char* key : {"points", "clusters", "iterations", "energy", "ms"})
+    EXPECT_TRUE(j.contains(key)) << key << " missing from " << j.dump();
+  EXPECT_EQ(j.value("points", 0u), 1839u);
+  EXPECT_GT(j.value("clusters", 0u), 0u);
+  EXPECT_GT(j.value("iterations", 0), 0);
+  for (const char* key : {"detail", "prop", "manip", "length"}) {
+    ASSERT_TRUE(j["energy"].contains(key)) << "energy." << key;
+    EXPECT_TRUE(j["energy"][key].is_number()) << "energy." << key;
+  }
+  for (const char* key :
+       {"build", "field", "sampling", "clusters", "solve", "solve_per_iteration", "interpolation", "total"}) {
+    ASSERT_TRUE(j["ms"].contains(key)) << "ms." << key;
+    EXPECT_TRUE(j["ms"][key].is_number()) << "ms." << key;
+    EXPECT_GE(j["ms"][key].get<double>(), 0.0) << "ms." << key;
+  }
+
+  // Same positions as the library gives in-process.
+  hgd::Shape lib = hgd::readShape(bunnyPath());
+  hgd::deformShape(lib, hgd::readScenario(bunnyScenarioPath()));
+  const double diag = diagonal(in);
+  double worst = 0, moved = 0;
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    worst = std::max(worst, (position(out, i) - position(lib, i)).norm());
+    moved = std::max(moved, (position(out, i) - position(in, i)).norm());
+  }
+  EXPECT_LE(worst, 1e-5 * diag);
+  EXPECT_GT(moved, 0.05 * diag) << "the ears did not move";
+
+  // The fixed handle (y < 0.8) did not move.
+  std::size_t fixed = 0;
+  for (std::size_t i = 0; i < in.size(); ++i) {
+    if (!(value(in, i, "y") < 0.8)) continue;
+    ++fixed;
+    EXPECT_LE((position(out, i) - position(in, i)).norm(), 1e-6 * diag) << "fixed point " << i;
+  }
+  EXPECT_GT(fixed, 0u);
+  EXPECT_EQ(listing(dir), (std::set<std::string>{"bunny_out.ply", "r.json"}));
+}
+
+TEST(CliDeform, FrameMoveIsExactOnManipulatedHandle) {
+  TempDir dir;
+  const std::string input = dir.file("bar.ply"), output = dir.file("out.ply"), scenario = dir.file("s.json");
+  hgd::writeShape(input, hgd::shapes::bar());
+  writeText(scenario, R"({
+    "fixed": [ { "box": { "min": [-1, -1, -1], "max": [0.045, 1, 1] } } ],
+    "manipulated": { "box": { "min": [0.955, -1, -1], "max": [2, 1, 1] } },
+    "clusters": 8,
+    "move": { "frame": { "translate": [0.05, 0.2, -0.1], "rotate": { "axis": [0, 0, 1], "degrees": 30 } } }
+  })");
+  const Result r = cli("deform " + quote(input) + " -s " + quote(scenario) + " -o " + quote(output));
+  ASSERT_EQ(r.code, 0) << r.err;
+  const hgd::Shape in = hgd::readShape(input);
+  const hgd::Shape out = hgd::readShape(output);
+  ASSERT_EQ(out.size(), in.size());
+  const double diag = diagonal(in);
+
+  std::vector<std::size_t> manip;
+  Eigen::Vector3d center = Eigen::Vector3d::Zero();
+  for (std::size_t i = 0; i < in.size(); ++i)
+    if (value(in, i, "x") > 0.955) {
+      manip.push_back(i);
+      center += position(in, i);
+    }
+  ASSERT_FALSE(manip.empty());
+  center /= static_cast<double>(manip.size());
+  const Eigen::Matrix3d R =
+      Eigen::AngleAxisd(30.0 * M_PI / 180.0, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  const Eigen::Vector3d t(0.05, 0.2, -0.1);
+  double worst = 0;
+  for (std::size_t i : manip) {
+    const Eigen::Vector3d expected = R * (position(in, i) - center) + center + t;
+    worst = std::max(worst, (position(out, i) - expected).norm());
+  }
+  EXPECT_LE(worst, 1e-5 * diag);
+  for (std::size_t i = 0; i < in.size(); ++i)
+    if (value(in, i, "x") < 0.045) {
+      EXPECT_LE((position(out, i) - position(in, i)).norm(), 1e-6 * diag) << "fixed point " << i;
+    }
+}
+
+// An organized PCD (10 x 8, some NaN points): the grid layout and the NaNs survive a deformation.
+TEST(CliDeform, OrganizedPcdKeepsLayoutAndNaNs) {
+  TempDir dir;
+  const std::string input = dir.file("grid.pcd"), output = dir.file("out.pcd"), scenario = dir.file("s.json");
+  const std::uint32_t W = 10, H = 8;
+  hgd::Shape s;
+  s.format = hgd::FileFormat::Pcd;
+  s.cloud.width = W;
+  s.cloud.height = H;
+  s.cloud.is_dense = false;
+  for (std::uint32_t k = 0; k < 3; ++k) {
+    pcl::PCLPointField f;
+    f.name = std::string(1, "xyz"[k]);
+    f.offset = 4 * k;
+    f.datatype = pcl::PCLPointField::FLOAT32;
+    f.count = 1;
+    s.cloud.fields.push_back(f);
+  }
+  s.cloud.point_step = 12;
+  s.cloud.row_step = 12 * W;
+  s.cloud.data.resize(static_cast<std::size_t>(s.cloud.row_step) * H);
+  const std::set<std::size_t> nans = {13, 25, 46, 62, 79};
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  for (std::uint32_t v = 0; v < H; ++v)
+    for (std::uint32_t u = 0; u < W; ++u) {
+      const std::size_t i = static_cast<std::size_t>(v) * W + u;
+      const float x = 0.1f * static_cast<float>(u), y = 0.1f * static_cast<float>(v);
+      float p[3] = {x, y, 0.2f * (x - 0.45f) * (x - 0.45f) + 0.1f * (y - 0.35f) * (y - 0.35f)};
+      if (nans.count(i)) p[0] = p[1] = p[2] = nan;
+      std::memcpy(s.cloud.data.data() + i * 12, p, sizeof p);
+    }
+  hgd::writeShape(input, s);
+  writeText(scenario, R"({
+    "fixed": [ { "box": { "min": [-1, -1, -1], "max": [0.15, 1, 1] } } ],
+    "manipulated": { "box": { "min": [0.75, -1, -1], "max": [2, 1, 1] } },
+    "clusters": 4,
+    "move": { "drag": { "from": [0.9, 0.4, 0.05], "to": [0.9, 0.4, 0.1] } }
+  })");
+  const Result r = cli("deform " + quote(input) + " -s " + quote(scenario) + " -o " + quote(output));
+  ASSERT_EQ(r.code, 0) << r.err;
+  const hgd::Shape in = hgd::readShape(input);
+  const hgd::Shape out = hgd::readShape(output);
+  EXPECT_EQ(out.cloud.width, W);
+  EXPECT_EQ(out.cloud.height, H);
+  ASSERT_EQ(out.size(), static_cast<std::size_t>(W) * H);
+  double moved = 0;
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    const Eigen::Vector3d p = position(out, i);
+    if (nans.count(i)) {
+      EXPECT_TRUE(std::isnan(p.x()) && std::isnan(p.y()) && std::isnan(p.z())) << "point " << i;
+    } else {
+      EXPECT_TRUE(p.allFinite()) << "point " << i;
+      moved = std::max(moved, (p - position(in, i)).norm());
+    }
+  }
+  EXPECT_GT(moved, 0.02) << "nothing moved";
+}
+
+// --- errors ----------------------------------------------------------------------------------
+
+class CliErrors : public ::testing::Test {
+ public:
+  void SetUp() override {
+    bar_ = in_.file("bar.ply");
+    scenario_ = in_.file("s.json");
+    hgd::writeShape(bar_, hgd::shapes::bar());
+    writeText(scenario_, kBarScenario);
+  }
+
+  /// Runs `hgdeform CMD INPUT -s SCENARIO -o OUT_DIR/OUTPUT EXTRA` and checks that it fails,
+  /// that stderr has every one of `phrases`, and that the output directory stays empty.
+  void expectFailure(const std::string& cmd, const std::string& input, const std::string& scenario,
+                     std::initializer_list<std::string> phrases, const std::string& extra = "",
+                     const std::string& output = "out.ply") {
+    const Result r = cli(cmd + " " + quote(input) + " -s " + quote(scenario) + " -o " +
+                         quote(out_.file(output)) + " " + extra);
+    EXPECT_NE(r.code, 0) << cmd << " succeeded";
+    for (const auto& p : phrases)
+      EXPECT_TRUE(contains(r.err, p)) << cmd << ": '" << p << "' not in: " << r.err;
+    const std::set<std::string> left = listing(out_);
+    EXPECT_TRUE(left.empty()) << cmd << " left " << left.size() << " file(s), e.g. " << *left.begin();
+  }
+
+  TempDir in_, out_;
+  std::string bar_, scenario_;
+};
+
+TEST_F(CliErrors, MissingInput) {
+  for (const char* cmd : {"field", "deform"})
+    expectFailure(cmd, in_.file("nothere.ply"), scenario_, {"nothere.ply", "cannot open"});
+}
+
+TEST_F(CliErrors, EmptyInput) {
+  writeText(in_.file("empty.ply"), "");
+  for (const char* cmd : {"field", "deform"})
+    expectFailure(cmd, in_.file("empty.ply"), scenario_, {"empty.ply", "empty"});
+}
+
+TEST_F(CliErrors, TruncatedBinaryPly) {
+  const std::string bytes = slurp(bar_);
+  const std::size_t header = bytes.find("end_header\n");
+  ASSERT_NE(header, std::string::npos);
+  writeText(in_.file("cut.ply"), bytes.substr(0, header + 11 + (bytes.size() - header - 11) / 2));
+  for (const char* cmd : {"field", "deform"})
+    expectFailure(cmd, in_.file("cut.ply"), scenario_, {"cut.ply", "truncated"});
+}
+
+TEST_F(CliErrors, UnsupportedExtension) {
+  writeText(in_.file("cloud.xyz"), "0 0 0\n1 0 0\n0 1 0\n");
+  for (const char* cmd : {"field", "deform"}) {
+    expectFailure(cmd, in_.file("cloud.xyz"), scenario_, {"cloud.xyz", "extension"});
+    expectFailure(cmd, bar_, scenario_, {"out.xyz", "extension"}, "", "out.xyz");
+  }
+}
+
+TEST_F(CliErrors, MissingScenario) {
+  for (const char* cmd : {"field", "deform"})
+    expectFailure(cmd, bar_, in_.file("none.json"), {"none.json", "cannot open"});
+}
+
+TEST_F(CliErrors, ScenarioInvalidJson) {
+  writeText(in_.file("bad.json"), "{ \"fixed\": [ ");
+  for (const char* cmd : {"field", "deform"})
+    expectFailure(cmd, bar_, in_.file("bad.json"), {"bad.json", "invalid JSON"});
+}
+
+TEST_F(CliErrors, ScenarioUnknownKey) {
+  writeText(in_.file("typo.json"), R"({
+    "fixd": [ { "box": { "min": [-1, -1, -1], "max": [0.045, 1, 1] } } ],
+    "manipulated": { "box": { "min": [0.955, -1, -1], "max": [2, 1, 1] } }
+  })");
+  for (const char* cmd : {"field", "deform"})
+    expectFailure(cmd, bar_, in_.file("typo.json"), {"typo.json", "/fixd", "unknown key"});
+}
+
+TEST_F(CliErrors, RegionSelectsNoPoint) {
+  writeText(in_.file("far.json"), R"({
+    "fixed": [ { "sphere": { "center": [50, 50, 50], "radius": 1 } } ],
+    "manipulated": { "box": { "min": [0.955, -1, -1], "max": [2, 1, 1] } }
+  })");
+  for (const char* cmd : {"field", "deform"})
+    expectFailure(cmd, bar_, in_.file("far.json"), {"far.json", "/fixed/0", "selects no point"});
+}
+
+TEST_F(CliErrors, PointBothFixedAndManipulated) {
+  writeText(in_.file("overlap.json"), R"({
+    "fixed": [ { "box": { "min": [-1, -1, -1], "max": [0.6, 1, 1] } } ],
+    "manipulated": { "box": { "min": [0.4, -1, -1], "max": [2, 1, 1] } }
+  })");
+  for (const char* cmd : {"field", "deform"})
+    expectFailure(cmd, bar_, in_.file("overlap.json"), {"overlap.json", "both fixed and manipulated"});
+}
+
+TEST_F(CliErrors, ClustersNotANumber) {
+  const Result r = cli("deform " + quote(bar_) + " -s " + quote(scenario_) + " -o " +
+                       quote(out_.file("o.ply")) + " --clusters abc");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_TRUE(contains(r.err, "--clusters")) << r.err;
+  EXPECT_TRUE(contains(r.err, "abc")) << r.err;
+  EXPECT_TRUE(listing(out_).empty());
+}
+
+TEST_F(CliErrors, OutputIsInput) {
+  const std::string before = slurp(bar_);
+  const std::set<std::string> files = listing(in_);
+  // The same file, spelled as given and spelled differently.
+  for (const std::string& output : {bar_, (in_.path() / "." / "bar.ply").string()})
+    for (const char* cmd : {"field", "deform"}) {
+      const Result r =
+          cli(std::string(cmd) + " " + quote(bar_) + " -s " + quote(scenario_) + " -o " + quote(output));
+      EXPECT_NE(r.code, 0) << cmd << " -o " << output;
+      EXPECT_TRUE(contains(r.err, "bar.ply")) << r.err;
+      EXPECT_TRUE(contains(r.err, "input")) << r.err;
+      EXPECT_EQ(slurp(bar_), before) << cmd << " changed its input";
+      EXPECT_EQ(listing(in_), files) << cmd << " left a file beside its input";
+    }
+}
+
+TEST_F(CliErrors, OutputDirectoryMissing) {
+  for (const char* cmd : {"field", "deform"}) {
+    expectFailure(cmd, bar_, scenario_, {"nodir/out.ply", "cannot write"}, "", "nodir/out.ply");
+    EXPECT_FALSE(fs::exists(out_.path() / "nodir"));
+  }
+}
+
+TEST_F(CliErrors, ReportIntoMissingDirectory) {
+  // The shape is written, but the report cannot be: a failure that names the report.
+  const Result r = cli("deform " + quote(bar_) + " -s " + quote(scenario_) + " -o " +
+                       quote(out_.file("o.ply")) + " --report " + quote(out_.file("nodir/r.json")));
+  EXPECT_NE(r.code, 0);
+  EXPECT_TRUE(contains(r.err, "nodir/r.json")) << r.err;
+}
+
+}  // namespace

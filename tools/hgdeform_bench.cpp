@@ -1,0 +1,248 @@
+// hgdeform-bench: build, solve and interpolation timings against the paper's Table 1.
+//
+//   hgdeform-bench [--sizes 50000,173000,1000000] [--repeat 5] [--clusters 16,100] [--json OUT]
+//
+// Each size runs in its own child process, so that the peak memory (RSS) reported is that
+// size's alone. Shapes: a procedural bumpy sphere of exactly N points (fixed handle: the
+// bottom cap; manipulated: a cap on the side), so that the figures need no data files.
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "hgdeform/deformer.h"
+#include "hgdeform/report.h"
+#include "hgdeform/shapes.h"
+
+namespace {
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  const std::size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+std::vector<long> parseList(const std::string& s) {
+  std::vector<long> out;
+  std::stringstream ss(s);
+  std::string item;
+  while (std::getline(ss, item, ',')) out.push_back(std::stol(item));
+  return out;
+}
+
+// The paper's Table 1 (Core 2 Duo, 2008), nearest model by size: build ms, GN ms/iteration
+// (16 clusters), interpolation ms.
+struct PaperRow {
+  const char* model;
+  double vertices, build, iteration, interpolation;
+};
+const PaperRow kPaper[] = {{"Armadillo 52k", 51893, 302, 4, 8},
+                           {"Armadillo 173k", 172974, 1564, 5, 26},
+                           {"Buddha 244k", 243652, 2659, 6, 40},
+                           {"Dragon 438k", 437645, 5035, 7, 59}};
+const PaperRow& paperRow(double n) {
+  const PaperRow* best = &kPaper[0];
+  for (const auto& r : kPaper)
+    if (std::abs(std::log(r.vertices / n)) < std::abs(std::log(best->vertices / n))) best = &r;
+  return *best;
+}
+
+nlohmann::json runSize(std::size_t n, int repeat, const std::vector<long>& cluster_counts) {
+  using nlohmann::json;
+  const hgd::Geometry g = hgd::extractGeometry(hgd::shapes::bumpySphere(n));
+  hgd::Handles h;
+  h.fixed.emplace_back();
+  for (std::size_t i = 0; i < g.size(); ++i) {
+    const Eigen::Vector3d w = g.world(i);
+    if (w.z() < -0.9) h.fixed[0].push_back(static_cast<int>(i));
+    if (w.x() > 0.9) h.manipulated.push_back(static_cast<int>(i));
+  }
+  json out;
+  out["points"] = n;
+  // Field build: normals (file normals are ignored here so that estimation is measured),
+  // kNN, graph, Laplacian, solve; a fresh HarmonicField each time.
+  std::vector<double> knn, normals, graph, lap, solve, field_total;
+  std::string solver;
+  int cg_iterations = 0;
+  for (int r = 0; r < repeat; ++r) {
+    hgd::HarmonicField f;
+    f.setInputCloud(g.points);
+    f.setHandles(h.fixed, h.manipulated);
+    std::vector<float> phi;
+    f.compute(phi);
+    const auto& t = f.timings();
+    knn.push_back(t.knn_ms);
+    normals.push_back(t.normals_ms);
+    graph.push_back(t.graph_ms);
+    lap.push_back(t.laplacian_ms);
+    solve.push_back(t.solve_ms);
+    field_total.push_back(t.total());
+    solver = t.exact ? "exact" : "multilevel";
+    cg_iterations = t.iterations;
+  }
+  out["field"] = {{"knn_ms", median(knn)},     {"normals_ms", median(normals)},
+                  {"graph_ms", median(graph)}, {"laplacian_ms", median(lap)},
+                  {"solve_ms", median(solve)}, {"total_ms", median(field_total)},
+                  {"solver", solver},          {"cg_iterations", cg_iterations}};
+  json per_clusters = json::array();
+  for (long nc : cluster_counts) {
+    std::vector<double> build, sampling, clusters, setup, per_iter, interp, frame;
+    int iterations_first = 0, max_frame_iterations = 0;
+    std::size_t cluster_total = 0;
+    for (int r = 0; r < std::max(1, repeat / 2); ++r) {
+      hgd::DeformOptions opt;
+      opt.clusters.isoclusters = static_cast<int>(nc);
+      opt.clusters.samples = std::max(4000, static_cast<int>(nc) * 60);
+      const auto t0 = std::chrono::steady_clock::now();
+      hgd::Deformer d(g, h, opt);
+      build.push_back(
+          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+      sampling.push_back(d.buildTimings().sampling_ms);
+      clusters.push_back(d.buildTimings().clusters_ms);
+      setup.push_back(d.buildTimings().setup_ms);
+      cluster_total = d.clustering().clusters.size();
+      // A standard drag: the handle's outermost point pulled up by a tenth of the diagonal,
+      // in interactive frames; every frame solved to convergence and interpolated.
+      const Eigen::Vector3d from = d.deformedWorld(static_cast<std::size_t>(h.manipulated[0]));
+      const Eigen::Vector3d to = from + Eigen::Vector3d(0, 0, 0.1 * d.diagonal());
+      const int frames = 30;
+      Eigen::Vector3d cur = from;
+      double solve_ms = 0;
+      int iterations = 0;
+      for (int k = 1; k <= frames; ++k) {
+        const Eigen::Vector3d next = from + (to - from) * (static_cast<double>(k) / frames);
+        const auto f0 = std::chrono::steady_clock::now();
+        const hgd::SolveStats st = d.drag(cur, next);
+        frame.push_back(
+            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - f0).count());
+        cur = next;
+        solve_ms += st.ms;
+        iterations += st.iterations;
+        interp.push_back(d.lastInterpolationMs());
+        if (k == 1) iterations_first = st.iterations;
+        max_frame_iterations = std::max(max_frame_iterations, st.iterations);
+      }
+      per_iter.push_back(solve_ms / std::max(1, iterations));
+    }
+    const PaperRow& paper = paperRow(static_cast<double>(n));
+    json row = {{"isoclusters", nc},
+                {"clusters", cluster_total},
+                {"build_ms", median(build)},
+                {"sampling_ms", median(sampling)},
+                {"clusters_ms", median(clusters)},
+                {"setup_ms", median(setup)},
+                {"gn_iteration_ms", median(per_iter)},
+                {"iterations_first_frame", iterations_first},
+                {"max_frame_iterations", max_frame_iterations},
+                {"interpolation_ms", median(interp)},
+                {"frame_ms", median(frame)},
+                {"paper_model", paper.model},
+                {"build_speedup", paper.build / std::max(1e-9, median(build))},
+                {"interpolation_speedup", paper.interpolation / std::max(1e-9, median(interp))}};
+    if (nc == 16) row["gn_iteration_speedup"] = paper.iteration / std::max(1e-9, median(per_iter));
+    if (nc == 100)
+      row["gn_iteration_speedup"] = 36.0 / std::max(1e-9, median(per_iter));  // Dinosaur, 100 clusters
+    per_clusters.push_back(row);
+  }
+  out["deform"] = per_clusters;
+  return out;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::vector<long> sizes{50000, 173000, 1000000};
+  std::vector<long> cluster_counts{16, 100};
+  int repeat = 5;
+  std::string json_path;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    auto next = [&]() -> std::string {
+      if (i + 1 >= argc) {
+        std::cerr << "hgdeform-bench: " << a << " needs a value\n";
+        std::exit(2);
+      }
+      return argv[++i];
+    };
+    if (a == "--sizes")
+      sizes = parseList(next());
+    else if (a == "--clusters")
+      cluster_counts = parseList(next());
+    else if (a == "--repeat")
+      repeat = std::max(1, std::atoi(next().c_str()));
+    else if (a == "--json")
+      json_path = next();
+    else if (a == "-h" || a == "--help") {
+      std::cout << "usage: hgdeform-bench [--sizes N,N,...] [--clusters N,N] [--repeat R] [--json OUT]\n";
+      return 0;
+    } else {
+      std::cerr << "hgdeform-bench: unknown option '" << a << "'\n";
+      return 2;
+    }
+  }
+  nlohmann::json all = nlohmann::json::array();
+  std::printf("%9s %7s | %6s %6s %6s %6s %6s %7s | %5s %6s %6s %8s %5s %7s %7s | %7s %6s\n", "points",
+              "solver", "knn", "normal", "graph", "lapl", "solve", "field", "clus", "build", "sample",
+              "ms/iter", "iters", "interp", "frame", "RSS MB", "xpaper");
+  for (long n : sizes) {
+    int pipefd[2];
+    if (pipe(pipefd) != 0) return 1;
+    const pid_t pid = fork();
+    if (pid == 0) {
+      close(pipefd[0]);
+      const std::string text = runSize(static_cast<std::size_t>(n), repeat, cluster_counts).dump();
+      if (write(pipefd[1], text.data(), text.size()) < 0) _exit(1);
+      close(pipefd[1]);
+      _exit(0);
+    }
+    close(pipefd[1]);
+    std::string text;
+    char buf[4096];
+    ssize_t got;
+    while ((got = read(pipefd[0], buf, sizeof buf)) > 0) text.append(buf, static_cast<std::size_t>(got));
+    close(pipefd[0]);
+    int status = 0;
+    struct rusage ru;
+    wait4(pid, &status, 0, &ru);
+    if (!WIFEXITED(status) || WEXITSTATUS(status) != 0 || text.empty()) {
+      std::fprintf(stderr, "hgdeform-bench: size %ld failed\n", n);
+      return 1;
+    }
+    nlohmann::json r = nlohmann::json::parse(text);
+    r["peak_rss_mb"] = static_cast<double>(ru.ru_maxrss) / 1024.0;
+    const auto& f = r["field"];
+    for (const auto& d : r["deform"]) {
+      std::printf(
+          "%9ld %7s | %6.0f %6.0f %6.0f %6.0f %6.0f %7.0f | %5ld %6.0f %6.1f %8.3f %5d %7.2f %7.2f | %7.0f "
+          "%6.1f\n",
+          n, f["solver"].get<std::string>().c_str(), f["knn_ms"].get<double>(), f["normals_ms"].get<double>(),
+          f["graph_ms"].get<double>(), f["laplacian_ms"].get<double>(), f["solve_ms"].get<double>(),
+          f["total_ms"].get<double>(), d["isoclusters"].get<long>(), d["build_ms"].get<double>(),
+          d["sampling_ms"].get<double>(), d["gn_iteration_ms"].get<double>(),
+          d["max_frame_iterations"].get<int>(), d["interpolation_ms"].get<double>(),
+          d["frame_ms"].get<double>(), r["peak_rss_mb"].get<double>(), d["build_speedup"].get<double>());
+    }
+    std::fflush(stdout);
+    all.push_back(r);
+  }
+  std::printf(
+      "columns: field phases in ms (median of %d); clus = isoclusters; build = Deformer construction (field, "
+      "sample, clusters, solver set-up); ms/iter = Gauss-Newton ms per iteration over a 30-frame drag; iters "
+      "= "
+      "most iterations in one frame; interp = interpolation to all points per frame; frame = solve + "
+      "interpolation per frame; xpaper = the paper's build time (nearest model in Table 1) / ours\n",
+      repeat);
+  if (!json_path.empty()) hgd::writeTextAtomically(json_path, all.dump(2) + "\n");
+  return 0;
+}
