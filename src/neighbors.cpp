@@ -1,11 +1,10 @@
 #include "hgdeform/neighbors.h"
 
 #include <pcl/features/normal_3d.h>
-#include <pcl/kdtree/kdtree_flann.h>
 
 #include <algorithm>
 #include <cmath>
-#include <queue>
+#include <flann/flann.hpp>
 
 namespace hgd {
 
@@ -14,29 +13,35 @@ KnnTable computeKnn(const pcl::PointCloud<pcl::PointXYZ>& points, int k) {
   const std::size_t n = points.size();
   t.k = std::max(0, std::min<int>(k, static_cast<int>(n) - 1));
   if (t.k == 0) return t;
-  auto cloud = points.makeShared();
-  pcl::KdTreeFLANN<pcl::PointXYZ> tree(false);  // unsorted results: we sort ourselves
-  tree.setInputCloud(cloud);
+  // FLANN directly, one batch query over all points on every core: PCL's per-query wrapper
+  // costs about as much as the search itself here.
+  std::vector<float> xyz(n * 3);
+  for (std::size_t i = 0; i < n; ++i) {
+    xyz[3 * i] = points[i].x;
+    xyz[3 * i + 1] = points[i].y;
+    xyz[3 * i + 2] = points[i].z;
+  }
+  const flann::Matrix<float> data(xyz.data(), n, 3);
+  flann::Index<flann::L2_Simple<float>> index(data, flann::KDTreeSingleIndexParams(15));
+  index.buildIndex();
+  const std::size_t kk = static_cast<std::size_t>(t.k) + 1;
+  std::vector<int> idx(n * kk);
+  std::vector<float> d2(n * kk);
+  flann::Matrix<int> indices(idx.data(), n, kk);
+  flann::Matrix<float> dists(d2.data(), n, kk);
+  flann::SearchParams params(flann::FLANN_CHECKS_UNLIMITED, 0.0f, true);
+  params.cores = 0;  // all cores
+  index.knnSearch(data, indices, dists, kk, params);
   t.index.resize(n * static_cast<std::size_t>(t.k));
-  const long long nn = static_cast<long long>(n);
-#pragma omp parallel
-  {
-    pcl::Indices idx;
-    std::vector<float> d2;
-    std::vector<std::pair<float, int>> order;
-#pragma omp for schedule(dynamic, 1024)
-    for (long long i = 0; i < nn; ++i) {
-      tree.nearestKSearch(points[static_cast<std::size_t>(i)], t.k + 1, idx, d2);
-      order.clear();
-      for (std::size_t m = 0; m < idx.size(); ++m)
-        if (idx[m] != i) order.emplace_back(d2[m], idx[m]);
-      std::sort(order.begin(), order.end());
-      int* row = t.index.data() + static_cast<std::size_t>(i) * static_cast<std::size_t>(t.k);
-      for (int m = 0; m < t.k; ++m)
-        row[m] = m < static_cast<int>(order.size())
-                     ? order[static_cast<std::size_t>(m)].second
-                     : static_cast<int>(i);  // fewer found: self-loops are ignored later
+  for (std::size_t i = 0; i < n; ++i) {
+    // Sorted by distance; drop the point itself (wherever duplicates put it).
+    int* row = t.index.data() + i * static_cast<std::size_t>(t.k);
+    int m = 0;
+    for (std::size_t q = 0; q < kk && m < t.k; ++q) {
+      const int j = idx[i * kk + q];
+      if (j != static_cast<int>(i) && j >= 0) row[m++] = j;
     }
+    for (; m < t.k; ++m) row[m] = static_cast<int>(i);  // fewer found: self-loops are ignored later
   }
   return t;
 }
@@ -78,26 +83,37 @@ pcl::PointCloud<pcl::Normal>::Ptr estimateNormals(const pcl::PointCloud<pcl::Poi
   }
 
   // Minimum-spanning-tree propagation (Prim) over the symmetric kNN graph with weights
-  // 1 - |n_i . n_j|: flips follow the smoothest path, so creases are crossed last.
-  const NeighborGraph g = knnGraph(knn, kn, nullptr);
+  // 1 - |n_i . n_j|: flips follow the smoothest path, so creases are crossed last. Weights lie
+  // in [0, 1], so a bucket queue (256 levels) stands in for the heap: same order up to 1/256,
+  // at a fraction of the cost.
+  const NeighborGraph g = knnGraph(knn, std::min(kn, 8), nullptr);
   std::vector<char> done(n, 0);
   std::vector<int> order(n);
   for (std::size_t i = 0; i < n; ++i) order[i] = static_cast<int>(i);
   // Seeds: outermost (largest x) first, so that each piece starts from a point whose outward
   // direction is known.
   std::sort(order.begin(), order.end(), [&](int a, int b) { return points[a].x > points[b].x; });
-  using Item = std::pair<float, std::pair<int, int>>;  // weight, (to, from)
-  std::priority_queue<Item, std::vector<Item>, std::greater<Item>> heap;
+  constexpr int kBuckets = 256;
+  std::vector<std::vector<std::pair<int, int>>> bucket(kBuckets);  // (to, from)
+  int lowest = kBuckets;
+  auto push = [&](float w, int to, int from) {
+    const int b = std::min(kBuckets - 1, static_cast<int>(w * kBuckets));
+    bucket[static_cast<std::size_t>(b)].emplace_back(to, from);
+    lowest = std::min(lowest, b);
+  };
   for (int seed : order) {
     if (done[static_cast<std::size_t>(seed)]) continue;
     auto& sn = (*normals)[static_cast<std::size_t>(seed)];
     if (sn.normal_x < 0) sn.getNormalVector3fMap() *= -1.0f;
-    heap.push({0.0f, {seed, seed}});
-    while (!heap.empty()) {
-      const auto [w, e] = heap.top();
-      heap.pop();
-      const auto [to, from] = e;
-      (void)w;
+    push(0.0f, seed, seed);
+    while (lowest < kBuckets) {
+      auto& bk = bucket[static_cast<std::size_t>(lowest)];
+      if (bk.empty()) {
+        ++lowest;
+        continue;
+      }
+      const auto [to, from] = bk.back();
+      bk.pop_back();
       if (done[static_cast<std::size_t>(to)]) continue;
       done[static_cast<std::size_t>(to)] = 1;
       auto nt = (*normals)[static_cast<std::size_t>(to)].getNormalVector3fMap();
@@ -106,10 +122,11 @@ pcl::PointCloud<pcl::Normal>::Ptr estimateNormals(const pcl::PointCloud<pcl::Poi
       for (const int* j = g.begin(static_cast<std::size_t>(to)); j != g.end(static_cast<std::size_t>(to));
            ++j) {
         if (done[static_cast<std::size_t>(*j)]) continue;
-        const float d = std::abs(nt.dot((*normals)[static_cast<std::size_t>(*j)].getNormalVector3fMap()));
-        heap.push({1.0f - d, {*j, to}});
+        push(1.0f - std::abs(nt.dot((*normals)[static_cast<std::size_t>(*j)].getNormalVector3fMap())), *j,
+             to);
       }
     }
+    lowest = kBuckets;
   }
   return normals;
 }

@@ -1,0 +1,9 @@
+#!/usr/bin/env bash
+# Installs the dependencies, builds hgdeform (warnings as errors) and runs the whole test suite.
+# Usage: bash scripts/test.sh        (from anywhere; root or sudo for the install step)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash scripts/install-deps.sh
+cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DHGDEFORM_WERROR=ON
+cmake --build build -j 2
+ctest --test-dir build --output-on-failure -j 2
