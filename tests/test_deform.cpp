@@ -2,6 +2,7 @@
 #include <Eigen/Dense>
 #include <cmath>
 #include <fstream>
+#include <random>
 #include <string>
 
 #include "hgdeform/deformer.h"
@@ -362,5 +363,65 @@ TEST_P(Survey, HandleReachedFixedStayRigidAsLaplacianEditing) {
 
 INSTANTIATE_TEST_SUITE_P(DeformationSurvey, Survey,
                          ::testing::Values("bar", "cylinder", "cactus", "bumpy_plane"));
+
+}  // namespace
+
+namespace {
+
+// The same bar in metres and in millimetres, the same drag: the same deformation up to scale.
+TEST(Deform, UnitsDoNotMatter) {
+  std::vector<Eigen::Vector3d> results[2];
+  for (int k = 0; k < 2; ++k) {
+    // A jittered bar, so that no two neighbours tie in distance (ties would be broken by
+    // rounding, differently at each scale).
+    const double s = k == 0 ? 1.0 : 1000.0;
+    const hgd::Geometry unit = hgd::extractGeometry(hgd::shapes::bar(1.0f, 0.1f, 0.01f));
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<double> jitter(-0.002, 0.002);
+    std::vector<Eigen::Vector3f> pts, nrm;
+    for (std::size_t i = 0; i < unit.size(); ++i) {
+      const Eigen::Vector3d w = unit.world(i) + Eigen::Vector3d(jitter(rng), jitter(rng), jitter(rng));
+      pts.push_back((w * s).cast<float>());
+      nrm.push_back((*unit.file_normals)[i].getNormalVector3fMap());
+    }
+    const hgd::Geometry g = hgd::extractGeometry(hgd::shapes::cloudShape(pts, nrm));
+    hgd::Handles h;
+    h.fixed.push_back(pointsWhere(g, 0, -1e9, 0.05 * s));
+    h.manipulated = pointsWhere(g, 0, 0.95 * s, 1e9);
+    hgd::Deformer d(g, h);
+    d.dragTo(Eigen::Vector3d(1.0, 0.0, 0.05) * s, Eigen::Vector3d(0.8, 0.45, 0.1) * s);
+    for (std::size_t i = 0; i < g.size(); ++i) results[k].push_back(d.deformedWorld(i) / s);
+  }
+  ASSERT_EQ(results[0].size(), results[1].size());
+  double worst = 0;
+  for (std::size_t i = 0; i < results[0].size(); ++i)
+    worst = std::max(worst, (results[0][i] - results[1][i]).norm());
+  std::printf("metres vs millimetres: max difference %.2e of the bar's length\n", worst);
+  EXPECT_LE(worst, 1e-5);
+}
+
+// Normals turn with the shape: under a frame motion the handle's normals are rotated by R.
+TEST(Deform, NormalsFollowTheTransform) {
+  const hgd::Geometry g = hgd::extractGeometry(hgd::shapes::bar(1.0f, 0.1f, 0.01f));
+  ASSERT_TRUE(g.hasFileNormals());
+  hgd::Handles h;
+  h.fixed.push_back(pointsWhere(g, 0, -1, 0.05));
+  h.manipulated = pointsWhere(g, 0, 0.9, 2);
+  hgd::Deformer d(g, h);
+  Eigen::Affine3d t = Eigen::Affine3d::Identity();
+  t.rotate(Eigen::AngleAxisd(0.8, Eigen::Vector3d::UnitZ()));
+  d.setHandleTransform(t);
+  for (int i : h.manipulated) {
+    const Eigen::Vector3f expected =
+        (t.linear().cast<float>() * (*g.file_normals)[static_cast<std::size_t>(i)].getNormalVector3fMap())
+            .normalized();
+    EXPECT_LE((d.deformedNormals()[static_cast<std::size_t>(i)] - expected).norm(), 1e-5f);
+  }
+  for (int i : h.fixed[0])
+    EXPECT_LE((d.deformedNormals()[static_cast<std::size_t>(i)] -
+               (*g.file_normals)[static_cast<std::size_t>(i)].getNormalVector3fMap())
+                  .norm(),
+              1e-6f);
+}
 
 }  // namespace
