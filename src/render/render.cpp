@@ -1,0 +1,126 @@
+#include "hgdeform/render.h"
+
+#include <pcl/conversions.h>
+#include <pcl/visualization/pcl_visualizer.h>
+#include <vtkPNGWriter.h>
+#include <vtkRenderWindow.h>
+#include <vtkSmartPointer.h>
+#include <vtkWindowToImageFilter.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <stdexcept>
+
+#include "hgdeform/colormap.h"
+#include "hgdeform/fields.h"
+#include "hgdeform/geometry.h"
+
+namespace hgd {
+
+namespace {
+pcl::PointCloud<pcl::PointXYZRGB>::Ptr colouredPoints(const hgd::Shape& shape, const hgd::Geometry& g,
+                                                      const std::string& field) {
+  pcl::PointCloud<pcl::PointXYZRGB>::Ptr out(new pcl::PointCloud<pcl::PointXYZRGB>);
+  out->resize(g.size());
+  const int f = field.empty() ? -1 : hgd::findField(shape.cloud, field);
+  const int r = hgd::findField(shape.cloud, "red"), gr = hgd::findField(shape.cloud, "green"),
+            b = hgd::findField(shape.cloud, "blue");
+  for (std::size_t i = 0; i < g.size(); ++i) {
+    auto& p = (*out)[i];
+    p.getVector3fMap() = (g.world(i)).cast<float>();
+    const auto raw = static_cast<std::size_t>(g.raw_index[i]);
+    Eigen::Vector3f c(0.75f, 0.75f, 0.72f);
+    if (f >= 0) {
+      c = colourMap(static_cast<float>(
+          hgd::readValue(shape.cloud, raw, shape.cloud.fields[static_cast<std::size_t>(f)])));
+    } else if (r >= 0 && gr >= 0 && b >= 0) {
+      const double scale =
+          shape.cloud.fields[static_cast<std::size_t>(r)].datatype == pcl::PCLPointField::UINT8 ? 255.0 : 1.0;
+      c = Eigen::Vector3f(
+          static_cast<float>(
+              hgd::readValue(shape.cloud, raw, shape.cloud.fields[static_cast<std::size_t>(r)]) / scale),
+          static_cast<float>(
+              hgd::readValue(shape.cloud, raw, shape.cloud.fields[static_cast<std::size_t>(gr)]) / scale),
+          static_cast<float>(
+              hgd::readValue(shape.cloud, raw, shape.cloud.fields[static_cast<std::size_t>(b)]) / scale));
+    }
+    p.r = static_cast<std::uint8_t>(std::clamp(c.x(), 0.0f, 1.0f) * 255);
+    p.g = static_cast<std::uint8_t>(std::clamp(c.y(), 0.0f, 1.0f) * 255);
+    p.b = static_cast<std::uint8_t>(std::clamp(c.z(), 0.0f, 1.0f) * 255);
+  }
+  out->width = static_cast<std::uint32_t>(out->size());
+  out->height = 1;
+  return out;
+}
+
+}  // namespace
+
+void renderPng(const std::vector<const Shape*>& shapes, const std::string& png_path,
+               const RenderOptions& options) {
+  if (shapes.empty()) throw std::runtime_error(png_path + ": nothing to render");
+  std::vector<Geometry> geoms;
+  for (const Shape* s : shapes) geoms.push_back(extractGeometry(*s));
+  // One camera for all: the union of the bounding boxes, seen along `view`.
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(INFINITY), hi = -lo;
+  for (const auto& g : geoms)
+    for (std::size_t i = 0; i < g.size(); ++i) {
+      lo = lo.cwiseMin(g.world(i));
+      hi = hi.cwiseMax(g.world(i));
+    }
+  const Eigen::Vector3d centre = 0.5 * (lo + hi);
+  const double radius = std::max(0.5 * (hi - lo).norm(), 1e-9);
+  const int width = options.width, height = options.height;
+
+  pcl::visualization::PCLVisualizer viewer("hgdeform", false);
+  viewer.setSize(width, height);
+  const int n = static_cast<int>(shapes.size());
+  for (int k = 0; k < n; ++k) {
+    int vp = 0;
+    viewer.createViewPort(static_cast<double>(k) / n, 0.0, static_cast<double>(k + 1) / n, 1.0, vp);
+    viewer.setBackgroundColor(1.0, 1.0, 1.0, vp);
+    const auto& g = geoms[static_cast<std::size_t>(k)];
+    const auto cloud = colouredPoints(*shapes[static_cast<std::size_t>(k)], g, options.field);
+    const std::string id = "shape" + std::to_string(k);
+    if (!g.faces.empty()) {
+      pcl::PolygonMesh mesh;
+      pcl::toPCLPointCloud2(*cloud, mesh.cloud);
+      mesh.polygons = g.faces;
+      viewer.addPolygonMesh(mesh, id, vp);
+    } else {
+      viewer.addPointCloud<pcl::PointXYZRGB>(cloud, id, vp);
+      viewer.setPointCloudRenderingProperties(pcl::visualization::PCL_VISUALIZER_POINT_SIZE,
+                                              options.point_size, id, vp);
+    }
+    if (k < static_cast<int>(options.titles.size()))
+      viewer.addText(options.titles[static_cast<std::size_t>(k)], 12, 12, 18, 0.1, 0.1, 0.1, id + "_title",
+                     vp);
+  }
+  const Eigen::Vector3d eye =
+      centre + options.view.cast<double>().normalized() * radius * 3.3;  // 30 degree view angle
+  viewer.setCameraPosition(eye.x(), eye.y(), eye.z(), centre.x(), centre.y(), centre.z(), 0, 1, 0);
+  viewer.setCameraClipDistances(radius * 0.1, radius * 10);
+  // No interactor (a headless render): draw and grab the window ourselves. PCL's
+  // saveScreenshot goes through the interactor style, which does not exist here.
+  auto window = viewer.getRenderWindow();
+  window->SetSize(width, height);
+  window->SetOffScreenRendering(1);
+  window->Render();
+  auto grab = vtkSmartPointer<vtkWindowToImageFilter>::New();
+  grab->SetInput(window);
+  grab->SetInputBufferTypeToRGB();
+  grab->ReadFrontBufferOff();
+  grab->Update();
+  // Written next to the target, then renamed: never a half-written picture.
+  const std::string tmp = png_path + ".tmp.png";
+  auto writer = vtkSmartPointer<vtkPNGWriter>::New();
+  writer->SetFileName(tmp.c_str());
+  writer->SetInputConnection(grab->GetOutputPort());
+  writer->Write();
+  if (writer->GetErrorCode() != 0 || std::rename(tmp.c_str(), png_path.c_str()) != 0) {
+    std::remove(tmp.c_str());
+    throw std::runtime_error(png_path + ": cannot write the picture");
+  }
+}
+
+}  // namespace hgd
