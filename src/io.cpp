@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cctype>
 #include <cerrno>
 #include <charconv>
@@ -1089,6 +1090,31 @@ Shape readObj(const std::string& path) {
 // ------------------------------------------------------------------------------------------
 // Output
 
+// Temporary files being written, so that a signal handler can remove them
+// (removeTemporaryFiles). Fixed slots and atomics only: readable from a signal handler.
+struct TempSlot {
+  std::atomic<int> state{0};  // 0 free, 1 claimed, 2 holds a live path
+  char path[4096];
+};
+TempSlot g_temp_slots[64];
+
+int registerTemp(const std::string& path) {
+  if (path.size() >= sizeof(TempSlot::path)) return -1;
+  for (int i = 0; i < 64; ++i) {
+    int expected = 0;
+    if (g_temp_slots[i].state.compare_exchange_strong(expected, 1)) {
+      std::memcpy(g_temp_slots[i].path, path.c_str(), path.size() + 1);
+      g_temp_slots[i].state.store(2);
+      return i;
+    }
+  }
+  return -1;
+}
+
+void unregisterTemp(int slot) {
+  if (slot >= 0) g_temp_slots[slot].state.store(0);
+}
+
 /// Writes to a temporary file next to the target and renames it over the target on commit();
 /// the temporary file is removed if commit() is not reached.
 class AtomicWriter {
@@ -1109,6 +1135,7 @@ class AtomicWriter {
              "cannot write: cannot create a temporary file in " + dir.string() + ": " + errnoText(errno));
       }
       tmp_ = tmp.string();
+      slot_ = registerTemp(tmp_);
       file_ = ::fdopen(fd, "wb");
       if (!file_) {
         const int e = errno;
@@ -1126,6 +1153,7 @@ class AtomicWriter {
   ~AtomicWriter() {
     if (file_) std::fclose(file_);
     if (!tmp_.empty()) ::unlink(tmp_.c_str());
+    unregisterTemp(slot_);
   }
 
   void write(const void* p, std::size_t n) {
@@ -1140,6 +1168,8 @@ class AtomicWriter {
     if (std::fclose(f) != 0) failWrite(errno);
     if (std::rename(tmp_.c_str(), target_.c_str()) != 0) failWrite(errno);
     tmp_.clear();
+    unregisterTemp(slot_);
+    slot_ = -1;
   }
 
  private:
@@ -1147,6 +1177,7 @@ class AtomicWriter {
   std::string target_;
   std::string tmp_;
   std::FILE* file_ = nullptr;
+  int slot_ = -1;
 };
 
 template <typename T>
@@ -1461,6 +1492,17 @@ void writeShape(const std::string& path, const Shape& shape, const WriteOptions&
     case FileFormat::Pcd: writePcd(path, shape, ascii); break;
     case FileFormat::Obj: writeObj(path, shape); break;
   }
+}
+
+void removeTemporaryFiles() noexcept {
+  for (auto& slot : g_temp_slots)
+    if (slot.state.load() == 2) ::unlink(slot.path);
+}
+
+void writeFileAtomically(const std::string& path, std::string_view bytes) {
+  AtomicWriter w(path);
+  w.write(bytes);
+  w.commit();
 }
 
 }  // namespace hgd

@@ -20,6 +20,11 @@
 #include "hgdeform/report.h"
 #include "hgdeform/scenario.h"
 
+namespace hgdcli {
+/// `hgdeform batch` (tools/batch.cpp).
+int runBatch(int argc, char** argv);
+}  // namespace hgdcli
+
 namespace {
 
 const char* kUsage =
@@ -28,6 +33,7 @@ const char* kUsage =
     "commands:\n"
     "  field   INPUT --scenario S.json -o OUT   write the harmonic field as a per-point scalar\n"
     "  deform  INPUT --scenario S.json -o OUT   deform the shape as the scenario's moves say\n"
+    "  batch   --scenario S.json IN_DIR -o OUT_DIR   deform every scan in a folder\n"
     "\n"
     "INPUT and OUT are PLY, PCD or OBJ files (by extension). 'hgdeform <command> --help' for options.\n";
 
@@ -274,6 +280,7 @@ int main(int argc, char** argv) {
   try {
     if (cmd == "field") return runField(argc - 2, argv + 2);
     if (cmd == "deform") return runDeform(argc - 2, argv + 2);
+    if (cmd == "batch") return hgdcli::runBatch(argc - 2, argv + 2);
     std::cerr << "hgdeform: unknown command '" << cmd << "'\n" << kUsage;
     return 2;
   } catch (const UsageError& e) {

@@ -4,6 +4,7 @@
 
 #include <stdexcept>
 #include <string>
+#include <string_view>
 
 #include "hgdeform/shape.h"
 
@@ -35,5 +36,14 @@ struct WriteOptions {
 /// to a temporary file in the same directory which is renamed over `path` only when complete.
 /// Refuses (IoError) to write over `shape.path`, the file the shape was read from.
 void writeShape(const std::string& path, const Shape& shape, const WriteOptions& options = {});
+
+/// Writes bytes to `path` the same way: temporary file in the same directory, then rename.
+/// Throws IoError naming the path.
+void writeFileAtomically(const std::string& path, std::string_view bytes);
+
+/// Removes the temporary files of writes in progress (in any thread). Async-signal-safe: a
+/// SIGINT/SIGTERM handler calls it before exiting so that an interrupted run leaves no
+/// partial file behind.
+void removeTemporaryFiles() noexcept;
 
 }  // namespace hgd
