@@ -77,6 +77,67 @@ std::vector<int> sampleSurface(const pcl::PointCloud<pcl::PointXYZ>& points, con
   return sample;
 }
 
+std::vector<Band> Clustering::makeBands(const std::vector<float>& phi,
+                                        const std::vector<std::vector<int>>& joints,
+                                        const ClusterOptions& options, std::vector<std::string>* notes) {
+  std::vector<Band> bands;
+  bands.push_back({Band::Kind::Fixed, 0.0, 0.0});
+  if (joints.empty()) {
+    const int n = std::max(0, options.isoclusters);
+    for (int l = 1; l <= n; ++l) {
+      const double v = static_cast<double>(l) / (n + 1);
+      bands.push_back({Band::Kind::Iso, v, v});
+    }
+  } else {
+    // Each joint's phi range; overlapping ranges merge (two knees at the same height, say).
+    std::vector<std::pair<double, double>> ranges;
+    for (const auto& j : joints) {
+      double lo = 1, hi = 0;
+      for (int i : j) {
+        lo = std::min(lo, static_cast<double>(phi[static_cast<std::size_t>(i)]));
+        hi = std::max(hi, static_cast<double>(phi[static_cast<std::size_t>(i)]));
+      }
+      ranges.emplace_back(lo, hi);
+    }
+    std::vector<std::size_t> order(ranges.size());
+    std::iota(order.begin(), order.end(), 0);
+    std::sort(order.begin(), order.end(),
+              [&](std::size_t a, std::size_t b) { return ranges[a] < ranges[b]; });
+    std::vector<std::pair<double, double>> merged;
+    std::vector<std::vector<std::size_t>> members;
+    for (std::size_t k : order) {
+      if (!merged.empty() && ranges[k].first <= merged.back().second) {
+        merged.back().second = std::max(merged.back().second, ranges[k].second);
+        members.back().push_back(k);
+      } else {
+        merged.push_back(ranges[k]);
+        members.push_back({k});
+      }
+    }
+    if (notes)
+      for (const auto& m : members)
+        if (m.size() > 1) {
+          std::string text = "joints";
+          for (std::size_t k : m) text += " " + std::to_string(k);
+          text += " span overlapping harmonic ranges and act as one joint";
+          notes->push_back(text);
+        }
+    const int per_joint = std::max(1, options.joint_isoclusters);
+    double previous = 0;  // upper end of the last band
+    for (const auto& [a, b] : merged) {
+      if (a > previous) bands.push_back({Band::Kind::Range, previous, a});
+      for (int l = 1; l <= per_joint; ++l) {
+        const double v = a + (b - a) * l / (per_joint + 1);
+        if (v > bands.back().hi) bands.push_back({Band::Kind::Iso, v, v});
+      }
+      previous = b;
+    }
+    if (previous < 1) bands.push_back({Band::Kind::Range, previous, 1.0});
+  }
+  bands.push_back({Band::Kind::Manipulated, 1.0, 1.0});
+  return bands;
+}
+
 Clustering buildClusters(const pcl::PointCloud<pcl::PointXYZ>& points, const NeighborGraph& graph,
                          const std::vector<float>& phi, const Handles& handles,
                          const std::vector<int>& unreachable, const std::vector<int>& sample,
@@ -84,12 +145,10 @@ Clustering buildClusters(const pcl::PointCloud<pcl::PointXYZ>& points, const Nei
   Clustering c;
   c.sample = sample;
   const std::size_t n = points.size();
-  const int top = std::max(0, options.isoclusters) + 1;
-  c.levels.resize(static_cast<std::size_t>(top) + 1);
-  for (int l = 0; l <= top; ++l) c.levels[static_cast<std::size_t>(l)] = static_cast<double>(l) / top;
-  auto slabOf = [&](std::size_t i) {
-    return std::clamp(static_cast<int>(std::floor(phi[i] * top)), 0, top - 1);
-  };
+  c.bands = Clustering::makeBands(phi, handles.joints, options, &c.notes);
+  const auto& bands = c.bands;
+  const int nb = static_cast<int>(bands.size());
+  const int top = nb - 1;
 
   // Roles: -1 free, -2 manipulated, -3 unreachable, k >= 0 fixed handle k.
   std::vector<int> role(n, -1);
@@ -100,12 +159,38 @@ Clustering buildClusters(const pcl::PointCloud<pcl::PointXYZ>& points, const Nei
   std::vector<char> in_sample(n, 0);
   for (int s : sample) in_sample[static_cast<std::size_t>(s)] = 1;
 
-  auto newCluster = [&](ClusterKind kind, int lvl, int handle) {
+  // Where each point lies: inside band b (band[i] = b, gap[i] = -1), or in the gap between
+  // bands g and g + 1 (band[i] = -1, gap[i] = g). Handle points lie in their handle's band.
+  std::vector<int> band(n, -1), gap(n, -1);
+  std::vector<double> bounds;  // lo of every band, for the search
+  for (const auto& b : bands) bounds.push_back(b.lo);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (role[i] == -3) continue;
+    if (role[i] >= 0) {
+      band[i] = 0;
+      continue;
+    }
+    if (role[i] == -2) {
+      band[i] = top;
+      continue;
+    }
+    const double v = phi[i];
+    // The last band whose lo <= v (skipping the fixed band, which holds handle points only).
+    int b = static_cast<int>(std::upper_bound(bounds.begin() + 1, bounds.end() - 1, v) - bounds.begin()) - 1;
+    const Band& bb = bands[static_cast<std::size_t>(b)];
+    if (bb.kind == Band::Kind::Range && v > bb.lo && v < bb.hi)
+      band[i] = b;
+    else
+      gap[i] = (bb.kind == Band::Kind::Range && v >= bb.hi) || bb.kind != Band::Kind::Range ? b : b - 1;
+    if (gap[i] >= top) gap[i] = top - 1;
+  }
+
+  auto newCluster = [&](ClusterKind kind, int lvl, int handle, double value) {
     Cluster cl;
     cl.id = static_cast<int>(c.clusters.size());
     cl.kind = kind;
     cl.level = lvl;
-    cl.phi = c.levels[static_cast<std::size_t>(lvl)];
+    cl.phi = value;
     cl.handle = handle;
     c.clusters.push_back(cl);
     return cl.id;
@@ -119,45 +204,91 @@ Clustering buildClusters(const pcl::PointCloud<pcl::PointXYZ>& points, const Nei
   };
   std::vector<int> fixed_id(handles.fixed.size());
   for (std::size_t k = 0; k < handles.fixed.size(); ++k) {
-    fixed_id[k] = newCluster(ClusterKind::Fixed, 0, static_cast<int>(k));
+    fixed_id[k] = newCluster(ClusterKind::Fixed, 0, static_cast<int>(k), 0.0);
     handleMembers(handles.fixed[k], c.clusters.back());
   }
-  c.manipulated = newCluster(ClusterKind::Manipulated, top, -1);
+  c.manipulated = newCluster(ClusterKind::Manipulated, top, -1, 1.0);
   handleMembers(handles.manipulated, c.clusters.back());
 
-  // Isolines: the points on either side of an edge that crosses v_l, per level.
-  std::vector<std::vector<int>> on_line(static_cast<std::size_t>(top));
+  std::vector<int> down(n, -1), up(n, -1);
+  std::deque<int> down_queue, up_queue;  // seeds: down labels spread upwards into a gap, up downwards
+  std::vector<int> stack, members;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (role[i] >= 0) down[i] = up[i] = fixed_id[static_cast<std::size_t>(role[i])];
+    if (role[i] == -2) down[i] = up[i] = c.manipulated;
+  }
+  // Bones: a range cluster per connected piece of a range band.
+  for (std::size_t s = 0; s < n; ++s) {
+    if (band[s] < 0 || down[s] >= 0 || bands[static_cast<std::size_t>(band[s])].kind != Band::Kind::Range)
+      continue;
+    const int b = band[s];
+    const int id = newCluster(ClusterKind::Range, b, -1, 0.0);
+    double sum_phi = 0;
+    members.clear();
+    down[s] = up[s] = id;
+    stack.assign(1, static_cast<int>(s));
+    while (!stack.empty()) {
+      const auto x = static_cast<std::size_t>(stack.back());
+      stack.pop_back();
+      members.push_back(static_cast<int>(x));
+      sum_phi += phi[x];
+      for (const int* j = graph.begin(x); j != graph.end(x); ++j) {
+        const auto u = static_cast<std::size_t>(*j);
+        if (band[u] == b && down[u] < 0) {
+          down[u] = up[u] = id;
+          stack.push_back(static_cast<int>(u));
+        }
+      }
+    }
+    Cluster& cl = c.clusters.back();
+    cl.phi = sum_phi / static_cast<double>(members.size());
+    for (int m : members)
+      if (in_sample[static_cast<std::size_t>(m)]) cl.members.push_back(m);
+    for (std::size_t k = 0; k < members.size() && cl.members.size() < 3; ++k)
+      if (!in_sample[static_cast<std::size_t>(members[k])]) cl.members.push_back(members[k]);
+  }
+  // Points inside interval bands seed the gaps on either side.
+  for (std::size_t i = 0; i < n; ++i) {
+    if (band[i] < 0 || down[i] < 0) continue;
+    down_queue.push_back(static_cast<int>(i));
+    up_queue.push_back(static_cast<int>(i));
+  }
+
+  // Isolines: the points on either side of an edge that crosses an isovalue, per iso band.
+  std::vector<std::vector<int>> on_line(bands.size());
+  std::vector<int> iso_bands;
+  std::vector<double> iso_values;
+  for (int b = 0; b < nb; ++b)
+    if (bands[static_cast<std::size_t>(b)].kind == Band::Kind::Iso) {
+      iso_bands.push_back(b);
+      iso_values.push_back(bands[static_cast<std::size_t>(b)].lo);
+    }
   for (std::size_t i = 0; i < n; ++i) {
     if (role[i] == -3) continue;
     for (const int* j = graph.begin(i); j != graph.end(i); ++j) {
       const auto u = static_cast<std::size_t>(*j);
       if (!(phi[i] < phi[u])) continue;
-      // Levels l with phi_i < v_l <= phi_u.
-      const int lo = std::max(1, static_cast<int>(std::floor(phi[i] * top)) + 1);
-      const int hi = std::min(top - 1, static_cast<int>(std::floor(phi[u] * top)));
-      for (int l = lo; l <= hi; ++l) {
-        if (!(phi[i] < c.levels[static_cast<std::size_t>(l)] &&
-              c.levels[static_cast<std::size_t>(l)] <= phi[u]))
-          continue;
-        on_line[static_cast<std::size_t>(l)].push_back(static_cast<int>(i));
-        on_line[static_cast<std::size_t>(l)].push_back(static_cast<int>(u));
+      // Isovalues v with phi_i < v <= phi_u.
+      auto it = std::upper_bound(iso_values.begin(), iso_values.end(), static_cast<double>(phi[i]));
+      for (; it != iso_values.end() && *it <= phi[u]; ++it) {
+        const auto b = static_cast<std::size_t>(iso_bands[static_cast<std::size_t>(it - iso_values.begin())]);
+        on_line[b].push_back(static_cast<int>(i));
+        on_line[b].push_back(static_cast<int>(u));
       }
     }
   }
   // Contours: connected pieces of each isoline; every piece of enough points is an isocluster.
-  std::vector<int> down(n, -1), up(n, -1);
-  std::vector<int> mark(n, -1), comp(n, -1), stack, members;
-  std::deque<int> down_queue, up_queue;
-  for (int l = 1; l < top; ++l) {
-    auto& line = on_line[static_cast<std::size_t>(l)];
+  std::vector<int> mark(n, -1), seen(n, -1);
+  for (int b : iso_bands) {
+    auto& line = on_line[static_cast<std::size_t>(b)];
     std::sort(line.begin(), line.end());
     line.erase(std::unique(line.begin(), line.end()), line.end());
-    for (int i : line) mark[static_cast<std::size_t>(i)] = l;
-    const double v = c.levels[static_cast<std::size_t>(l)];
+    for (int i : line) mark[static_cast<std::size_t>(i)] = b;
+    const double v = bands[static_cast<std::size_t>(b)].lo;
     for (int seed : line) {
-      if (comp[static_cast<std::size_t>(seed)] == l) continue;  // comp doubles as "visited at level l"
+      if (seen[static_cast<std::size_t>(seed)] == b) continue;
       members.clear();
-      comp[static_cast<std::size_t>(seed)] = l;
+      seen[static_cast<std::size_t>(seed)] = b;
       stack.assign(1, seed);
       while (!stack.empty()) {
         const auto x = static_cast<std::size_t>(stack.back());
@@ -165,58 +296,48 @@ Clustering buildClusters(const pcl::PointCloud<pcl::PointXYZ>& points, const Nei
         members.push_back(static_cast<int>(x));
         for (const int* j = graph.begin(x); j != graph.end(x); ++j) {
           const auto u = static_cast<std::size_t>(*j);
-          if (mark[u] == l && comp[u] != l) {
-            comp[u] = l;
+          if (mark[u] == b && seen[u] != b) {
+            seen[u] = b;
             stack.push_back(static_cast<int>(u));
           }
         }
       }
       if (static_cast<int>(members.size()) < options.min_contour) continue;
-      const int id = newCluster(ClusterKind::Iso, l, -1);
+      const int id = newCluster(ClusterKind::Iso, b, -1, v);
       Cluster& cl = c.clusters.back();
       for (int m : members)
         if (in_sample[static_cast<std::size_t>(m)]) cl.members.push_back(m);
       if (cl.members.size() < 3) {  // a short contour: its points nearest the isovalue
-        std::sort(members.begin(), members.end(), [&](int a, int b) {
-          return std::abs(phi[static_cast<std::size_t>(a)] - v) <
-                 std::abs(phi[static_cast<std::size_t>(b)] - v);
+        std::sort(members.begin(), members.end(), [&](int x, int y) {
+          return std::abs(phi[static_cast<std::size_t>(x)] - v) <
+                 std::abs(phi[static_cast<std::size_t>(y)] - v);
         });
         for (std::size_t k = 0; k < members.size() && cl.members.size() < 3; ++k)
           if (!in_sample[static_cast<std::size_t>(members[k])]) cl.members.push_back(members[k]);
       }
-      // The contour seeds the searches of the slabs on either side of it.
+      // The contour seeds the gaps on either side of it.
       for (int m : members) {
         const auto x = static_cast<std::size_t>(m);
-        if (slabOf(x) == l && down[x] < 0) {
+        if (gap[x] == b && down[x] < 0) {
           down[x] = id;
           down_queue.push_back(m);
-        } else if (slabOf(x) == l - 1 && up[x] < 0) {
+        } else if (gap[x] == b - 1 && up[x] < 0) {
           up[x] = id;
           up_queue.push_back(m);
         }
       }
     }
   }
-  // Handles seed the outermost slabs.
-  for (std::size_t i = 0; i < n; ++i) {
-    if (role[i] >= 0 && slabOf(i) == 0) {
-      down[i] = fixed_id[static_cast<std::size_t>(role[i])];
-      down_queue.push_front(static_cast<int>(i));
-    }
-    if (role[i] == -2 && slabOf(i) == top - 1) {
-      up[i] = c.manipulated;
-      up_queue.push_front(static_cast<int>(i));
-    }
-  }
-  // Nearest contour along the surface within each slab.
+  // Nearest cluster along the surface within each gap: a down label from band b spreads into
+  // gap b, an up label from band b into gap b - 1.
   auto spread = [&](std::deque<int>& q, std::vector<int>& label, int offset) {
     while (!q.empty()) {
       const auto x = static_cast<std::size_t>(q.front());
       q.pop_front();
-      const int slab = c.clusters[static_cast<std::size_t>(label[x])].level - offset;
+      const int g = c.clusters[static_cast<std::size_t>(label[x])].level - offset;
       for (const int* j = graph.begin(x); j != graph.end(x); ++j) {
         const auto u = static_cast<std::size_t>(*j);
-        if (label[u] < 0 && role[u] != -3 && slabOf(u) == slab) {
+        if (label[u] < 0 && gap[u] == g) {
           label[u] = label[x];
           q.push_back(static_cast<int>(u));
         }
@@ -225,7 +346,7 @@ Clustering buildClusters(const pcl::PointCloud<pcl::PointXYZ>& points, const Nei
   };
   spread(down_queue, down, 0);
   spread(up_queue, up, 1);
-  // A slab region that meets only one side (a part touching one kind of handle only) takes
+  // A gap region that meets only one side (a part touching one kind of handle only) takes
   // that side for both; parts touching no handle become static clusters.
   for (std::size_t i = 0; i < n; ++i) {
     if (down[i] < 0) down[i] = up[i];
@@ -233,7 +354,7 @@ Clustering buildClusters(const pcl::PointCloud<pcl::PointXYZ>& points, const Nei
   }
   for (std::size_t s = 0; s < n; ++s) {
     if (down[s] >= 0) continue;
-    const int id = newCluster(ClusterKind::Static, 0, -1);
+    const int id = newCluster(ClusterKind::Static, 0, -1, 0.0);
     down[s] = up[s] = id;
     stack.assign(1, static_cast<int>(s));
     while (!stack.empty()) {
@@ -255,12 +376,29 @@ Clustering buildClusters(const pcl::PointCloud<pcl::PointXYZ>& points, const Nei
     for (int i : cl.members) sum += points[static_cast<std::size_t>(i)].getVector3fMap().cast<double>();
     if (!cl.members.empty()) cl.barycenter = sum / static_cast<double>(cl.members.size());
   }
-  // Adjacent clusters: the two sides of some slab region.
+  // Blend factors (eq. 1): a gap point's place between the facing ends of its two bands.
+  c.alpha.assign(n, 0.0f);
   c.piece.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
-    const int a = std::min(down[i], up[i]), b = std::max(down[i], up[i]);
-    if (a != b) c.adjacency.emplace_back(a, b);
-    c.piece[i] = phi[i] * top - slabOf(i) < 0.5 ? down[i] : up[i];
+    if (gap[i] >= 0 && down[i] != up[i]) {
+      const double a = bands[static_cast<std::size_t>(gap[i])].hi,
+                   b = bands[static_cast<std::size_t>(gap[i]) + 1].lo;
+      c.alpha[i] = b > a ? static_cast<float>(std::clamp((phi[i] - a) / (b - a), 0.0, 1.0)) : 0.0f;
+    }
+    c.piece[i] = c.alpha[i] < 0.5f ? down[i] : up[i];
+  }
+  // Adjacent clusters: the two sides of a gap region, and interval pieces that touch.
+  auto isStatic = [&](int id) {
+    return c.clusters[static_cast<std::size_t>(id)].kind == ClusterKind::Static;
+  };
+  for (std::size_t i = 0; i < n; ++i) {
+    if (down[i] != up[i]) c.adjacency.emplace_back(std::min(down[i], up[i]), std::max(down[i], up[i]));
+    if (band[i] < 0) continue;
+    for (const int* j = graph.begin(i); j != graph.end(i); ++j) {
+      const auto u = static_cast<std::size_t>(*j);
+      if (band[u] >= 0 && band[u] != band[i] && !isStatic(down[i]) && !isStatic(down[u]))
+        c.adjacency.emplace_back(std::min(down[i], down[u]), std::max(down[i], down[u]));
+    }
   }
   std::sort(c.adjacency.begin(), c.adjacency.end());
   c.adjacency.erase(std::unique(c.adjacency.begin(), c.adjacency.end()), c.adjacency.end());

@@ -1,5 +1,6 @@
 #include "hgdeform/deformer.h"
 
+#include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
@@ -17,8 +18,6 @@ Deformer::Deformer(const Geometry& geometry, const Handles& handles, const Defor
     : geometry_(geometry), handles_(handles), options_(options) {
   if (handles_.manipulated.empty()) throw std::invalid_argument("Deformer: the manipulated handle is empty");
   if (handles_.fixed.empty()) throw std::invalid_argument("Deformer: no fixed handle");
-  if (!handles_.joints.empty())
-    throw std::invalid_argument("Deformer: skeletal mode (joints) is not supported by this version");
   Stopwatch sw;
   field_.setInputCloud(geometry_.points);
   if (geometry_.hasFileNormals()) field_.setInputNormals(geometry_.file_normals);
@@ -67,9 +66,11 @@ void Deformer::setupSolver(bool manipulated_constant) {
           normalise((*geometry_.points)[static_cast<std::size_t>(i)].getVector3fMap().cast<double>()));
     sc[c].constant = cl.kind == ClusterKind::Fixed || cl.kind == ClusterKind::Static ||
                      (cl.kind == ClusterKind::Manipulated && manipulated_constant);
-    sc[c].rot_weight = cl.kind == ClusterKind::Manipulated && options_.weights.mhc_per_cluster > 0
-                           ? std::max(1.0, options_.weights.mhc_per_cluster * n_iso)
-                           : 1.0;
+    const double w_mhc =
+        options_.weights.mhc_per_cluster > 0 ? std::max(1.0, options_.weights.mhc_per_cluster * n_iso) : 1.0;
+    sc[c].rot_weight = cl.kind == ClusterKind::Manipulated ? w_mhc
+                       : cl.kind == ClusterKind::Range     ? options_.bone_rigidity * w_mhc
+                                                           : 1.0;
   }
   solver_.setup(std::move(sc), clustering_.adjacency, clustering_.manipulated, options_.weights);
   if (previous.size() == clustering_.clusters.size()) solver_.setTransforms(previous);
@@ -191,6 +192,49 @@ DragResult Deformer::dragTo(const Eigen::Vector3d& from, const Eigen::Vector3d& 
 SolveStats Deformer::setHandleTransform(const Eigen::Affine3d& transform) {
   if (!transform.matrix().allFinite())
     throw std::invalid_argument("setHandleTransform: transform is not finite");
+  // A large jump (a half turn given at once) has no preferred way round for the clusters in
+  // between: Gauss-Newton from the old pose would sit at the saddle and collapse them. So the
+  // handle travels there as a user would move it: in steps of at most 20 degrees and a tenth
+  // of the diagonal, each solve warm-starting the next.
+  const Eigen::Affine3d current = handleTransform();
+  const Eigen::Affine3d motion = transform * current.inverse();
+  Eigen::JacobiSVD<Eigen::Matrix3d> svd(motion.linear(), Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::Matrix3d u = svd.matrixU();
+  if ((u * svd.matrixV().transpose()).determinant() < 0) u.col(2) *= -1.0;
+  const Eigen::Matrix3d rot = u * svd.matrixV().transpose();
+  const Eigen::Matrix3d stretch = rot.transpose() * motion.linear();
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();  // the handle's current barycentre: the pivot
+  for (int i : handles_.manipulated) c += deformedWorld(static_cast<std::size_t>(i));
+  c /= static_cast<double>(handles_.manipulated.size());
+  const double angle = Eigen::AngleAxisd(rot).angle();
+  const double travel = (motion * c - c).norm() * scale_;
+  const int steps = std::max({1, static_cast<int>(std::ceil(angle / (20.0 * M_PI / 180.0))),
+                              static_cast<int>(std::ceil(travel / 0.1))});
+  SolveStats total;
+  const Eigen::Quaterniond q0 = Eigen::Quaterniond::Identity(), q1(rot);
+  for (int k = 1; k <= steps; ++k) {
+    const double s = static_cast<double>(k) / steps;
+    Eigen::Affine3d step = Eigen::Affine3d::Identity();
+    if (k == steps) {
+      step = motion;
+    } else {
+      const Eigen::Matrix3d lin =
+          q0.slerp(s, q1).toRotationMatrix() * ((1 - s) * Eigen::Matrix3d::Identity() + s * stretch);
+      step.linear() = lin;
+      step.translation() = c + s * (motion * c - c) - lin * c;
+    }
+    const SolveStats st = solveHandle(step * current);
+    total.iterations += st.iterations;
+    total.ms += st.ms;
+    total.converged = st.converged;
+    total.decreased = total.decreased && st.decreased;
+    total.energy = st.energy;
+  }
+  updateShape();
+  return total;
+}
+
+SolveStats Deformer::solveHandle(const Eigen::Affine3d& transform) {
   if (!frame_mode_) setupSolver(true);
   const Eigen::Matrix3d a = transform.linear();
   const Eigen::Vector3d o = geometry_.origin;
@@ -199,9 +243,7 @@ SolveStats Deformer::setHandleTransform(const Eigen::Affine3d& transform) {
   const int mc = clustering_.manipulated;
   const Eigen::Vector3d g = normalise(clustering_.clusters[static_cast<std::size_t>(mc)].barycenter);
   solver_.setConstantTransform(mc, Transform{a, a * g + shift - g});
-  const SolveStats st = solver_.solve(options_.gauss_newton);
-  updateShape();
-  return st;
+  return solver_.solve(options_.gauss_newton);
 }
 
 Eigen::Affine3d Deformer::handleTransform() const {
@@ -224,16 +266,30 @@ void Deformer::reset() {
   updateShape();
 }
 
+void Deformer::setBlend(Blend blend) {
+  options_.blend = blend;
+  updateShape();
+}
+
 void Deformer::updateShape() {
   Stopwatch sw;
   const auto& tr = solver_.transforms();
   for (std::size_t c = 0; c < tr.size(); ++c) {
-    const Eigen::Vector3d g = normalise(clustering_.clusters[c].barycenter);
-    const Eigen::Matrix3d& a = tr[c].A;
-    local_[c].A = a.cast<float>();
-    local_[c].b = (center_ - a * center_ + (g + tr[c].t - a * g) / scale_).cast<float>();
+    const Cluster& cl = clustering_.clusters[c];
+    const Eigen::Vector3d g = normalise(cl.barycenter);
+    Eigen::Matrix3d a = tr[c].A;
+    // The barycentre's image, g + t in the normalised frame, back in the local frame.
+    const Eigen::Vector3d image = (g + tr[c].t) / scale_ + center_;
+    if (cl.kind == ClusterKind::Range) {  // bones move rigidly: the nearest rotation
+      Eigen::JacobiSVD<Eigen::Matrix3d> svd(a, Eigen::ComputeFullU | Eigen::ComputeFullV);
+      Eigen::Matrix3d u = svd.matrixU();
+      if ((u * svd.matrixV().transpose()).determinant() < 0) u.col(2) *= -1.0;
+      a = u * svd.matrixV().transpose();
+    }
+    local_[c].set(a.cast<float>(), (image - a * cl.barycenter).cast<float>(), cl.barycenter.cast<float>());
   }
-  interpolate(table_, local_, *geometry_.points, &field_.normals(), positions_, &out_normals_);
+  interpolate(table_, local_, *geometry_.points, &field_.normals(), positions_, &out_normals_,
+              options_.blend);
   interp_ms_ = sw.ms();
 }
 
@@ -248,6 +304,7 @@ DeformReport deformShape(Shape& shape, const Scenario& scenario, const DeformOpt
   const Handles handles = resolveHandles(scenario, geometry);
   DeformOptions opt = options;
   if (scenario.clusters) opt.clusters.isoclusters = *scenario.clusters;
+  if (scenario.blend) opt.blend = *scenario.blend == "linear" ? Blend::Linear : Blend::Rotation;
   if (shape.isOrganized()) {
     opt.field.orient_to_viewpoint = true;
     opt.field.viewpoint = (shape.sensor_origin.head<3>().cast<double>() - geometry.origin).cast<float>();
@@ -264,6 +321,7 @@ DeformReport deformShape(Shape& shape, const Scenario& scenario, const DeformOpt
   rep.clusters = d.clustering().clusters.size();
   rep.isoclusters = opt.clusters.isoclusters;
   rep.unreachable = d.harmonicField().unreachable().size();
+  rep.notes = d.clustering().notes;
 
   for (const Move& m : scenario.moves) {
     if (m.kind == Move::Kind::Drag) {

@@ -72,6 +72,7 @@ std::string reportJson(const DeformReport& r) {
   j["max_frame_iterations"] = r.max_frame_iterations;
   j["handle_error"] = r.handle_error;
   j["reached"] = r.reached;
+  j["notes"] = r.notes;
   j["energy"] = {{"detail", r.energy.detail},
                  {"prop", r.energy.prop},
                  {"manip", r.energy.manip},

@@ -1,9 +1,17 @@
 #include "hgdeform/scenario.h"
 
+#include <sys/stat.h>
+
+#include <cerrno>
+#include <cfloat>
+#include <climits>
 #include <cmath>
-#include <fstream>
+#include <cstdio>
+#include <cstring>
+#include <limits>
+#include <memory>
 #include <nlohmann/json.hpp>
-#include <sstream>
+#include <set>
 
 namespace hgd {
 
@@ -35,6 +43,80 @@ namespace {
 using nlohmann::json;
 
 constexpr const char* kFormat = "hgdeform-scenario/1";
+/// Lists of moves may nest (a list is a move); deeper than this is no scenario anyone wrote.
+constexpr int kMaxMoveDepth = 32;
+/// Positions and translations beyond this are not coordinates of a real shape (and would
+/// overflow the solver's arithmetic).
+constexpr double kMaxCoordinate = 1e15;
+constexpr double kMaxDegrees = 1e6;
+constexpr std::uintmax_t kMaxScenarioBytes = std::uintmax_t{1} << 30;
+
+/// One JSON-pointer step for `key` (RFC 6901 escapes; control characters spelled out, so that
+/// a message never carries raw control bytes).
+std::string pointerStep(const std::string& key) {
+  std::string out = "/";
+  for (const char ch : key) {
+    const auto c = static_cast<unsigned char>(ch);
+    if (ch == '~') {
+      out += "~0";
+    } else if (ch == '/') {
+      out += "~1";
+    } else if (c < 0x20 || c == 0x7f) {
+      char buf[8];
+      std::snprintf(buf, sizeof buf, "\\u%04x", c);
+      out += buf;
+    } else {
+      out += ch;
+    }
+  }
+  return out;
+}
+
+/// Rejects duplicated keys while parsing (the last one would silently win otherwise), naming
+/// the JSON path of the second occurrence.
+class DuplicateKeyCheck {
+ public:
+  explicit DuplicateKeyCheck(std::string name) : name_(std::move(name)) {}
+
+  bool operator()(int /*depth*/, nlohmann::json::parse_event_t event, nlohmann::json& parsed) {
+    using E = nlohmann::json::parse_event_t;
+    switch (event) {
+      case E::object_start: frames_.push_back({false, 0, {}, {}}); break;
+      case E::array_start: frames_.push_back({true, 0, {}, {}}); break;
+      case E::key: {
+        Frame& f = frames_.back();
+        f.key = parsed.get<std::string>();
+        if (!f.keys.insert(f.key).second) throw ScenarioError(name_ + ": " + path() + ": duplicate key");
+        break;
+      }
+      case E::object_end:
+      case E::array_end:
+        frames_.pop_back();
+        completed();
+        break;
+      case E::value: completed(); break;
+    }
+    return true;
+  }
+
+ private:
+  struct Frame {
+    bool array;
+    std::size_t index;
+    std::string key;
+    std::set<std::string> keys;
+  };
+  void completed() {
+    if (!frames_.empty() && frames_.back().array) ++frames_.back().index;
+  }
+  std::string path() const {
+    std::string p;
+    for (const Frame& f : frames_) p += f.array ? "/" + std::to_string(f.index) : pointerStep(f.key);
+    return p;
+  }
+  std::string name_;
+  std::vector<Frame> frames_;
+};
 
 struct Parser {
   std::string name;
@@ -50,7 +132,7 @@ struct Parser {
       if (!known) {
         std::string list;
         for (const char* k : keys) list += std::string(list.empty() ? "" : ", ") + k;
-        fail(path + "/" + it.key(), "unknown key (expected one of: " + list + ")");
+        fail(path + pointerStep(it.key()), "unknown key (expected one of: " + list + ")");
       }
     }
   }
@@ -74,9 +156,18 @@ struct Parser {
     return v;
   }
 
+  /// A position or displacement of a move: finite and of a magnitude real shapes have.
+  Eigen::Vector3d coordinates(const json& j, const std::string& path) const {
+    const Eigen::Vector3d v = vec3(j, path);
+    for (int i = 0; i < 3; ++i)
+      if (std::abs(v[i]) > kMaxCoordinate)
+        fail(path + "/" + std::to_string(i), "must be a coordinate between -1e15 and 1e15");
+    return v;
+  }
+
   const json& member(const json& j, const std::string& path, const char* key) const {
     auto it = j.find(key);
-    if (it == j.end()) fail(path + "/" + key, "is required");
+    if (it == j.end()) fail(path + pointerStep(key), "is required");
     return *it;
   }
 
@@ -109,20 +200,25 @@ struct Parser {
       r.kind = Region::Kind::Indices;
       r.indices.reserve(a.size());
       for (std::size_t i = 0; i < a.size(); ++i) {
-        if (!a[i].is_number_integer() || a[i].get<long long>() < 0)
-          fail(p + "/" + std::to_string(i), "must be a non-negative integer");
+        if (!a[i].is_number_integer() ||
+            (a[i].is_number_unsigned() &&
+             a[i].get<unsigned long long>() > static_cast<unsigned long long>(LLONG_MAX)) ||
+            (!a[i].is_number_unsigned() && a[i].get<long long>() < 0))
+          fail(p + "/" + std::to_string(i), "must be a non-negative integer (a point index)");
         r.indices.push_back(a[i].get<long long>());
       }
     } else {
-      fail(path + "/" + j.begin().key(), "unknown region kind (expected sphere, box or indices)");
+      fail(path + pointerStep(j.begin().key()), "unknown region kind (expected sphere, box or indices)");
     }
     return r;
   }
 
-  void moves(const json& j, const std::string& path, std::vector<Move>& out) const {
+  void moves(const json& j, const std::string& path, std::vector<Move>& out, int depth = 0) const {
     if (j.is_array()) {
       if (j.empty()) fail(path, "a list of moves must not be empty");
-      for (std::size_t i = 0; i < j.size(); ++i) moves(j[i], path + "/" + std::to_string(i), out);
+      if (depth >= kMaxMoveDepth)
+        fail(path, "lists of moves nested more than " + std::to_string(kMaxMoveDepth) + " deep");
+      for (std::size_t i = 0; i < j.size(); ++i) moves(j[i], path + "/" + std::to_string(i), out, depth + 1);
       return;
     }
     object(j, path);
@@ -133,26 +229,30 @@ struct Parser {
       const json& d = object(j["drag"], p);
       onlyKeys(d, p, {"from", "to"});
       m.kind = Move::Kind::Drag;
-      m.drag.from = vec3(member(d, p, "from"), p + "/from");
-      m.drag.to = vec3(member(d, p, "to"), p + "/to");
+      m.drag.from = coordinates(member(d, p, "from"), p + "/from");
+      m.drag.to = coordinates(member(d, p, "to"), p + "/to");
     } else if (j.contains("frame")) {
       const std::string p = path + "/frame";
       const json& f = object(j["frame"], p);
       onlyKeys(f, p, {"translate", "rotate"});
       m.kind = Move::Kind::Frame;
-      if (f.contains("translate")) m.frame.translate = vec3(f["translate"], p + "/translate");
+      if (f.contains("translate")) m.frame.translate = coordinates(f["translate"], p + "/translate");
       if (f.contains("rotate")) {
         const std::string q = p + "/rotate";
         const json& r = object(f["rotate"], q);
         onlyKeys(r, q, {"axis", "degrees", "center"});
         m.frame.axis = vec3(member(r, q, "axis"), q + "/axis");
-        if (m.frame.axis.norm() == 0) fail(q + "/axis", "must not be the zero vector");
+        // Zero, or so small or large that its length under- or overflows: no direction.
+        const double sq = m.frame.axis.squaredNorm();
+        if (!(sq >= DBL_MIN && std::isfinite(sq)))
+          fail(q + "/axis", sq == 0 ? "must not be the zero vector" : "must be a vector of moderate length");
         m.frame.degrees = number(member(r, q, "degrees"), q + "/degrees");
-        if (r.contains("center")) m.frame.center = vec3(r["center"], q + "/center");
+        if (std::abs(m.frame.degrees) > kMaxDegrees) fail(q + "/degrees", "must be between -1e6 and 1e6");
+        if (r.contains("center")) m.frame.center = coordinates(r["center"], q + "/center");
       }
       if (!f.contains("translate") && !f.contains("rotate")) fail(p, "needs translate and/or rotate");
     } else {
-      fail(path + "/" + j.begin().key(), "unknown move (expected drag or frame)");
+      fail(path + pointerStep(j.begin().key()), "unknown move (expected drag or frame)");
     }
     out.push_back(m);
   }
@@ -164,13 +264,14 @@ Scenario parseScenario(const std::string& json_text, const std::string& name) {
   Parser p{name};
   json j;
   try {
-    j = json::parse(json_text);
-  } catch (const json::parse_error& e) {
-    // nlohmann's message includes the byte position; keep it.
+    j = json::parse(json_text, DuplicateKeyCheck(name));
+  } catch (const json::exception& e) {
+    // Syntax errors and numbers out of range (1e400). nlohmann's message includes the byte
+    // position; keep it.
     throw ScenarioError(name + ": invalid JSON: " + e.what());
   }
   p.object(j, "");
-  p.onlyKeys(j, "", {"format", "fixed", "manipulated", "joints", "clusters", "move"});
+  p.onlyKeys(j, "", {"format", "fixed", "manipulated", "joints", "clusters", "blend", "move"});
   Scenario s;
   s.path = name;
   if (j.contains("format") && (!j["format"].is_string() || j["format"].get<std::string>() != kFormat))
@@ -192,17 +293,38 @@ Scenario parseScenario(const std::string& json_text, const std::string& name) {
       p.fail("/clusters", "must be an integer from 1 to 1000");
     s.clusters = c.get<int>();
   }
+  if (j.contains("blend")) {
+    const json& b = j["blend"];
+    if (!b.is_string() || (b.get<std::string>() != "linear" && b.get<std::string>() != "rotation"))
+      p.fail("/blend", "must be \"linear\" or \"rotation\"");
+    s.blend = b.get<std::string>();
+  }
   if (j.contains("move")) p.moves(j["move"], "/move", s.moves);
   return s;
 }
 
 Scenario readScenario(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw ScenarioError(path + ": cannot open scenario file");
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  if (in.bad()) throw ScenarioError(path + ": cannot read scenario file");
-  return parseScenario(ss.str(), path);
+  struct Closer {
+    void operator()(std::FILE* f) const { std::fclose(f); }
+  };
+  std::unique_ptr<std::FILE, Closer> file(std::fopen(path.c_str(), "rb"));
+  if (!file) throw ScenarioError(path + ": cannot open scenario file: " + std::strerror(errno));
+  struct stat st {};
+  if (::fstat(::fileno(file.get()), &st) != 0)
+    throw ScenarioError(path + ": cannot open scenario file: " + std::strerror(errno));
+  if (S_ISDIR(st.st_mode))
+    throw ScenarioError(path + ": cannot open scenario file: " + std::strerror(EISDIR));
+  if (!S_ISREG(st.st_mode)) throw ScenarioError(path + ": cannot open scenario file: not a regular file");
+  if (st.st_size == 0) throw ScenarioError(path + ": empty file");
+  const auto size = static_cast<std::uintmax_t>(st.st_size);
+  if (size > kMaxScenarioBytes)
+    throw ScenarioError(path + ": file too large for a scenario (" + std::to_string(size) + " bytes)");
+  std::string text(static_cast<std::size_t>(size), '\0');
+  if (std::fread(text.data(), 1, text.size(), file.get()) != text.size())
+    throw ScenarioError(
+        path + ": cannot read scenario file: " +
+        (std::ferror(file.get()) ? std::strerror(errno) : "the file shrank while being read"));
+  return parseScenario(text, path);
 }
 
 namespace {
@@ -231,6 +353,7 @@ std::string scenarioToJson(const Scenario& s) {
     for (const auto& r : s.joints) j["joints"].push_back(regionJson(r));
   }
   if (s.clusters) j["clusters"] = *s.clusters;
+  if (s.blend) j["blend"] = *s.blend;
   if (!s.moves.empty()) {
     json moves = json::array();
     for (const auto& m : s.moves) {

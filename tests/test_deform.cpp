@@ -354,10 +354,17 @@ TEST_P(Survey, HandleReachedFixedStayRigidAsLaplacianEditing) {
   ASSERT_EQ(reference.size(), g.size());
   const hgd::NeighborGraph ring = oneRing(g);
   const auto rest = worldPoints(g);
-  const double ours = ringRigidity(ring, rest, deformedPoints(d));
+  const double ours = ringRigidity(ring, rest, deformedPoints(d));  // the default blend
   const double theirs = ringRigidity(ring, rest, worldPoints(reference));
-  std::printf("%s: local rigidity residual %.3e (Laplacian editing %.3e), %zu clusters\n", name.c_str(), ours,
-              theirs, d.clustering().clusters.size());
+  d.setBlend(hgd::Blend::Linear);
+  const double linear = ringRigidity(ring, rest, deformedPoints(d));
+  d.setBlend(hgd::Blend::Rotation);
+  const double rotation = ringRigidity(ring, rest, deformedPoints(d));
+  std::printf(
+      "%s: local rigidity residual %.3e (rotation-aware blend %.3e, linear blend %.3e; Laplacian editing "
+      "%.3e), "
+      "%zu clusters\n",
+      name.c_str(), ours, rotation, linear, theirs, d.clustering().clusters.size());
   EXPECT_LE(ours, theirs);
 }
 

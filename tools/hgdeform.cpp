@@ -67,6 +67,8 @@ const char* kDeformHelp =
     "  -c, --clusters N      isoclusters (default: the scenario's, else 16)\n"
     "  -k, --k N             neighbours per point for the Laplacian (default 10)\n"
     "      --samples N       surface sample size for clustering (default 4000)\n"
+    "      --blend MODE      rotation (default) | linear: how points blend cluster transforms\n"
+    "      --joint-clusters N  skeletal mode: isoclusters inside each joint (default 3)\n"
     "      --solver NAME     field solver: auto | exact | multilevel (default auto)\n"
     "      --ascii           write ascii instead of binary\n"
     "  -q, --quiet           no summary line\n"
@@ -220,15 +222,17 @@ int runField(int argc, char** argv) {
 }
 
 int runDeform(int argc, char** argv) {
-  const Args a = parseArgs(argc, argv, {"scenario", "output", "report", "clusters", "k", "samples", "solver"},
-                           {"ascii", "quiet", "help"},
-                           {{"-s", "--scenario"},
-                            {"-o", "--output"},
-                            {"-r", "--report"},
-                            {"-c", "--clusters"},
-                            {"-k", "--k"},
-                            {"-q", "--quiet"},
-                            {"-h", "--help"}});
+  const Args a = parseArgs(
+      argc, argv,
+      {"scenario", "output", "report", "clusters", "k", "samples", "solver", "blend", "joint-clusters"},
+      {"ascii", "quiet", "help"},
+      {{"-s", "--scenario"},
+       {"-o", "--output"},
+       {"-r", "--report"},
+       {"-c", "--clusters"},
+       {"-k", "--k"},
+       {"-q", "--quiet"},
+       {"-h", "--help"}});
   if (a.flags.count("help")) {
     std::cout << kDeformHelp;
     return 0;
@@ -245,9 +249,15 @@ int runDeform(int argc, char** argv) {
   opt.field.solver = solverOption(a);
   opt.clusters.samples = intOption(a, "samples", opt.clusters.samples, 10, 10000000);
   const int clusters_override = intOption(a, "clusters", 0, 1, 1000);
+  opt.clusters.joint_isoclusters = intOption(a, "joint-clusters", opt.clusters.joint_isoclusters, 1, 100);
 
   hgd::Scenario scenario = hgd::readScenario(scenario_path);
   if (clusters_override > 0) scenario.clusters = clusters_override;
+  if (auto it = a.values.find("blend"); it != a.values.end()) {
+    if (it->second != "linear" && it->second != "rotation")
+      throw UsageError("--blend must be linear or rotation (got '" + it->second + "')");
+    scenario.blend = it->second;  // the command line wins over the scenario
+  }
   const auto t0 = std::chrono::steady_clock::now();
   hgd::Shape shape = hgd::readShape(input);
   const double read_ms =
@@ -260,6 +270,7 @@ int runDeform(int argc, char** argv) {
   report.total_ms += read_ms;
   hgd::writeShape(output, shape, wo);
   if (auto it = a.values.find("report"); it != a.values.end()) hgd::writeReportJson(it->second, report);
+  for (const auto& note : report.notes) std::fprintf(stderr, "hgdeform: note: %s\n", note.c_str());
   if (!a.flags.count("quiet"))
     std::printf("%s -> %s: %s\n", input.c_str(), output.c_str(), hgd::summaryLine(report).c_str());
   return 0;

@@ -97,7 +97,8 @@ nlohmann::json runSize(std::size_t n, int repeat, const std::vector<long>& clust
                   {"solver", solver},          {"cg_iterations", cg_iterations}};
   json per_clusters = json::array();
   for (long nc : cluster_counts) {
-    std::vector<double> build, sampling, clusters, setup, per_iter, interp, frame;
+    std::vector<double> build, sampling, clusters, setup, per_iter, interp, frame, interp_linear,
+        interp_rotation;
     int iterations_first = 0, max_frame_iterations = 0;
     std::size_t cluster_total = 0;
     for (int r = 0; r < std::max(1, repeat / 2); ++r) {
@@ -134,6 +135,13 @@ nlohmann::json runSize(std::size_t n, int repeat, const std::vector<long>& clust
         max_frame_iterations = std::max(max_frame_iterations, st.iterations);
       }
       per_iter.push_back(solve_ms / std::max(1, iterations));
+      // The same final shape with each blend, a few times each.
+      for (int k = 0; k < 5; ++k) {
+        d.setBlend(hgd::Blend::Linear);
+        interp_linear.push_back(d.lastInterpolationMs());
+        d.setBlend(hgd::Blend::Rotation);
+        interp_rotation.push_back(d.lastInterpolationMs());
+      }
     }
     const PaperRow& paper = paperRow(static_cast<double>(n));
     json row = {{"isoclusters", nc},
@@ -146,6 +154,8 @@ nlohmann::json runSize(std::size_t n, int repeat, const std::vector<long>& clust
                 {"iterations_first_frame", iterations_first},
                 {"max_frame_iterations", max_frame_iterations},
                 {"interpolation_ms", median(interp)},
+                {"interpolation_linear_ms", median(interp_linear)},
+                {"interpolation_rotation_ms", median(interp_rotation)},
                 {"frame_ms", median(frame)},
                 {"paper_model", paper.model},
                 {"build_speedup", paper.build / std::max(1e-9, median(build))},
@@ -192,9 +202,9 @@ int main(int argc, char** argv) {
     }
   }
   nlohmann::json all = nlohmann::json::array();
-  std::printf("%9s %7s | %6s %6s %6s %6s %6s %7s | %5s %6s %6s %8s %5s %7s %7s | %7s %6s\n", "points",
+  std::printf("%9s %10s | %6s %6s %6s %6s %6s %7s | %5s %6s %6s %8s %5s %7s %7s %7s | %7s %6s\n", "points",
               "solver", "knn", "normal", "graph", "lapl", "solve", "field", "clus", "build", "sample",
-              "ms/iter", "iters", "interp", "frame", "RSS MB", "xpaper");
+              "ms/iter", "iters", "i.lin", "i.rot", "frame", "RSS MB", "xpaper");
   for (long n : sizes) {
     int pipefd[2];
     if (pipe(pipefd) != 0) return 1;
@@ -224,14 +234,16 @@ int main(int argc, char** argv) {
     const auto& f = r["field"];
     for (const auto& d : r["deform"]) {
       std::printf(
-          "%9ld %7s | %6.0f %6.0f %6.0f %6.0f %6.0f %7.0f | %5ld %6.0f %6.1f %8.3f %5d %7.2f %7.2f | %7.0f "
+          "%9ld %10s | %6.0f %6.0f %6.0f %6.0f %6.0f %7.0f | %5ld %6.0f %6.1f %8.3f %5d %7.2f %7.2f %7.2f | "
+          "%7.0f "
           "%6.1f\n",
           n, f["solver"].get<std::string>().c_str(), f["knn_ms"].get<double>(), f["normals_ms"].get<double>(),
           f["graph_ms"].get<double>(), f["laplacian_ms"].get<double>(), f["solve_ms"].get<double>(),
           f["total_ms"].get<double>(), d["isoclusters"].get<long>(), d["build_ms"].get<double>(),
           d["sampling_ms"].get<double>(), d["gn_iteration_ms"].get<double>(),
-          d["max_frame_iterations"].get<int>(), d["interpolation_ms"].get<double>(),
-          d["frame_ms"].get<double>(), r["peak_rss_mb"].get<double>(), d["build_speedup"].get<double>());
+          d["max_frame_iterations"].get<int>(), d["interpolation_linear_ms"].get<double>(),
+          d["interpolation_rotation_ms"].get<double>(), d["frame_ms"].get<double>(),
+          r["peak_rss_mb"].get<double>(), d["build_speedup"].get<double>());
     }
     std::fflush(stdout);
     all.push_back(r);
@@ -239,9 +251,11 @@ int main(int argc, char** argv) {
   std::printf(
       "columns: field phases in ms (median of %d); clus = isoclusters; build = Deformer construction (field, "
       "sample, clusters, solver set-up); ms/iter = Gauss-Newton ms per iteration over a 30-frame drag; iters "
-      "= "
-      "most iterations in one frame; interp = interpolation to all points per frame; frame = solve + "
-      "interpolation per frame; xpaper = the paper's build time (nearest model in Table 1) / ours\n",
+      "= most "
+      "iterations in one frame; i.lin / i.rot = interpolation to all points with the linear / rotation-aware "
+      "(default) blend; frame = solve + interpolation per frame (default blend); xpaper = the paper's build "
+      "time "
+      "(nearest model in Table 1) / ours\n",
       repeat);
   if (!json_path.empty()) hgd::writeTextAtomically(json_path, all.dump(2) + "\n");
   return 0;

@@ -7,6 +7,7 @@
 #include <pcl/point_types.h>
 
 #include <Eigen/Core>
+#include <string>
 #include <vector>
 
 #include "hgdeform/neighbors.h"
@@ -18,6 +19,7 @@ enum class ClusterKind {
   Manipulated,  ///< MC: sample points of the manipulated handle
   Fixed,        ///< FC: sample points of one fixed handle (constant, identity)
   Iso,          ///< IC: sample points near one isovalue, on one connected piece
+  Range,        ///< RC: the points of one connected piece with phi in an interval: a rigid bone
   Static,       ///< points in parts that touch no handle: they stay where they are
 };
 
@@ -32,30 +34,50 @@ struct Cluster {
 };
 
 struct ClusterOptions {
-  int isoclusters = 16;  ///< n isovalues, evenly spaced in (0, 1)
-  int samples = 4000;    ///< target sample size
-  int min_contour = 8;   ///< contours with fewer points (sampling noise) are not clusters
+  int isoclusters = 16;       ///< n isovalues, evenly spaced in (0, 1) (without joints)
+  int samples = 4000;         ///< target sample size
+  int min_contour = 8;        ///< contours with fewer points (sampling noise) are not clusters
+  int joint_isoclusters = 3;  ///< skeletal mode: isovalues inside each joint's phi range
+};
+
+/// A band of harmonic values: an isovalue (`lo == hi`, traced as contours) or an interval
+/// (the fixed side [0, 0], the manipulated side [1, 1], a bone's open interval) whose connected
+/// pieces are clusters. Bands are sorted and disjoint; between two bands lies a gap, where
+/// points blend the clusters of the bands on either side.
+struct Band {
+  enum class Kind { Fixed, Iso, Range, Manipulated };
+  Kind kind = Kind::Iso;
+  double lo = 0, hi = 0;
 };
 
 /// The clusters and, for every point of the shape, the two clusters that bracket its harmonic
 /// value on its own branch: what interpolation needs.
 ///
-/// Isovalues v_l = l / (n + 1), l = 1..n; v_0 = 0 is the fixed side, v_{n+1} = 1 the
-/// manipulated side. An isoline at v_l is traced on the neighbour graph as the points incident
-/// to an edge that crosses v_l; each connected piece of it (a contour) is one isocluster, whose
-/// members are the sample points on it. So two branches at the same harmonic value (two legs)
-/// get separate clusters. A point between v_l and v_l+1 takes, as `down`, the contour at v_l
-/// nearest to it within that slab along the surface, and as `up` the nearest at v_l+1.
+/// An isoline at an isovalue v is traced on the neighbour graph as the points incident to an
+/// edge that crosses v; each connected piece of it (a contour) is one isocluster, whose members
+/// are the sample points on it. So two branches at the same harmonic value (two legs) get
+/// separate clusters. Interval bands (handles, bones) give a cluster per connected piece. A
+/// point in a gap between two bands takes, as `down`, the cluster of the lower band nearest to
+/// it within the gap along the surface, and as `up` the nearest of the upper band; a point in
+/// an interval band takes its own piece for both.
 struct Clustering {
   std::vector<int> sample;  ///< sample point -> shape point index
   std::vector<Cluster> clusters;
   std::vector<std::pair<int, int>> adjacency;  ///< E_C: pairs of cluster ids, first < second
-  std::vector<double> levels;                  ///< v_0 = 0, v_1..v_n isovalues, v_{n+1} = 1
+  std::vector<Band> bands;                     ///< fixed side, isovalues (and bones), manipulated side
+  std::vector<std::string> notes;              ///< what was merged or adjusted (e.g. overlapping joints)
   std::vector<int> down, up;                   ///< per shape point: bracketing clusters below / above
+  std::vector<float> alpha;                    ///< per shape point: blend factor between down and up
   std::vector<int> piece;                      ///< per shape point: the nearer of the two (for display)
   int manipulated = -1;                        ///< id of the MC cluster
 
-  int isoclusters() const { return static_cast<int>(levels.size()) - 2; }
+  /// The bands of a deformation: without joints, n evenly spaced isovalues; with joints, a few
+  /// isovalues inside each joint's phi range and a bone (range) band between joints. Joints
+  /// whose phi ranges overlap are merged (and said so in `notes`).
+  static std::vector<Band> makeBands(const std::vector<float>& phi,
+                                     const std::vector<std::vector<int>>& joints,
+                                     const ClusterOptions& options,
+                                     std::vector<std::string>* notes = nullptr);
 };
 
 /// Picks a roughly uniform sample of the points: a voxel grid whose cell size is tuned to the

@@ -28,9 +28,13 @@ struct DeformOptions {
   ClusterOptions clusters;
   SolverWeights weights;
   GaussNewtonOptions gauss_newton;
-  double drag_tolerance = 1e-4;  ///< dragTo(): stop when the picked point is this close (× diagonal)
-  double max_drag_step = 0.02;   ///< dragTo(): the cursor moves at most this much per frame (× diagonal)
-  int max_drag_frames = 3000;    ///< dragTo(): frames at most
+  double drag_tolerance = 1e-4;   ///< dragTo(): stop when the picked point is this close (× diagonal)
+  double max_drag_step = 0.02;    ///< dragTo(): the cursor moves at most this much per frame (× diagonal)
+  int max_drag_frames = 3000;     ///< dragTo(): frames at most
+  Blend blend = Blend::Rotation;  ///< how points blend their two clusters' transforms
+  /// Rot(A) weight of range clusters (bones), times w_MHC: bones are meant to stay rigid (their
+  /// transforms are also projected onto the nearest rotation when applied).
+  double bone_rigidity = 10;
 };
 
 struct BuildTimings {
@@ -66,7 +70,8 @@ class Deformer {
   DragResult dragTo(const Eigen::Vector3d& from, const Eigen::Vector3d& to);
 
   /// Frame metaphor: the manipulated handle gets the rigid (or affine) transform T, world
-  /// coordinates, relative to the rest shape, exactly.
+  /// coordinates, relative to the rest shape, exactly. A large change is travelled in steps
+  /// (at most 20 degrees, a tenth of the diagonal each), as a user would turn the handle.
   SolveStats setHandleTransform(const Eigen::Affine3d& transform);
 
   /// The manipulated handle's current transform (world coordinates, relative to rest).
@@ -74,6 +79,9 @@ class Deformer {
 
   /// Back to the rest shape.
   void reset();
+
+  /// Changes the blend (takes effect at once; no re-solve needed).
+  void setBlend(Blend blend);
 
   const std::vector<Eigen::Vector3f>& deformedPoints() const { return positions_; }
   const std::vector<Eigen::Vector3f>& deformedNormals() const { return out_normals_; }
@@ -100,6 +108,7 @@ class Deformer {
  private:
   void setupSolver(bool manipulated_constant);
   SolveStats dragFrame(const Eigen::Vector3d& to);
+  SolveStats solveHandle(const Eigen::Affine3d& transform);
   Eigen::Vector3d pickedWorld() const;
   void updateShape();
   Eigen::Vector3d normalise(const Eigen::Vector3d& local) const { return (local - center_) * scale_; }
@@ -140,7 +149,8 @@ struct DeformReport {
   int frames = 0;
   int max_frame_iterations = 0;
   bool reached = true;
-  double handle_error = 0;  ///< world units; drags only
+  double handle_error = 0;         ///< world units; drags only
+  std::vector<std::string> notes;  ///< what clustering merged or adjusted (overlapping joints)
   Energies energy;
   double read_ms = 0, build_ms = 0, field_ms = 0, sampling_ms = 0, clusters_ms = 0, solve_ms = 0,
          solve_per_iteration_ms = 0, interpolation_ms = 0, total_ms = 0;

@@ -2,16 +2,34 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <vector>
 
 #include "hgdeform/clustering.h"
 
 namespace hgd {
 
-/// A cluster's transform in the shape's local frame: x -> A x + b.
+/// How two cluster transforms are blended between isovalues.
+enum class Blend {
+  Linear,    ///< the paper's eq. (1): (1 - a) T_lo + a T_hi; shrinks where the rotations differ
+  Rotation,  ///< rigid parts blended: each cluster's rotation (polar decomposition) about its
+             ///< barycentre; rotations along the shortest arc (normalised quaternion lerp), the
+             ///< image of the pair's centre linearly. No shrinking where clusters turn apart.
+};
+
+/// A cluster's transform in the shape's local frame, x -> A x + b, with what the rotation-aware
+/// blend needs: its rigid part x -> R x + rb, R the rotation of the polar decomposition
+/// A = R S (also as a quaternion q) and rb such that the barycentre g maps where A maps it.
 struct LocalAffine {
   Eigen::Matrix3f A = Eigen::Matrix3f::Identity();
   Eigen::Vector3f b = Eigen::Vector3f::Zero();
+  Eigen::Quaternionf q = Eigen::Quaternionf::Identity();
+  Eigen::Matrix3f R = Eigen::Matrix3f::Identity();
+  Eigen::Vector3f rb = Eigen::Vector3f::Zero();
+  Eigen::Vector3f g = Eigen::Vector3f::Zero();  ///< rest barycentre
+
+  /// Sets A and b and derives the polar parts.
+  void set(const Eigen::Matrix3f& a, const Eigen::Vector3f& translation, const Eigen::Vector3f& barycenter);
 };
 
 /// For every point: the two clusters that bracket its harmonic value on its own branch, and
@@ -20,6 +38,11 @@ struct LocalAffine {
 struct InterpolationTable {
   std::vector<int> lo, hi;
   std::vector<float> alpha;
+  /// The distinct (lo, hi) pairs, each point's pair, and each pair's rest centre (the mean of
+  /// the two clusters' barycentres): the rotation-aware blend works per pair.
+  std::vector<std::pair<int, int>> pairs;
+  std::vector<int> pair;
+  std::vector<Eigen::Vector3f> pair_centre;
   std::size_t size() const { return alpha.size(); }
 };
 
@@ -31,6 +54,7 @@ InterpolationTable buildInterpolation(const std::vector<float>& phi, const Handl
 /// and `out_normals` may be null.
 void interpolate(const InterpolationTable& table, const std::vector<LocalAffine>& transforms,
                  const pcl::PointCloud<pcl::PointXYZ>& points, const pcl::PointCloud<pcl::Normal>* normals,
-                 std::vector<Eigen::Vector3f>& out_points, std::vector<Eigen::Vector3f>* out_normals);
+                 std::vector<Eigen::Vector3f>& out_points, std::vector<Eigen::Vector3f>* out_normals,
+                 Blend blend = Blend::Linear);
 
 }  // namespace hgd

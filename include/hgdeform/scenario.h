@@ -61,6 +61,8 @@ struct Scenario {
   Region manipulated;
   std::vector<Region> joints;
   std::optional<int> clusters;
+  /// "linear" (the paper's eq. 1) or "rotation" (rotation-aware); absent: the tool's default.
+  std::optional<std::string> blend;
   std::vector<Move> moves;  // applied in order; empty = no move
   std::string path;         // file it came from (for messages)
 };
