@@ -16,13 +16,33 @@ constexpr double kPinWeight = 1e4;           // relative weight of the barycentr
 
 Deformer::Deformer(const Geometry& geometry, const Handles& handles, const DeformOptions& options)
     : geometry_(geometry), handles_(handles), options_(options) {
-  if (handles_.manipulated.empty()) throw std::invalid_argument("Deformer: the manipulated handle is empty");
-  if (handles_.fixed.empty()) throw std::invalid_argument("Deformer: no fixed handle");
-  Stopwatch sw;
   field_.setInputCloud(geometry_.points);
   if (geometry_.hasFileNormals()) field_.setInputNormals(geometry_.file_normals);
   if (!geometry_.faces.empty()) field_.setPolygons(geometry_.faces);
   field_.setOptions(options_.field);
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(INFINITY), hi = -lo;
+  for (const auto& p : *geometry_.points) {
+    lo = lo.cwiseMin(p.getVector3fMap().cast<double>());
+    hi = hi.cwiseMax(p.getVector3fMap().cast<double>());
+  }
+  center_ = 0.5 * (lo + hi);
+  const double diag = (hi - lo).norm();
+  scale_ = diag > 0 ? 1.0 / diag : 1.0;
+  positions_.resize(geometry_.size());
+  out_normals_.resize(geometry_.size());
+  rebuild();
+}
+
+void Deformer::setHandles(const Handles& handles) {
+  handles_ = handles;
+  rebuild();
+}
+
+void Deformer::rebuild() {
+  if (handles_.manipulated.empty()) throw std::invalid_argument("Deformer: the manipulated handle is empty");
+  if (handles_.fixed.empty()) throw std::invalid_argument("Deformer: no fixed handle");
+  Stopwatch sw;
+  // The field object keeps normals, kNN and the graph: new handles only re-solve.
   field_.setHandles(handles_.fixed, handles_.manipulated);
   field_.compute(phi_);
   build_.field = field_.timings();
@@ -36,24 +56,26 @@ Deformer::Deformer(const Geometry& geometry, const Handles& handles, const Defor
   table_ = buildInterpolation(phi_, handles_, clustering_);
   build_.clusters_ms = sw.lap();
 
-  Eigen::Vector3d lo = Eigen::Vector3d::Constant(INFINITY), hi = -lo;
-  for (const auto& p : pts) {
-    lo = lo.cwiseMin(p.getVector3fMap().cast<double>());
-    hi = hi.cwiseMax(p.getVector3fMap().cast<double>());
-  }
-  center_ = 0.5 * (lo + hi);
-  const double diag = (hi - lo).norm();
-  scale_ = diag > 0 ? 1.0 / diag : 1.0;
-  setupSolver(false);
+  setupSolver(false, /*keep_transforms=*/false);
   local_.resize(clustering_.clusters.size());
-  positions_.resize(pts.size());
-  out_normals_.resize(pts.size());
+  picked_ = -1;
   updateShape();
   build_.setup_ms = sw.lap();
 }
 
-void Deformer::setupSolver(bool manipulated_constant) {
-  std::vector<Transform> previous = solver_.transforms();
+DeformerState Deformer::state() const { return {solver_.transforms(), frame_mode_}; }
+
+void Deformer::restore(const DeformerState& state) {
+  if (state.transforms.size() != clustering_.clusters.size())
+    throw std::invalid_argument("Deformer::restore: the state belongs to other clusters");
+  if (state.frame_mode != frame_mode_) setupSolver(state.frame_mode);
+  solver_.setTransforms(state.transforms);
+  picked_ = -1;
+  updateShape();
+}
+
+void Deformer::setupSolver(bool manipulated_constant, bool keep_transforms) {
+  std::vector<Transform> previous = keep_transforms ? solver_.transforms() : std::vector<Transform>{};
   int n_iso = 0;
   for (const auto& cl : clustering_.clusters) n_iso += cl.kind == ClusterKind::Iso;
   std::vector<SolverCluster> sc(clustering_.clusters.size());

@@ -432,3 +432,32 @@ TEST(Deform, NormalsFollowTheTransform) {
 }
 
 }  // namespace
+
+namespace {
+
+// New handles re-solve the field without redoing normals and kNN; a saved state restores the
+// same shape.
+TEST(Deform, NewHandlesReuseTheGraphAndStatesRestore) {
+  const hgd::Geometry g = hgd::extractGeometry(hgd::shapes::bar(1.0f, 0.1f, 0.01f));
+  hgd::Handles h;
+  h.fixed.push_back(pointsWhere(g, 0, -1, 0.05));
+  h.manipulated = pointsWhere(g, 0, 0.95, 2);
+  hgd::Deformer d(g, h);
+  const int* graph_before = d.harmonicField().graph().adj.data();
+  h.fixed[0] = pointsWhere(g, 0, -1, 0.3);
+  d.setHandles(h);
+  EXPECT_EQ(d.harmonicField().graph().adj.data(), graph_before);
+  EXPECT_EQ(d.buildTimings().field.knn_ms, 0.0);
+  for (int i : h.fixed[0]) EXPECT_EQ(d.field()[static_cast<std::size_t>(i)], 0.0f);
+
+  const hgd::DeformerState rest = d.state();
+  d.dragTo({1.0, 0.0, 0.05}, {0.9, 0.3, 0.05});
+  const hgd::DeformerState bent = d.state();
+  const std::vector<Eigen::Vector3f> bent_points = d.deformedPoints();
+  d.restore(rest);
+  for (std::size_t i = 0; i < g.size(); ++i) ASSERT_LE((d.deformedWorld(i) - g.world(i)).norm(), 1e-6);
+  d.restore(bent);
+  for (std::size_t i = 0; i < g.size(); ++i) ASSERT_EQ(d.deformedPoints()[i], bent_points[i]);
+}
+
+}  // namespace

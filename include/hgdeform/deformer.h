@@ -43,6 +43,12 @@ struct BuildTimings {
   double total() const { return field_ms + sampling_ms + clusters_ms + setup_ms; }
 };
 
+/// A snapshot of the deformation (see Deformer::state()).
+struct DeformerState {
+  std::vector<Transform> transforms;
+  bool frame_mode = false;
+};
+
 /// What a replayed drag did.
 struct DragResult {
   int frames = 0;
@@ -80,6 +86,14 @@ class Deformer {
   /// Back to the rest shape.
   void reset();
 
+  /// New handles: the field is re-solved (normals, kNN and the graph are kept), the clusters
+  /// and the solver rebuilt; the shape returns to rest.
+  void setHandles(const Handles& handles);
+
+  /// The deformation state (cluster transforms): cheap to keep for undo/redo.
+  DeformerState state() const;
+  void restore(const DeformerState& state);
+
   /// Changes the blend (takes effect at once; no re-solve needed).
   void setBlend(Blend blend);
 
@@ -106,7 +120,8 @@ class Deformer {
   double diagonal() const { return 1.0 / scale_; }
 
  private:
-  void setupSolver(bool manipulated_constant);
+  void setupSolver(bool manipulated_constant, bool keep_transforms = true);
+  void rebuild();
   SolveStats dragFrame(const Eigen::Vector3d& to);
   SolveStats solveHandle(const Eigen::Affine3d& transform);
   Eigen::Vector3d pickedWorld() const;
