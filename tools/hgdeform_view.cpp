@@ -22,10 +22,16 @@
 #include <pcl/conversions.h>
 #include <pcl/visualization/interactor_style.h>
 #include <pcl/visualization/pcl_visualizer.h>
+#include <vtkActor.h>
 #include <vtkCamera.h>
+#include <vtkFloatArray.h>
+#include <vtkLODActor.h>
 #include <vtkLookupTable.h>
+#include <vtkMapper.h>
 #include <vtkObjectFactory.h>
 #include <vtkPNGWriter.h>
+#include <vtkPoints.h>
+#include <vtkPolyData.h>
 #include <vtkRenderWindow.h>
 #include <vtkRenderWindowInteractor.h>
 #include <vtkRenderer.h>
@@ -145,7 +151,9 @@ class Viewer {
     if (geometry_.faces.empty()) {
       const pcl::visualization::PointCloudColorHandlerRGBField<pcl::PointXYZRGB> rgb(display_);
       vis_->addPointCloud<pcl::PointXYZRGB>(display_, rgb, "shape");
-      vis_->setPointCloudRenderingProperties(pcl::visualization::PCL_VISUALIZER_POINT_SIZE, 3, "shape");
+      // Big points cost fill rate under software GL: dense clouds need no more than one pixel.
+      const double size = geometry_.size() > 200000 ? 1 : geometry_.size() > 50000 ? 2 : 3;
+      vis_->setPointCloudRenderingProperties(pcl::visualization::PCL_VISUALIZER_POINT_SIZE, size, "shape");
     } else {
       pcl::PolygonMesh mesh;
       pcl::toPCLPointCloud2(*display_, mesh.cloud);
@@ -311,7 +319,7 @@ class Viewer {
     stats_.interpolate.push_back(deformer_->lastInterpolationMs());
     stats_.solve.push_back(total - deformer_->lastInterpolationMs());
     drag_last_ = to;
-    refresh();
+    updatePositions();
     return true;
   }
 
@@ -660,6 +668,45 @@ class Viewer {
     render();
   }
 
+  // During a drag only positions change: write them straight into the VTK points of the shape
+  // (PCL's update would rebuild the whole poly data, colours included, on every mouse move).
+  void updatePositions() {
+    vtkPolyData* poly = shapePolyData();
+    vtkPoints* pts = poly ? poly->GetPoints() : nullptr;
+    if (!pts || pts->GetNumberOfPoints() != static_cast<vtkIdType>(geometry_.size()) ||
+        pts->GetDataType() != VTK_FLOAT) {
+      refresh();
+      return;
+    }
+    float* raw = static_cast<vtkFloatArray*>(pts->GetData())->GetPointer(0);
+    const long long n = static_cast<long long>(geometry_.size());
+    const auto& local = deformer_->deformedPoints();
+    const Eigen::Vector3f origin = geometry_.origin.cast<float>();
+#pragma omp parallel for schedule(static)
+    for (long long i = 0; i < n; ++i) {
+      const Eigen::Vector3f p = local[static_cast<std::size_t>(i)] + origin;
+      raw[3 * i] = p.x();
+      raw[3 * i + 1] = p.y();
+      raw[3 * i + 2] = p.z();
+    }
+    pts->Modified();
+    poly->Modified();
+    render();
+  }
+
+  vtkPolyData* shapePolyData() {
+    vtkMapper* mapper = nullptr;
+    if (geometry_.faces.empty()) {
+      auto it = vis_->getCloudActorMap()->find("shape");
+      if (it != vis_->getCloudActorMap()->end() && it->second.actor) mapper = it->second.actor->GetMapper();
+    } else {
+      auto it = vis_->getShapeActorMap()->find("shape");
+      if (it != vis_->getShapeActorMap()->end())
+        if (auto* actor = vtkActor::SafeDownCast(it->second)) mapper = actor->GetMapper();
+    }
+    return mapper ? vtkPolyData::SafeDownCast(mapper->GetInput()) : nullptr;
+  }
+
   void render() {
     const auto t0 = Clock::now();
     updateStatus();
@@ -708,7 +755,9 @@ class Viewer {
 
   // --- geometry on screen -----------------------------------------------------------------
 
-  vtkRenderer* renderer() { return vis_->getRenderWindow()->GetRenderers()->GetFirstRenderer(); }
+  vtkRenderer* renderer() {
+    return vis_->getRenderWindow()->GetRenderers()->GetFirstRenderer();
+  }
 
   Eigen::Vector3d deformed(std::size_t i) const {
     return deformer_ ? deformer_->deformedWorld(i) : geometry_.world(i);

@@ -1,0 +1,174 @@
+// hgdeform-view under a virtual display: a replayed session saves the shape that
+// `hgdeform deform` gives on the saved scenario; screenshots show what the user would see.
+#include <png.h>
+
+#include <cstdio>
+#include <fstream>
+#include <string>
+
+#include "hgdeform/geometry.h"
+#include "hgdeform/io.h"
+#include "hgdeform/shapes.h"
+#include "test_util.h"
+
+namespace {
+
+struct Image {
+  int width = 0, height = 0;
+  std::vector<unsigned char> rgb;
+  const unsigned char* at(int x, int y) const {
+    return rgb.data() + 3 * (static_cast<std::size_t>(y) * width + x);
+  }
+};
+
+Image readPng(const std::string& path) {
+  Image img;
+  png_image png;
+  std::memset(&png, 0, sizeof png);
+  png.version = PNG_IMAGE_VERSION;
+  if (!png_image_begin_read_from_file(&png, path.c_str())) return img;
+  png.format = PNG_FORMAT_RGB;
+  img.width = static_cast<int>(png.width);
+  img.height = static_cast<int>(png.height);
+  img.rgb.resize(PNG_IMAGE_SIZE(png));
+  if (!png_image_finish_read(&png, nullptr, img.rgb.data(), 0, nullptr)) img.rgb.clear();
+  return img;
+}
+
+// Pixels within `tol` of a colour (0..255 per channel).
+int countNear(const Image& img, int r, int g, int b, int tol = 40) {
+  int n = 0;
+  for (int y = 0; y < img.height; ++y)
+    for (int x = 0; x < img.width; ++x) {
+      const unsigned char* p = img.at(x, y);
+      if (std::abs(p[0] - r) < tol && std::abs(p[1] - g) < tol && std::abs(p[2] - b) < tol) ++n;
+    }
+  return n;
+}
+
+int countDifferent(const Image& a, const Image& b) {
+  if (a.width != b.width || a.height != b.height) return -1;
+  int n = 0;
+  for (std::size_t i = 0; i + 2 < a.rgb.size(); i += 3)
+    if (std::abs(a.rgb[i] - b.rgb[i]) + std::abs(a.rgb[i + 1] - b.rgb[i + 1]) +
+            std::abs(a.rgb[i + 2] - b.rgb[i + 2]) >
+        30)
+      ++n;
+  return n;
+}
+
+bool haveXvfb() {
+  std::string out;
+  return hgdtest::run("command -v xvfb-run", out) == 0;
+}
+
+std::string viewer(const std::string& args) {
+  return "xvfb-run -a -s '-screen 0 1280x1024x24' " + std::string(HGD_VIEW) + " " + args;
+}
+
+double maxDistance(const std::string& a, const std::string& b, double& diag) {
+  const hgd::Geometry ga = hgd::extractGeometry(hgd::readShape(a)),
+                      gb = hgd::extractGeometry(hgd::readShape(b));
+  diag = hgd::boundingBoxDiagonal(ga);
+  if (ga.size() != gb.size()) return INFINITY;
+  double worst = 0;
+  for (std::size_t i = 0; i < ga.size(); ++i) worst = std::max(worst, (ga.world(i) - gb.world(i)).norm());
+  return worst;
+}
+
+TEST(Viewer, ReplayedDragSavesWhatDeformGivesAndScreenshotsShowIt) {
+  if (!haveXvfb()) GTEST_SKIP() << "xvfb-run not installed";
+  hgdtest::TempDir dir;
+  hgd::writeShape(dir.file("bar.ply"), hgd::shapes::bar(1.0f, 0.1f, 0.01f));
+  const std::string d = dir.path().string() + "/";
+  hgdtest::writeText(dir.file("events.json"), R"({"events": [
+    {"pick": {"world": [0, 0, 0.05], "radius": 0.06}}, {"key": "f"},
+    {"pick": {"world": [1, 0, 0.05], "radius": 0.06}}, {"key": "m"},
+    {"screenshot": ")" + d + R"(before.png"},
+    {"drag": {"from": {"world": [1, 0, 0.05]}, "to": {"world": [0.8, 0.4, 0.05]}, "steps": 15}},
+    {"save": ")" + d + R"(viewer.ply"}, {"save_scenario": ")" +
+                                                  d + R"(session.json"},
+    {"screenshot": ")" + d + R"(after.png"},
+    {"view": "field"}, {"screenshot": ")" + d + R"(field.png"}
+  ]})");
+  std::string out;
+  ASSERT_EQ(
+      hgdtest::run(viewer(dir.file("bar.ply") + " --replay " + dir.file("events.json") + " --quiet"), out), 0)
+      << out;
+  ASSERT_EQ(hgdtest::run(std::string(HGD_TOOL) + " deform " + dir.file("bar.ply") + " -s " +
+                             dir.file("session.json") + " -o " + dir.file("cli.ply") + " -q",
+                         out),
+            0)
+      << out;
+  double diag = 1;
+  const double worst = maxDistance(dir.file("viewer.ply"), dir.file("cli.ply"), diag);
+  std::printf("viewer session vs hgdeform deform on its scenario: max distance %.2e of the diagonal\n",
+              worst / diag);
+  EXPECT_LE(worst, 1e-5 * diag);
+  // The drag did something: the far end moved.
+  double moved = 0;
+  EXPECT_GT(maxDistance(dir.file("bar.ply"), dir.file("viewer.ply"), moved), 0.2);
+
+  const Image before = readPng(d + "before.png"), after = readPng(d + "after.png"),
+              field = readPng(d + "field.png");
+  ASSERT_GT(before.width, 0);
+  ASSERT_FALSE(before.rgb.empty());
+  ASSERT_FALSE(after.rgb.empty());
+  ASSERT_FALSE(field.rgb.empty());
+  // Not blank: the shape is drawn (grey points on white).
+  EXPECT_GT(countNear(before, 191, 191, 184), 500);
+  EXPECT_GT(countDifferent(before, after), 500);
+  // The field's colour map: its cyan and yellow appear in field view and not in colour view.
+  const int cyan = countNear(field, 89, 204, 230, 30), yellow = countNear(field, 242, 217, 77, 30);
+  std::printf("field view: %d cyan-ish and %d yellow-ish pixels (colour view: %d, %d)\n", cyan, yellow,
+              countNear(after, 89, 204, 230, 30), countNear(after, 242, 217, 77, 30));
+  EXPECT_GT(cyan, 200);
+  EXPECT_GT(yellow, 200);
+  EXPECT_LT(countNear(after, 89, 204, 230, 30), 20);
+}
+
+TEST(Viewer, FrameKeysAndUndoReplayThroughTheScenario) {
+  if (!haveXvfb()) GTEST_SKIP() << "xvfb-run not installed";
+  hgdtest::TempDir dir;
+  hgd::writeShape(dir.file("bar.pcd"), hgd::shapes::bar(1.0f, 0.1f, 0.02f));
+  const std::string d = dir.path().string() + "/";
+  hgdtest::writeText(dir.file("events.json"), R"({"events": [
+    {"area": {"from": [-0.01, -0.06, -0.06], "to": [0.03, 0.06, 0.06]}}, {"key": "f"},
+    {"pick": {"world": [1, 0, 0.05], "radius": 0.07}}, {"key": "m"},
+    {"key": "t"}, {"key": "Up"}, {"key": "Up"}, {"key": "bracketleft"}, {"key": "["}, {"key": "Right"},
+    {"key": "z"}, {"key": "z"}, {"key": "y"},
+    {"save": ")" + d + R"(viewer.pcd"}, {"save_scenario": ")" +
+                                                  d + R"(session.json"}
+  ]})");
+  std::string out;
+  ASSERT_EQ(
+      hgdtest::run(viewer(dir.file("bar.pcd") + " --replay " + dir.file("events.json") + " --quiet"), out), 0)
+      << out;
+  std::ifstream in(dir.file("session.json"));
+  const std::string scenario((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_NE(scenario.find("\"frame\""), std::string::npos) << scenario;
+  ASSERT_EQ(hgdtest::run(std::string(HGD_TOOL) + " deform " + dir.file("bar.pcd") + " -s " +
+                             dir.file("session.json") + " -o " + dir.file("cli.pcd") + " -q",
+                         out),
+            0)
+      << out;
+  double diag = 1;
+  EXPECT_LE(maxDistance(dir.file("viewer.pcd"), dir.file("cli.pcd"), diag), 1e-5 * diag);
+  double moved = 0;
+  EXPECT_GT(maxDistance(dir.file("bar.pcd"), dir.file("viewer.pcd"), moved), 0.01);
+}
+
+TEST(Viewer, BadInputGivesAClearError) {
+  if (!haveXvfb()) GTEST_SKIP() << "xvfb-run not installed";
+  hgdtest::TempDir dir;
+  std::string out;
+  EXPECT_EQ(hgdtest::run(viewer(dir.file("missing.ply")), out), 1);
+  EXPECT_NE(out.find("missing.ply"), std::string::npos) << out;
+  EXPECT_EQ(hgdtest::run(std::string(HGD_VIEW) + " --bogus", out), 2);
+  // Without a display the viewer says so instead of aborting inside VTK.
+  hgd::writeShape(dir.file("bar.ply"), hgd::shapes::bar(1.0f, 0.1f, 0.05f));
+  EXPECT_EQ(hgdtest::run("env -u DISPLAY " + std::string(HGD_VIEW) + " " + dir.file("bar.ply"), out), 1);
+  EXPECT_NE(out.find("display"), std::string::npos) << out;
+}
+
+}  // namespace
