@@ -650,10 +650,12 @@ class Viewer {
       const pcl::visualization::PointCloudColorHandlerRGBField<pcl::PointXYZRGB> rgb(display_);
       vis_->updatePointCloud<pcl::PointXYZRGB>(display_, rgb, "shape");
     } else {
+      // PCL's updatePolygonMesh drops the colours (the mesh turns black): add it afresh.
       pcl::PolygonMesh mesh;
       pcl::toPCLPointCloud2(*display_, mesh.cloud);
       mesh.polygons = geometry_.faces;
-      vis_->updatePolygonMesh(mesh, "shape");
+      vis_->removePolygonMesh("shape");
+      vis_->addPolygonMesh(mesh, "shape");
     }
     if (overlay_ && !overlay_shown_) {
       const pcl::visualization::PointCloudColorHandlerRGBField<pcl::PointXYZRGB> grey(rest_);
