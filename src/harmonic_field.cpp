@@ -113,17 +113,18 @@ using SpMat = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
 using RowMat = Eigen::SparseMatrix<double, Eigen::RowMajor, int>;
 
 // y = A x for a row-major sparse matrix, in parallel.
-void multiply(const RowMat& a, const Eigen::VectorXd& x, Eigen::VectorXd& y) {
+// y = A x for the free block of the graph Laplacian: off-diagonal entries are all -1, so only
+// the column indices are read (half the memory traffic of a general product).
+void multiply(const RowMat& a, const Eigen::VectorXd& diag, const Eigen::VectorXd& x, Eigen::VectorXd& y) {
   const long long rows = a.rows();
   y.resize(a.rows());
   const int* outer = a.outerIndexPtr();
   const int* inner = a.innerIndexPtr();
-  const double* val = a.valuePtr();
 #pragma omp parallel for schedule(static)
   for (long long r = 0; r < rows; ++r) {
     double s = 0;
-    for (int m = outer[r]; m < outer[r + 1]; ++m) s += val[m] * x[inner[m]];
-    y[r] = s;
+    for (int m = outer[r]; m < outer[r + 1]; ++m) s += x[inner[m]];
+    y[r] = (diag[r] + 1.0) * x[r] - s;  // the diagonal's own column was summed with the rest
   }
 }
 
@@ -195,21 +196,22 @@ bool solveMultilevel(const RowMat& a, const Eigen::VectorXd& b, Eigen::VectorXd&
   Eigen::CholmodSupernodalLLT<SpMat, Eigen::Lower> coarse_solver;
   coarse_solver.compute(ac);
   if (coarse_solver.info() != Eigen::Success) return false;
-  const Eigen::VectorXd inv_diag = a.diagonal().cwiseInverse();
+  const Eigen::VectorXd diag = a.diagonal();
+  const Eigen::VectorXd inv_diag = diag.cwiseInverse();
   const double omega = 0.6;
   Eigen::VectorXd t1, t2;
   auto precondition = [&](const Eigen::VectorXd& r, Eigen::VectorXd& z) {
     z = omega * inv_diag.cwiseProduct(r);
-    multiply(a, z, t1);
+    multiply(a, diag, z, t1);
     Eigen::VectorXd rc = pt * (r - t1);
     z += p * coarse_solver.solve(rc);
-    multiply(a, z, t1);
+    multiply(a, diag, z, t1);
     z += omega * inv_diag.cwiseProduct(r - t1);
   };
   // Initial guess: the coarse solution, prolonged.
   x = p * coarse_solver.solve(pt * b);
   Eigen::VectorXd r(b.size()), z, d, q;
-  multiply(a, x, t2);
+  multiply(a, diag, x, t2);
   r = b - t2;
   const double bnorm = std::max(b.norm(), 1e-300);
   precondition(r, z);
@@ -217,7 +219,7 @@ bool solveMultilevel(const RowMat& a, const Eigen::VectorXd& b, Eigen::VectorXd&
   double rz = r.dot(z);
   iterations = 0;
   while (r.norm() / bnorm > opt.tolerance && iterations < opt.max_iterations) {
-    multiply(a, d, q);
+    multiply(a, diag, d, q);
     const double alpha = rz / d.dot(q);
     x += alpha * d;
     r -= alpha * q;
@@ -273,30 +275,51 @@ void solveDirichlet(const NeighborGraph& graph, const std::vector<char>& constra
     timings.solve_ms = 0;
     return;
   }
-  // Free block of D - W (uniform weights) and the right-hand side from constrained neighbours.
+  // Free block of D - W (uniform weights) and the right-hand side from constrained neighbours,
+  // written straight into compressed rows (the graph's rows are sorted, and so stay the
+  // columns, free indices growing with point indices).
   Eigen::VectorXd b = Eigen::VectorXd::Zero(nf);
   RowMat a(nf, nf);
-  a.reserve(Eigen::VectorXi::Constant(nf, 1));
   {
-    std::vector<int> nnz_row(static_cast<std::size_t>(nf));
+    std::vector<int> outer(static_cast<std::size_t>(nf) + 1, 0);
     for (int r = 0; r < nf; ++r) {
       const auto i = static_cast<std::size_t>(free_points[static_cast<std::size_t>(r)]);
       int c = 1;
       for (const int* j = graph.begin(i); j != graph.end(i); ++j)
         c += free_index[static_cast<std::size_t>(*j)] >= 0;
-      nnz_row[static_cast<std::size_t>(r)] = c;
+      outer[static_cast<std::size_t>(r) + 1] = outer[static_cast<std::size_t>(r)] + c;
     }
-    a.reserve(nnz_row);
-  }
-  for (int r = 0; r < nf; ++r) {
-    const auto i = static_cast<std::size_t>(free_points[static_cast<std::size_t>(r)]);
-    a.insert(r, r) = graph.degree(i);
-    for (const int* j = graph.begin(i); j != graph.end(i); ++j) {
-      const int fj = free_index[static_cast<std::size_t>(*j)];
-      if (fj >= 0)
-        a.insert(r, fj) = -1.0;
-      else
-        b[r] += value[static_cast<std::size_t>(*j)];
+    a.resizeNonZeros(outer.back());
+    std::copy(outer.begin(), outer.end(), a.outerIndexPtr());
+    int* inner = a.innerIndexPtr();
+    double* val = a.valuePtr();
+    const long long rows = nf;
+#pragma omp parallel for schedule(static)
+    for (long long rr = 0; rr < rows; ++rr) {
+      const auto r = static_cast<std::size_t>(rr);
+      const auto i = static_cast<std::size_t>(free_points[r]);
+      int k = outer[r];
+      bool diagonal_done = false;
+      double rhs = 0;
+      for (const int* j = graph.begin(i); j != graph.end(i); ++j) {
+        const int fj = free_index[static_cast<std::size_t>(*j)];
+        if (fj < 0) {
+          rhs += value[static_cast<std::size_t>(*j)];
+          continue;
+        }
+        if (!diagonal_done && fj > static_cast<int>(r)) {
+          inner[k] = static_cast<int>(r);
+          val[k++] = graph.degree(i);
+          diagonal_done = true;
+        }
+        inner[k] = fj;
+        val[k++] = -1.0;
+      }
+      if (!diagonal_done) {
+        inner[k] = static_cast<int>(r);
+        val[k++] = graph.degree(i);
+      }
+      b[static_cast<Eigen::Index>(r)] = rhs;
     }
   }
   a.makeCompressed();
