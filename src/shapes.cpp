@@ -1,9 +1,13 @@
 #include "hgdeform/shapes.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <map>
+#include <random>
 #include <tuple>
+
+#include "hgdeform/geometry.h"
 
 namespace hgd {
 namespace shapes {
@@ -158,6 +162,48 @@ Shape bumpySphere(std::size_t count, float amp) {
     n[i] = d.cast<float>();  // close enough for a benchmark shape; the field needs only orientation
   }
   return cloudShape(p, n);
+}
+
+Shape sampleMesh(const Shape& mesh, std::size_t n, unsigned seed) {
+  const Geometry g = extractGeometry(mesh);
+  struct Tri {
+    int a, b, c;
+  };
+  std::vector<Tri> tris;
+  std::vector<double> cumulative;
+  double total = 0;
+  for (const auto& f : g.faces)
+    for (std::size_t t = 1; t + 1 < f.vertices.size(); ++t) {
+      const Tri tri{f.vertices[0], f.vertices[t], f.vertices[t + 1]};
+      const Eigen::Vector3f a = (*g.points)[static_cast<std::size_t>(tri.a)].getVector3fMap(),
+                            b = (*g.points)[static_cast<std::size_t>(tri.b)].getVector3fMap(),
+                            c = (*g.points)[static_cast<std::size_t>(tri.c)].getVector3fMap();
+      const double area = 0.5 * static_cast<double>((b - a).cross(c - a).norm());
+      if (!(area > 0)) continue;
+      tris.push_back(tri);
+      total += area;
+      cumulative.push_back(total);
+    }
+  std::vector<Eigen::Vector3f> p(n), nrm(n);
+  if (tris.empty()) return cloudShape({}, {});
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto k = static_cast<std::size_t>(
+        std::lower_bound(cumulative.begin(), cumulative.end(), u(rng) * total) - cumulative.begin());
+    const Tri& t = tris[std::min(k, tris.size() - 1)];
+    double r1 = u(rng), r2 = u(rng);
+    if (r1 + r2 > 1) {
+      r1 = 1 - r1;
+      r2 = 1 - r2;
+    }
+    const Eigen::Vector3f a = (*g.points)[static_cast<std::size_t>(t.a)].getVector3fMap(),
+                          b = (*g.points)[static_cast<std::size_t>(t.b)].getVector3fMap(),
+                          c = (*g.points)[static_cast<std::size_t>(t.c)].getVector3fMap();
+    p[i] = a + static_cast<float>(r1) * (b - a) + static_cast<float>(r2) * (c - a) + g.origin.cast<float>();
+    nrm[i] = (b - a).cross(c - a).normalized();
+  }
+  return cloudShape(p, nrm);
 }
 
 Shape barMesh(float length, float width, float h) {

@@ -1,10 +1,12 @@
 // hgdeform-bench: build, solve and interpolation timings against the paper's Table 1.
 //
-//   hgdeform-bench [--sizes 50000,173000,1000000] [--repeat 5] [--clusters 16,100] [--json OUT]
+//   hgdeform-bench [--sizes 50000,173000,438000,1000000,4000000] [--repeat 5] [--clusters 16,100]
+//                  [--models sphere,armadillo] [--armadillo PATH] [--json OUT]
 //
-// Each size runs in its own child process, so that the peak memory (RSS) reported is that
-// size's alone. Shapes: a procedural bumpy sphere of exactly N points (fixed handle: the
-// bottom cap; manipulated: a cap on the side), so that the figures need no data files.
+// Each (model, size) runs in its own child process, so that the peak memory (RSS) reported is
+// its own. Models: a procedural bumpy sphere of exactly N points (fixed: the bottom cap;
+// manipulated: a cap on the side) and the Armadillo of ../shared/datasets resampled to N points
+// (fixed: the feet; manipulated: the top of the head), when that file is there.
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -14,6 +16,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <iostream>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -21,6 +24,7 @@
 #include <vector>
 
 #include "hgdeform/deformer.h"
+#include "hgdeform/io.h"
 #include "hgdeform/report.h"
 #include "hgdeform/shapes.h"
 
@@ -58,17 +62,35 @@ const PaperRow& paperRow(double n) {
   return *best;
 }
 
-nlohmann::json runSize(std::size_t n, int repeat, const std::vector<long>& cluster_counts) {
+nlohmann::json runSize(const std::string& model, const std::string& armadillo, std::size_t n, int repeat,
+                       const std::vector<long>& cluster_counts) {
   using nlohmann::json;
-  const hgd::Geometry g = hgd::extractGeometry(hgd::shapes::bumpySphere(n));
+  hgd::Geometry g;
   hgd::Handles h;
   h.fixed.emplace_back();
-  for (std::size_t i = 0; i < g.size(); ++i) {
-    const Eigen::Vector3d w = g.world(i);
-    if (w.z() < -0.9) h.fixed[0].push_back(static_cast<int>(i));
-    if (w.x() > 0.9) h.manipulated.push_back(static_cast<int>(i));
+  if (model == "armadillo") {
+    g = hgd::extractGeometry(hgd::shapes::sampleMesh(hgd::readShape(armadillo), n, 7));
+    Eigen::Vector3d lo = Eigen::Vector3d::Constant(INFINITY), hi = -lo;
+    for (std::size_t i = 0; i < g.size(); ++i) {
+      lo = lo.cwiseMin(g.world(i));
+      hi = hi.cwiseMax(g.world(i));
+    }
+    const double height = hi.y() - lo.y();
+    for (std::size_t i = 0; i < g.size(); ++i) {
+      const double y = g.world(i).y();
+      if (y < lo.y() + 0.06 * height) h.fixed[0].push_back(static_cast<int>(i));
+      if (y > hi.y() - 0.08 * height) h.manipulated.push_back(static_cast<int>(i));
+    }
+  } else {
+    g = hgd::extractGeometry(hgd::shapes::bumpySphere(n));
+    for (std::size_t i = 0; i < g.size(); ++i) {
+      const Eigen::Vector3d w = g.world(i);
+      if (w.z() < -0.9) h.fixed[0].push_back(static_cast<int>(i));
+      if (w.x() > 0.9) h.manipulated.push_back(static_cast<int>(i));
+    }
   }
   json out;
+  out["model"] = model;
   out["points"] = n;
   // Field build: normals (file normals are ignored here so that estimation is measured),
   // kNN, graph, Laplacian, solve; a fresh HarmonicField each time.
@@ -172,7 +194,9 @@ nlohmann::json runSize(std::size_t n, int repeat, const std::vector<long>& clust
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::vector<long> sizes{50000, 173000, 1000000};
+  std::vector<long> sizes{50000, 173000, 438000, 1000000};
+  std::string armadillo = HGD_DEFAULT_ARMADILLO;
+  std::vector<std::string> models{"sphere", "armadillo"};
   std::vector<long> cluster_counts{16, 100};
   int repeat = 5;
   std::string json_path;
@@ -193,8 +217,23 @@ int main(int argc, char** argv) {
       repeat = std::max(1, std::atoi(next().c_str()));
     else if (a == "--json")
       json_path = next();
-    else if (a == "-h" || a == "--help") {
-      std::cout << "usage: hgdeform-bench [--sizes N,N,...] [--clusters N,N] [--repeat R] [--json OUT]\n";
+    else if (a == "--armadillo")
+      armadillo = next();
+    else if (a == "--models") {
+      models.clear();
+      std::stringstream ss(next());
+      std::string item;
+      while (std::getline(ss, item, ',')) {
+        if (item != "sphere" && item != "armadillo") {
+          std::cerr << "hgdeform-bench: unknown model '" << item << "' (sphere, armadillo)\n";
+          return 2;
+        }
+        models.push_back(item);
+      }
+    } else if (a == "-h" || a == "--help") {
+      std::cout << "usage: hgdeform-bench [--sizes N,N,...] [--clusters N,N] [--repeat R] [--models "
+                   "sphere,armadillo]\n"
+                   "                      [--armadillo PATH] [--json OUT]\n";
       return 0;
     } else {
       std::cerr << "hgdeform-bench: unknown option '" << a << "'\n";
@@ -202,52 +241,60 @@ int main(int argc, char** argv) {
     }
   }
   nlohmann::json all = nlohmann::json::array();
-  std::printf("%9s %10s | %6s %6s %6s %6s %6s %7s | %5s %6s %6s %8s %5s %7s %7s %7s | %7s %6s\n", "points",
-              "solver", "knn", "normal", "graph", "lapl", "solve", "field", "clus", "build", "sample",
-              "ms/iter", "iters", "i.lin", "i.rot", "frame", "RSS MB", "xpaper");
-  for (long n : sizes) {
-    int pipefd[2];
-    if (pipe(pipefd) != 0) return 1;
-    const pid_t pid = fork();
-    if (pid == 0) {
-      close(pipefd[0]);
-      const std::string text = runSize(static_cast<std::size_t>(n), repeat, cluster_counts).dump();
-      if (write(pipefd[1], text.data(), text.size()) < 0) _exit(1);
-      close(pipefd[1]);
-      _exit(0);
-    }
-    close(pipefd[1]);
-    std::string text;
-    char buf[4096];
-    ssize_t got;
-    while ((got = read(pipefd[0], buf, sizeof buf)) > 0) text.append(buf, static_cast<std::size_t>(got));
-    close(pipefd[0]);
-    int status = 0;
-    struct rusage ru;
-    wait4(pid, &status, 0, &ru);
-    if (!WIFEXITED(status) || WEXITSTATUS(status) != 0 || text.empty()) {
-      std::fprintf(stderr, "hgdeform-bench: size %ld failed\n", n);
-      return 1;
-    }
-    nlohmann::json r = nlohmann::json::parse(text);
-    r["peak_rss_mb"] = static_cast<double>(ru.ru_maxrss) / 1024.0;
-    const auto& f = r["field"];
-    for (const auto& d : r["deform"]) {
-      std::printf(
-          "%9ld %10s | %6.0f %6.0f %6.0f %6.0f %6.0f %7.0f | %5ld %6.0f %6.1f %8.3f %5d %7.2f %7.2f %7.2f | "
-          "%7.0f "
-          "%6.1f\n",
-          n, f["solver"].get<std::string>().c_str(), f["knn_ms"].get<double>(), f["normals_ms"].get<double>(),
-          f["graph_ms"].get<double>(), f["laplacian_ms"].get<double>(), f["solve_ms"].get<double>(),
-          f["total_ms"].get<double>(), d["isoclusters"].get<long>(), d["build_ms"].get<double>(),
-          d["sampling_ms"].get<double>(), d["gn_iteration_ms"].get<double>(),
-          d["max_frame_iterations"].get<int>(), d["interpolation_linear_ms"].get<double>(),
-          d["interpolation_rotation_ms"].get<double>(), d["frame_ms"].get<double>(),
-          r["peak_rss_mb"].get<double>(), d["build_speedup"].get<double>());
-    }
-    std::fflush(stdout);
-    all.push_back(r);
+  if (std::find(models.begin(), models.end(), "armadillo") != models.end() &&
+      !std::filesystem::exists(armadillo)) {
+    std::printf("(no %s: the Armadillo rows are left out)\n", armadillo.c_str());
+    models.erase(std::find(models.begin(), models.end(), "armadillo"));
   }
+  std::printf("%9s %9s %10s | %6s %6s %6s %6s %6s %7s | %5s %6s %6s %8s %5s %7s %7s %7s | %7s %6s\n", "model",
+              "points", "solver", "knn", "normal", "graph", "lapl", "solve", "field", "clus", "build",
+              "sample", "ms/iter", "iters", "i.lin", "i.rot", "frame", "RSS MB", "xpaper");
+  for (const std::string& model : models)
+    for (long n : sizes) {
+      int pipefd[2];
+      if (pipe(pipefd) != 0) return 1;
+      const pid_t pid = fork();
+      if (pid == 0) {
+        close(pipefd[0]);
+        const std::string text =
+            runSize(model, armadillo, static_cast<std::size_t>(n), repeat, cluster_counts).dump();
+        if (write(pipefd[1], text.data(), text.size()) < 0) _exit(1);
+        close(pipefd[1]);
+        _exit(0);
+      }
+      close(pipefd[1]);
+      std::string text;
+      char buf[4096];
+      ssize_t got;
+      while ((got = read(pipefd[0], buf, sizeof buf)) > 0) text.append(buf, static_cast<std::size_t>(got));
+      close(pipefd[0]);
+      int status = 0;
+      struct rusage ru;
+      wait4(pid, &status, 0, &ru);
+      if (!WIFEXITED(status) || WEXITSTATUS(status) != 0 || text.empty()) {
+        std::fprintf(stderr, "hgdeform-bench: %s at %ld points failed\n", model.c_str(), n);
+        return 1;
+      }
+      nlohmann::json r = nlohmann::json::parse(text);
+      r["peak_rss_mb"] = static_cast<double>(ru.ru_maxrss) / 1024.0;
+      const auto& f = r["field"];
+      for (const auto& d : r["deform"]) {
+        std::printf(
+            "%9s %9ld %10s | %6.0f %6.0f %6.0f %6.0f %6.0f %7.0f | %5ld %6.0f %6.1f %8.3f %5d %7.2f %7.2f "
+            "%7.2f | "
+            "%7.0f "
+            "%6.1f\n",
+            model.c_str(), n, f["solver"].get<std::string>().c_str(), f["knn_ms"].get<double>(),
+            f["normals_ms"].get<double>(), f["graph_ms"].get<double>(), f["laplacian_ms"].get<double>(),
+            f["solve_ms"].get<double>(), f["total_ms"].get<double>(), d["isoclusters"].get<long>(),
+            d["build_ms"].get<double>(), d["sampling_ms"].get<double>(), d["gn_iteration_ms"].get<double>(),
+            d["max_frame_iterations"].get<int>(), d["interpolation_linear_ms"].get<double>(),
+            d["interpolation_rotation_ms"].get<double>(), d["frame_ms"].get<double>(),
+            r["peak_rss_mb"].get<double>(), d["build_speedup"].get<double>());
+      }
+      std::fflush(stdout);
+      all.push_back(r);
+    }
   std::printf(
       "columns: field phases in ms (median of %d); clus = isoclusters; build = Deformer construction (field, "
       "sample, clusters, solver set-up); ms/iter = Gauss-Newton ms per iteration over a 30-frame drag; iters "

@@ -32,6 +32,10 @@ Shape fork(float gap = 0.04f, float w = 0.06f, float h = 0.01f);
 /// sampled: the benchmark shape for any size.
 Shape bumpySphere(std::size_t n, float amp = 0.1f);
 
+/// About n points sampled uniformly by area from a mesh's faces (fan-triangulated), with the
+/// faces' normals: a resampled scan of any size from a mesh. Deterministic for a seed.
+Shape sampleMesh(const Shape& mesh, std::size_t n, unsigned seed = 1);
+
 /// Triangle mesh of the same bar as bar(): vertices on the grid, two triangles per cell.
 Shape barMesh(float length = 1.0f, float width = 0.1f, float h = 0.01f);
 
