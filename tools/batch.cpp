@@ -1,9 +1,991 @@
-// hgdeform batch: placeholder until the batch runner lands (issue 6).
+// hgdeform batch: deform every scan of a folder. A thread pool (--jobs), resumable runs (outputs
+// newer than their inputs are skipped), deterministic shards (--shard K/N) for job arrays, and,
+// when launched by mpirun, MPI ranks sharing the scans through a one-sided counter.
+#include <omp.h>
+#include <sys/ioctl.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cerrno>
+#include <chrono>
+#include <climits>
+#include <condition_variable>
+#include <csignal>
+#include <cstdint>
 #include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <exception>
+#include <filesystem>
+#include <future>
+#include <map>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <regex>
+#include <set>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "batch_report.h"
+#include "hgdeform/deformer.h"
+#include "hgdeform/io.h"
+#include "hgdeform/scenario.h"
+#ifdef HGD_HAVE_RENDER
+#include "hgdeform/render.h"
+#endif
+#ifdef HGD_HAVE_MPI
+#include <mpi.h>
+#endif
 
 namespace hgdcli {
-int runBatch(int, char**) {
-  std::fprintf(stderr, "hgdeform batch: not built yet\n");
-  return 2;
+
+namespace {
+
+namespace fs = std::filesystem;
+using batch::ScanResult;
+using Clock = std::chrono::steady_clock;
+
+const char* kBatchHelp =
+    "usage: hgdeform batch --scenario S.json INPUT_DIR -o OUTPUT_DIR [options]\n"
+    "\n"
+    "Deforms every PLY, PCD and OBJ file in INPUT_DIR as the scenario says and writes the results\n"
+    "under OUTPUT_DIR with the same relative paths. A scenario beside a scan with the same base\n"
+    "name (scan_017.json for scan_017.pcd) replaces S.json for that scan. Outputs are written\n"
+    "atomically and inputs are never modified. A scan whose output is newer than both its input\n"
+    "and its scenario is skipped, so an interrupted batch resumes where it stopped. A scan that\n"
+    "fails is reported and the batch goes on.\n"
+    "\n"
+    "options:\n"
+    "  -s, --scenario FILE   default scenario (SCENARIO.md); required\n"
+    "  -o, --output DIR      output directory (created); neither INPUT_DIR nor inside it; required\n"
+    "  -j, --jobs N          scans processed in parallel (default 1); each scan gets\n"
+    "                        max(1, cores / N) OpenMP threads (at most OMP_NUM_THREADS)\n"
+    "      --recursive       every scan of the tree under INPUT_DIR, not only the top level\n"
+    "      --format FORMAT   ply, pcd or same (default same: the input's own format)\n"
+    "  -f, --force           also redo scans whose output is up to date\n"
+    "      --report DIR      write DIR/summary.json, DIR/summary.csv and DIR/index.html, with\n"
+    "                        before/after thumbnails in DIR/thumbs/ (needs an X display)\n"
+    "      --shard K/N       process only shard K (0-based) of N: scan i of the list sorted by\n"
+    "                        relative path belongs to shard i % N\n"
+    "  -q, --quiet           print errors only\n"
+    "  -h, --help            this help\n"
+    "\n"
+    "On a terminal a progress bar shows files done, the current file, the rate and the ETA;\n"
+    "otherwise one line per scan is printed. SIGINT and SIGTERM stop the batch without leaving\n"
+    "a partial file (exit status 130 / 143). Exit status: 0 when every scan was deformed or up\n"
+    "to date, 1 when any failed, 2 on usage errors.\n"
+    "\n"
+    "MPI: when built with MPI and started by mpirun (or srun), the ranks share the scans\n"
+    "dynamically, largest first, one scan at a time per rank; rank 0 prints the summary and\n"
+    "writes the report. See docs/batch.md.\n";
+
+struct UsageError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+// --- options ---------------------------------------------------------------------------------
+
+struct Config {
+  fs::path input_dir, output_dir, scenario_path, report_dir;
+  int jobs = 1;
+  bool recursive = false, force = false, quiet = false, help = false;
+  std::string format = "same";  // "ply", "pcd" or "same"
+  int shard_k = 0, shard_n = 1;
+  bool sharded = false;
+};
+
+long parseInteger(const std::string& text, const std::string& what, long lo, long hi) {
+  char* end = nullptr;
+  errno = 0;
+  const long v = std::strtol(text.c_str(), &end, 10);
+  if (text.empty() || *end != '\0' || errno != 0 || v < lo || v > hi)
+    throw UsageError(what + " must be an integer from " + std::to_string(lo) + " to " + std::to_string(hi) +
+                     " (got '" + text + "')");
+  return v;
 }
+
+Config parseArgs(int argc, char** argv) {
+  static const std::map<std::string, std::string> aliases = {{"-s", "--scenario"}, {"-o", "--output"},
+                                                             {"-j", "--jobs"},     {"-f", "--force"},
+                                                             {"-q", "--quiet"},    {"-h", "--help"}};
+  static const std::set<std::string> with_value = {"scenario", "output", "jobs", "format", "report", "shard"};
+  static const std::set<std::string> flag_names = {"recursive", "force", "quiet", "help"};
+  Config c;
+  std::vector<std::string> positional;
+  std::map<std::string, std::string> values;
+  std::set<std::string> flags;
+  for (int i = 0; i < argc; ++i) {
+    std::string s = argv[i];
+    if (s.size() > 1 && s[0] == '-') {
+      std::string value;
+      bool has_value = false;
+      const auto eq = s.find('=');
+      if (s.rfind("--", 0) == 0 && eq != std::string::npos) {
+        value = s.substr(eq + 1);
+        s = s.substr(0, eq);
+        has_value = true;
+      }
+      if (auto al = aliases.find(s); al != aliases.end()) s = al->second;
+      const std::string name = s.rfind("--", 0) == 0 ? s.substr(2) : s;
+      if (with_value.count(name)) {
+        if (!has_value) {
+          if (i + 1 >= argc) throw UsageError("option --" + name + " needs a value");
+          value = argv[++i];
+        }
+        values[name] = value;
+      } else if (flag_names.count(name) && !has_value) {
+        flags.insert(name);
+      } else {
+        throw UsageError("unknown option '" + std::string(argv[i]) + "'");
+      }
+    } else {
+      positional.push_back(s);
+    }
+  }
+  c.help = flags.count("help") > 0;
+  if (c.help) return c;
+  c.recursive = flags.count("recursive") > 0;
+  c.force = flags.count("force") > 0;
+  c.quiet = flags.count("quiet") > 0;
+  if (positional.size() != 1)
+    throw UsageError(positional.empty() ? "missing INPUT_DIR"
+                                        : "expected one INPUT_DIR, got " + std::to_string(positional.size()));
+  c.input_dir = positional[0];
+  auto required = [&](const std::string& name) -> const std::string& {
+    auto it = values.find(name);
+    if (it == values.end() || it->second.empty()) throw UsageError("--" + name + " is required");
+    return it->second;
+  };
+  c.scenario_path = required("scenario");
+  c.output_dir = required("output");
+  if (auto it = values.find("jobs"); it != values.end())
+    c.jobs = static_cast<int>(parseInteger(it->second, "--jobs", 1, 1024));
+  if (auto it = values.find("format"); it != values.end()) {
+    if (it->second != "ply" && it->second != "pcd" && it->second != "same")
+      throw UsageError("--format must be ply, pcd or same (got '" + it->second + "')");
+    c.format = it->second;
+  }
+  if (auto it = values.find("report"); it != values.end()) {
+    if (it->second.empty()) throw UsageError("--report needs a directory");
+    c.report_dir = it->second;
+  }
+  if (auto it = values.find("shard"); it != values.end()) {
+    const std::string& v = it->second;
+    const auto slash = v.find('/');
+    if (slash == std::string::npos) throw UsageError("--shard must be K/N, e.g. 0/4 (got '" + v + "')");
+    c.shard_n = static_cast<int>(parseInteger(v.substr(slash + 1), "--shard N", 1, 1000000));
+    c.shard_k = static_cast<int>(parseInteger(v.substr(0, slash), "--shard K", 0, c.shard_n - 1));
+    c.sharded = true;
+  }
+  return c;
+}
+
+/// True when `child` is `parent` or lies under it (both absolute and normalised).
+bool isWithin(const fs::path& child, const fs::path& parent) {
+  const auto [p, c] = std::mismatch(parent.begin(), parent.end(), child.begin(), child.end());
+  (void)c;
+  return p == parent.end();
+}
+
+fs::path normalisedAbsolute(const fs::path& p) {
+  fs::path n = fs::weakly_canonical(fs::absolute(p)).lexically_normal();
+  if (!n.has_filename() && n.has_parent_path() && n != n.root_path()) n = n.parent_path();
+  return n;
+}
+
+void checkDirectories(const Config& c) {
+  std::error_code ec;
+  const std::string in_text = c.input_dir.string();
+  if (!fs::exists(c.input_dir, ec)) throw UsageError("input directory '" + in_text + "' does not exist");
+  if (!fs::is_directory(c.input_dir, ec)) throw UsageError("'" + in_text + "' is not a directory");
+  const fs::path in = normalisedAbsolute(fs::canonical(c.input_dir));
+  const fs::path out = normalisedAbsolute(c.output_dir);
+  if (isWithin(out, in))
+    throw UsageError(
+        "output directory '" + c.output_dir.string() + "' " +
+        (out == in ? "is the input directory" : "is inside the input directory '" + in_text + "'") +
+        ": outputs would mix with the scans; choose a directory outside INPUT_DIR");
+  if (fs::exists(c.output_dir, ec) && !fs::is_directory(c.output_dir, ec))
+    throw UsageError("output '" + c.output_dir.string() + "' exists and is not a directory");
+  if (!c.report_dir.empty() && isWithin(normalisedAbsolute(c.report_dir), in))
+    throw UsageError("report directory '" + c.report_dir.string() + "' is inside the input directory '" +
+                     in_text + "'; choose a directory outside INPUT_DIR");
+  if (!c.report_dir.empty() && fs::exists(c.report_dir, ec) && !fs::is_directory(c.report_dir, ec))
+    throw UsageError("report '" + c.report_dir.string() + "' exists and is not a directory");
+}
+
+// --- the scans -------------------------------------------------------------------------------
+
+struct Scan {
+  fs::path input;
+  std::string rel;  // relative to INPUT_DIR, '/' separators
+  fs::path output;
+  std::string out_rel;
+  fs::path scenario;  // the one to use (own or default)
+  bool own_scenario = false;
+  std::uintmax_t size = 0;
+  std::string error;  // known before processing (e.g. two scans writing one output)
+};
+
+std::string lowerExtension(const fs::path& p) {
+  std::string e = p.extension().string();
+  for (char& ch : e) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+  return e;
+}
+
+bool isScanFile(const fs::path& p) {
+  const std::string e = lowerExtension(p);
+  return e == ".ply" || e == ".pcd" || e == ".obj";
+}
+
+bool hidden(const fs::path& p) {
+  const std::string name = p.filename().string();
+  return !name.empty() && name[0] == '.';
+}
+
+/// Every scan of the input, sorted by relative path (the order shards and ranks agree on).
+std::vector<Scan> listScans(const Config& c) {
+  std::vector<fs::path> files;
+  std::error_code ec;
+  auto consider = [&](const fs::directory_entry& e) {
+    std::error_code e2;
+    if (!hidden(e.path()) && isScanFile(e.path()) && e.is_regular_file(e2)) files.push_back(e.path());
+  };
+  if (c.recursive) {
+    fs::recursive_directory_iterator it(c.input_dir, fs::directory_options::skip_permission_denied, ec), end;
+    if (ec) throw std::runtime_error(c.input_dir.string() + ": cannot list: " + ec.message());
+    for (; it != end; it.increment(ec)) {
+      if (ec) throw std::runtime_error(c.input_dir.string() + ": cannot list: " + ec.message());
+      if (hidden(it->path())) {
+        std::error_code e2;
+        if (it->is_directory(e2)) it.disable_recursion_pending();  // .git, .cache, ...
+        continue;
+      }
+      consider(*it);
+    }
+  } else {
+    fs::directory_iterator it(c.input_dir, ec), end;
+    if (ec) throw std::runtime_error(c.input_dir.string() + ": cannot list: " + ec.message());
+    for (; it != end; it.increment(ec)) {
+      if (ec) throw std::runtime_error(c.input_dir.string() + ": cannot list: " + ec.message());
+      consider(*it);
+    }
+  }
+
+  std::vector<Scan> scans;
+  std::set<std::string> inputs;  // canonical input paths, so that no output overwrites an input
+  for (const auto& f : files) {
+    Scan s;
+    s.input = f;
+    s.rel = f.lexically_relative(c.input_dir).generic_string();
+    fs::path out_rel(s.rel);
+    if (c.format != "same") out_rel.replace_extension("." + c.format);
+    s.out_rel = out_rel.generic_string();
+    s.output = c.output_dir / out_rel;
+    const fs::path own = f.parent_path() / (f.stem().string() + ".json");
+    std::error_code e1, e2;
+    if (fs::is_regular_file(own, e1) && !fs::equivalent(own, c.scenario_path, e2)) {
+      s.scenario = own;
+      s.own_scenario = true;
+    } else {
+      s.scenario = c.scenario_path;
+    }
+    s.size = fs::file_size(f, e1);
+    if (e1) s.size = 0;
+    inputs.insert(normalisedAbsolute(f).string());
+    scans.push_back(std::move(s));
+  }
+  std::sort(scans.begin(), scans.end(), [](const Scan& a, const Scan& b) { return a.rel < b.rel; });
+  std::map<std::string, std::string> writer;  // output -> the scan writing it
+  for (auto& s : scans) {
+    auto [it, fresh] = writer.emplace(s.out_rel, s.rel);
+    if (!fresh)
+      s.error = "output " + s.out_rel + " would also be written by " + it->second + " (use --format same)";
+    else if (inputs.count(normalisedAbsolute(s.output).string()))
+      s.error = "output " + s.output.string() + " would overwrite an input scan";
+  }
+  return scans;
+}
+
+/// Removes temporary files left by a killed run (".<name>.tmp-<pid>-<hex>", as hgd::writeShape
+/// and writeFileAtomically make them) under `dir`. A file is left alone while its process is
+/// alive on this machine or when it changed during the last minute (a writer on another node of
+/// a cluster sharing the directory).
+void removeStaleTemporaries(const fs::path& dir) {
+  static const std::regex pattern(R"(^\..+\.tmp-([0-9]+)-[0-9a-f]+$)");
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) return;
+  fs::recursive_directory_iterator it(dir, fs::directory_options::skip_permission_denied, ec), end;
+  for (; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    std::smatch m;
+    if (!std::regex_match(name, m, pattern)) continue;
+    std::error_code e2;
+    if (!it->is_regular_file(e2)) continue;
+    const std::string pid_text = m[1].str();
+    if (pid_text.size() <= 9) {
+      const long pid = std::strtol(pid_text.c_str(), nullptr, 10);
+      if (pid > 0 && (::kill(static_cast<pid_t>(pid), 0) == 0 || errno == EPERM)) continue;  // alive
+    }
+    const auto age = fs::file_time_type::clock::now() - fs::last_write_time(it->path(), e2);
+    if (e2 || age < std::chrono::seconds(60)) continue;
+    fs::remove(it->path(), e2);
+  }
+}
+
+// --- one scan --------------------------------------------------------------------------------
+
+struct Context {
+  Config cfg;
+  hgd::Scenario default_scenario;
+  bool thumbnails = false;
+  int rank = 0;
+};
+
+double msSince(Clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+bool upToDate(const Scan& s) {
+  std::error_code e1, e2, e3;
+  const auto out = fs::last_write_time(s.output, e1);
+  if (e1) return false;
+  const auto in = fs::last_write_time(s.input, e2);
+  const auto scenario = fs::last_write_time(s.scenario, e3);
+  return !e2 && !e3 && out > in && out > scenario;
+}
+
+#ifdef HGD_HAVE_RENDER
+std::string thumbnailName(const std::string& rel) {
+  return "thumbs/" + rel + ".png";
+}
+
+std::mutex g_render_mutex;  // VTK is not thread-safe: one picture at a time
+
+void renderThumbnail(const hgd::Shape& before, const hgd::Shape& after, const fs::path& png) {
+  fs::create_directories(png.parent_path());
+  hgd::RenderOptions o;
+  o.width = 640;
+  o.height = 320;
+  o.point_size = 2;
+  o.titles = {"before", "after"};
+  std::lock_guard<std::mutex> lock(g_render_mutex);
+  hgd::renderPng({&before, &after}, png.string(), o);
+}
+#endif
+
+/// Thumbnail of a deformed scan, or of an up-to-date one (from its input and existing output).
+/// Returns the name relative to the report directory, "" (and a warning) on failure.
+std::string thumbnail(const Context& ctx, const Scan& s, const hgd::Shape* before, const hgd::Shape* after,
+                      std::string& warning) {
+#ifdef HGD_HAVE_RENDER
+  const std::string name = thumbnailName(s.rel);
+  const fs::path png = ctx.cfg.report_dir / name;
+  try {
+    if (before && after) {
+      renderThumbnail(*before, *after, png);
+    } else {
+      std::error_code e1, e2;
+      const auto t_png = fs::last_write_time(png, e1);
+      const auto t_out = fs::last_write_time(s.output, e2);
+      if (e1 || e2 || t_png < t_out) {
+        const hgd::Shape in = hgd::readShape(s.input.string());
+        const hgd::Shape out = hgd::readShape(s.output.string());
+        renderThumbnail(in, out, png);
+      }
+    }
+    return name;
+  } catch (const std::exception& e) {
+    warning = "no thumbnail: " + std::string(e.what());
+    return "";
+  }
+#else
+  (void)ctx, (void)s, (void)before, (void)after, (void)warning;
+  return "";
+#endif
+}
+
+/// The whole pipeline of one scan: read, deform, write (and thumbnail). Never throws.
+ScanResult processScan(const Scan& s, const Context& ctx) {
+  ScanResult r;
+  r.file = s.rel;
+  r.output = s.out_rel;
+  r.scenario = s.scenario.string();
+  r.own_scenario = s.own_scenario;
+  r.rank = ctx.rank;
+  const auto t0 = Clock::now();
+  try {
+    if (!s.error.empty()) throw std::runtime_error(s.error);
+    if (!ctx.cfg.force && upToDate(s)) {
+      r.status = "skipped";
+      if (ctx.thumbnails) r.thumbnail = thumbnail(ctx, s, nullptr, nullptr, r.warning);
+      r.ms_wall = msSince(t0);
+      return r;
+    }
+    std::optional<hgd::Scenario> own;
+    if (s.own_scenario) own = hgd::readScenario(s.scenario.string());
+    const hgd::Scenario& scenario = own ? *own : ctx.default_scenario;
+    const auto t_read = Clock::now();
+    hgd::Shape shape = hgd::readShape(s.input.string());
+    const double read_ms = msSince(t_read);
+    std::optional<hgd::Shape> before;
+    if (ctx.thumbnails) before = shape;
+    hgd::DeformReport rep = hgd::deformShape(shape, scenario, hgd::DeformOptions{});
+    rep.read_ms = read_ms;  // as `hgdeform deform` counts it
+    rep.build_ms += read_ms;
+    rep.total_ms += read_ms;
+    fs::create_directories(s.output.parent_path());
+    const auto t_write = Clock::now();
+    hgd::writeShape(s.output.string(), shape);
+    r.ms_write = msSince(t_write);
+    r.status = "ok";
+    r.has_metrics = true;
+    r.points = rep.points;
+    r.clusters = rep.clusters;
+    r.iterations = rep.iterations;
+    r.frames = rep.frames;
+    r.handle_error = rep.handle_error;
+    r.ms_read = rep.read_ms;
+    r.ms_build = rep.build_ms;
+    r.ms_field = rep.field_ms;
+    r.ms_sampling = rep.sampling_ms;
+    r.ms_clusters = rep.clusters_ms;
+    r.ms_solve = rep.solve_ms;
+    r.ms_interpolation = rep.interpolation_ms;
+    r.ms_total = rep.total_ms;
+    r.notes = rep.notes;
+    if (ctx.thumbnails) r.thumbnail = thumbnail(ctx, s, &*before, &shape, r.warning);
+  } catch (const std::bad_alloc&) {
+    r.status = "failed";
+    r.error = "out of memory";
+  } catch (const std::exception& e) {
+    r.status = "failed";
+    r.error = e.what();
+  } catch (...) {
+    r.status = "failed";
+    r.error = "unknown error";
+  }
+  if (r.status == "failed") r.has_metrics = false;
+  r.ms_wall = msSince(t0);
+  return r;
+}
+
+// --- progress --------------------------------------------------------------------------------
+
+volatile std::sig_atomic_t g_bar_on_screen = 0;
+
+/// Per-scan lines, or a progress bar redrawn in place on a terminal. Thread-safe.
+class Progress {
+ public:
+  Progress(std::size_t total, bool tty, bool quiet, std::string prefix)
+      : total_(total), tty_(tty), quiet_(quiet), prefix_(std::move(prefix)), start_(Clock::now()) {}
+
+  void started(const std::string& rel) {
+    std::lock_guard<std::mutex> lock(m_);
+    running_.insert(rel);
+    if (tty_ && !quiet_) draw();
+  }
+
+  /// `number` is the scan's place in the run (1-based); 0 = in order of completion.
+  void finished(const ScanResult& r, std::size_t number = 0) {
+    std::lock_guard<std::mutex> lock(m_);
+    running_.erase(r.file);
+    ++done_;
+    if (number == 0) number = done_;
+    if (r.status == "failed" || !r.warning.empty()) {
+      clearBar();
+      if (r.status == "failed")
+        std::fprintf(stderr, "hgdeform batch: %s%s: %s\n", prefix_.c_str(), r.file.c_str(), r.error.c_str());
+      if (!r.warning.empty())
+        std::fprintf(stderr, "hgdeform batch: %s%s: warning: %s\n", prefix_.c_str(), r.file.c_str(),
+                     r.warning.c_str());
+      std::fflush(stderr);
+    }
+    if (quiet_) return;
+    if (!r.notes.empty()) {
+      clearBar();
+      for (const auto& note : r.notes)
+        std::fprintf(stderr, "hgdeform batch: %s%s: note: %s\n", prefix_.c_str(), r.file.c_str(),
+                     note.c_str());
+      std::fflush(stderr);
+    }
+    if (tty_) {
+      draw();
+      return;
+    }
+    std::string line =
+        prefix_ + "[" + std::to_string(number) + "/" + std::to_string(total_) + "] " + r.file + ": ";
+    if (r.status == "ok")
+      line += "ok " + std::to_string(static_cast<long long>(r.ms_wall + 0.5)) + " ms";
+    else if (r.status == "skipped")
+      line += "skipped (up to date)";
+    else
+      line += "FAILED: " + r.error;
+    line += "\n";
+    std::fputs(line.c_str(), stdout);
+    std::fflush(stdout);
+  }
+
+  /// Redraws the bar (the rate and ETA move on while a long scan runs).
+  void tick() {
+    std::lock_guard<std::mutex> lock(m_);
+    if (tty_ && !quiet_ && drawn_) draw();
+  }
+
+  /// Ends the bar's line.
+  void close() {
+    std::lock_guard<std::mutex> lock(m_);
+    if (tty_ && drawn_) {
+      std::fputs("\n", stdout);
+      std::fflush(stdout);
+      drawn_ = false;
+      g_bar_on_screen = 0;
+    }
+  }
+
+ private:
+  static int terminalWidth() {
+    winsize w{};
+    if (::ioctl(STDOUT_FILENO, TIOCGWINSZ, &w) == 0 && w.ws_col >= 20) return w.ws_col;
+    return 80;
+  }
+
+  void clearBar() {
+    if (!tty_ || !drawn_) return;
+    std::fputs(("\r" + std::string(last_len_, ' ') + "\r").c_str(), stdout);
+    std::fflush(stdout);
+    drawn_ = false;
+  }
+
+  void draw() {
+    const std::size_t width = static_cast<std::size_t>(terminalWidth()) - 1;
+    const double elapsed = std::chrono::duration<double>(Clock::now() - start_).count();
+    const double rate = elapsed > 0 ? static_cast<double>(done_) / elapsed : 0.0;
+    char eta[32] = "--:--";
+    if (done_ > 0 && rate > 0) {
+      const long s = std::lround(static_cast<double>(total_ - done_) / rate);
+      if (s >= 3600)
+        std::snprintf(eta, sizeof eta, "%ld:%02ld:%02ld", s / 3600, (s / 60) % 60, s % 60);
+      else
+        std::snprintf(eta, sizeof eta, "%ld:%02ld", s / 60, s % 60);
+    }
+    const int bar_len = 20;
+    const int filled = total_ ? static_cast<int>(bar_len * done_ / total_) : bar_len;
+    std::string bar = "[" + std::string(static_cast<std::size_t>(filled), '#') +
+                      std::string(static_cast<std::size_t>(bar_len - filled), '.') + "]";
+    char tail[96];
+    std::snprintf(tail, sizeof tail, "  %.2f files/s  ETA %s", rate, eta);
+    std::string head = bar + " " + std::to_string(done_) + "/" + std::to_string(total_) + "  ";
+    std::string current;
+    if (!running_.empty()) {
+      current = *running_.begin();
+      if (running_.size() > 1) current += " (+" + std::to_string(running_.size() - 1) + ")";
+    }
+    const std::size_t fixed = head.size() + std::strlen(tail);
+    if (fixed + current.size() > width) {
+      const std::size_t room = width > fixed + 3 ? width - fixed - 3 : 0;
+      current = room ? "..." + current.substr(current.size() - room) : "";
+    }
+    std::string text = head + current + tail;
+    if (text.size() > width) text.resize(width);
+    const std::size_t len = text.size();
+    if (len < last_len_) text += std::string(last_len_ - len, ' ');
+    last_len_ = len;
+    std::fputs(("\r" + text).c_str(), stdout);
+    std::fflush(stdout);
+    drawn_ = true;
+    g_bar_on_screen = 1;
+  }
+
+  std::mutex m_;
+  std::size_t total_, done_ = 0;
+  bool tty_, quiet_;
+  std::string prefix_;
+  Clock::time_point start_;
+  std::multiset<std::string> running_;
+  std::size_t last_len_ = 0;
+  bool drawn_ = false;
+};
+
+// --- signals ---------------------------------------------------------------------------------
+
+void onTerminatingSignal(int sig) {
+  hgd::removeTemporaryFiles();  // async-signal-safe
+  if (g_bar_on_screen) {
+    const ssize_t ignored = ::write(STDOUT_FILENO, "\n", 1);
+    (void)ignored;
+  }
+  ::_exit(sig == SIGINT ? 130 : 143);
+}
+
+void installSignalHandlers() {
+  struct sigaction sa {};
+  sa.sa_handler = onTerminatingSignal;
+  sigemptyset(&sa.sa_mask);
+  sigaddset(&sa.sa_mask, SIGINT);
+  sigaddset(&sa.sa_mask, SIGTERM);
+  sa.sa_flags = 0;
+  ::sigaction(SIGINT, &sa, nullptr);
+  ::sigaction(SIGTERM, &sa, nullptr);
+}
+
+// --- running the scans -----------------------------------------------------------------------
+
+/// Dispatch order: largest first, so that a big scan started last does not hold up the end.
+std::vector<std::size_t> largestFirst(const std::vector<Scan>& scans) {
+  std::vector<std::size_t> order(scans.size());
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::stable_sort(order.begin(), order.end(),
+                   [&](std::size_t a, std::size_t b) { return scans[a].size > scans[b].size; });
+  return order;
+}
+
+/// OpenMP threads for each of `concurrent` scans: the cores (as this process may use them) shared
+/// out, at most OMP_NUM_THREADS when that is set.
+int ompThreadsPerScan(int concurrent) {
+  int n = std::max(1, omp_get_num_procs() / std::max(1, concurrent));
+  if (const char* env = std::getenv("OMP_NUM_THREADS")) {
+    const long cap = std::strtol(env, nullptr, 10);
+    if (cap >= 1) n = std::min(n, static_cast<int>(std::min(cap, 1024L)));
+  }
+  return n;
+}
+
+/// The thread pool: `jobs` workers take the next scan until none is left.
+std::vector<ScanResult> runThreads(const std::vector<Scan>& scans, const Context& ctx, Progress& progress) {
+  const std::size_t n = scans.size();
+  std::vector<ScanResult> results(n);
+  if (n == 0) return results;
+  std::vector<std::size_t> order;
+  if (ctx.cfg.jobs == 1) {
+    for (std::size_t i = 0; i < n; ++i) order.push_back(i);  // the listing's order: easy to follow
+  } else {
+    order = largestFirst(scans);
+  }
+  const int threads_per_scan = ompThreadsPerScan(ctx.cfg.jobs);
+  const std::size_t workers = std::min<std::size_t>(static_cast<std::size_t>(ctx.cfg.jobs), n);
+  std::atomic<std::size_t> next{0};
+  std::mutex m;
+  std::condition_variable cv;
+  std::size_t running = workers;
+  auto work = [&] {
+    omp_set_num_threads(threads_per_scan);  // this thread's parallel regions
+    for (;;) {
+      const std::size_t k = next.fetch_add(1);
+      if (k >= n) break;
+      const Scan& s = scans[order[k]];
+      progress.started(s.rel);
+      results[order[k]] = processScan(s, ctx);
+      progress.finished(results[order[k]]);
+    }
+    std::lock_guard<std::mutex> lock(m);
+    if (--running == 0) cv.notify_all();
+  };
+  std::vector<std::thread> pool;
+  for (std::size_t i = 0; i < workers; ++i) pool.emplace_back(work);
+  {
+    std::unique_lock<std::mutex> lock(m);
+    while (!cv.wait_for(lock, std::chrono::seconds(1), [&] { return running == 0; })) {
+      lock.unlock();
+      progress.tick();
+      lock.lock();
+    }
+  }
+  for (auto& t : pool) t.join();
+  return results;
+}
+
+// --- MPI -------------------------------------------------------------------------------------
+
+/// MPI_Init only when started by an MPI launcher; otherwise the plain program.
+struct MpiSession {
+  bool active = false;
+  bool collectives_started = false;  // from here on, a rank failing alone must abort them all
+  int rank = 0, size = 1;
+  MpiSession() {
+#ifdef HGD_HAVE_MPI
+    if (std::getenv("OMPI_COMM_WORLD_SIZE") || std::getenv("PMI_SIZE")) {
+      int provided = 0;
+      // Only the main thread calls MPI; the scan runs on a worker thread meanwhile.
+      MPI_Init_thread(nullptr, nullptr, MPI_THREAD_FUNNELED, &provided);
+      active = true;
+      MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+      MPI_Comm_size(MPI_COMM_WORLD, &size);
+    }
+#endif
+  }
+  ~MpiSession() {
+#ifdef HGD_HAVE_MPI
+    if (active) MPI_Finalize();
+#endif
+  }
+  MpiSession(const MpiSession&) = delete;
+  MpiSession& operator=(const MpiSession&) = delete;
+  void barrier() const {
+#ifdef HGD_HAVE_MPI
+    if (active) MPI_Barrier(MPI_COMM_WORLD);
+#endif
+  }
+};
+
+#ifdef HGD_HAVE_MPI
+/// FNV-1a of the list, for checking that every MPI rank sees the same scans.
+std::uint64_t listHash(const std::vector<Scan>& scans) {
+  std::uint64_t h = 1469598103934665603ull;
+  auto add = [&](const std::string& s) {
+    for (unsigned char ch : s) h = (h ^ ch) * 1099511628211ull;
+    h = (h ^ 0xff) * 1099511628211ull;
+  };
+  for (const auto& s : scans) {
+    add(s.rel);
+    add(std::to_string(s.size));
+  }
+  return h;
+}
+
+/// Ranks on this node, so that they share its cores.
+int ranksOnThisNode() {
+  MPI_Comm node;
+  MPI_Comm_split_type(MPI_COMM_WORLD, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, &node);
+  int n = 1;
+  MPI_Comm_size(node, &n);
+  MPI_Comm_free(&node);
+  return n;
+}
+
+/// Every rank holds the same list. Scans, largest first, are handed out by a counter on rank 0
+/// (MPI_Fetch_and_op, passive target), one at a time per rank. Returns on rank 0 the results of
+/// all ranks (sorted by file), on the others their own.
+std::vector<ScanResult> runMpi(const std::vector<Scan>& scans, const Context& ctx, Progress& progress,
+                               const MpiSession& mpi) {
+  // Same scans everywhere? (A rank on a node with a stale view of a shared file system would
+  // otherwise process the wrong files.)
+  unsigned long long mine = listHash(scans), root = mine;
+  MPI_Bcast(&root, 1, MPI_UNSIGNED_LONG_LONG, 0, MPI_COMM_WORLD);
+  int differs = root != mine ? 1 : 0, any_differs = 0;
+  MPI_Allreduce(&differs, &any_differs, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
+  if (any_differs) throw std::runtime_error("the MPI ranks do not see the same scans in the input directory");
+
+  const int threads_per_scan = ompThreadsPerScan(ranksOnThisNode());
+  const std::vector<std::size_t> order = largestFirst(scans);
+  const long n = static_cast<long>(scans.size());
+
+  long* counter = nullptr;
+  MPI_Win win;
+  MPI_Win_allocate(mpi.rank == 0 ? static_cast<MPI_Aint>(sizeof(long)) : 0, sizeof(long), MPI_INFO_NULL,
+                   MPI_COMM_WORLD, &counter, &win);
+  if (mpi.rank == 0) {
+    MPI_Win_lock(MPI_LOCK_EXCLUSIVE, 0, 0, win);
+    *counter = 0;
+    MPI_Win_unlock(0, win);
+  }
+  MPI_Barrier(MPI_COMM_WORLD);
+  MPI_Win_lock_all(0, win);
+
+  std::vector<ScanResult> results;
+  for (;;) {
+    const long one = 1;
+    long k = 0;
+    MPI_Fetch_and_op(&one, &k, MPI_LONG, 0, 0, MPI_SUM, win);
+    MPI_Win_flush(0, win);
+    if (k >= n) break;
+    const Scan& s = scans[order[static_cast<std::size_t>(k)]];
+    progress.started(s.rel);
+    auto future = std::async(std::launch::async, [&] {
+      omp_set_num_threads(threads_per_scan);
+      return processScan(s, ctx);
+    });
+    // Keep this rank's MPI progressing meanwhile: with some transports the counter on rank 0
+    // only advances when rank 0 enters the library.
+    while (future.wait_for(std::chrono::milliseconds(20)) != std::future_status::ready) {
+      int flag = 0;
+      MPI_Iprobe(MPI_ANY_SOURCE, MPI_ANY_TAG, MPI_COMM_WORLD, &flag, MPI_STATUS_IGNORE);
+    }
+    results.push_back(future.get());
+    progress.finished(results.back(), static_cast<std::size_t>(k) + 1);
+  }
+  MPI_Win_unlock_all(win);
+  MPI_Win_free(&win);
+
+  // Gather the results on rank 0 as JSON text.
+  nlohmann::json array = nlohmann::json::array();
+  for (const auto& r : results) array.push_back(batch::toJson(r));
+  const std::string text = array.dump();
+  int len = static_cast<int>(text.size());
+  std::vector<int> lens(static_cast<std::size_t>(mpi.size)), displs(static_cast<std::size_t>(mpi.size));
+  MPI_Gather(&len, 1, MPI_INT, lens.data(), 1, MPI_INT, 0, MPI_COMM_WORLD);
+  std::vector<char> all;
+  if (mpi.rank == 0) {
+    long long total = 0;
+    for (int r = 0; r < mpi.size; ++r) {
+      displs[static_cast<std::size_t>(r)] = static_cast<int>(total);
+      total += lens[static_cast<std::size_t>(r)];
+    }
+    all.resize(static_cast<std::size_t>(std::max(total, 1LL)));
+  }
+  MPI_Gatherv(text.data(), len, MPI_CHAR, all.data(), lens.data(), displs.data(), MPI_CHAR, 0,
+              MPI_COMM_WORLD);
+  if (mpi.rank != 0) return results;
+  std::vector<ScanResult> merged;
+  for (int r = 0; r < mpi.size; ++r) {
+    const auto ri = static_cast<std::size_t>(r);
+    const auto j = nlohmann::json::parse(all.begin() + displs[ri], all.begin() + displs[ri] + lens[ri]);
+    for (const auto& e : j) merged.push_back(batch::fromJson(e));
+  }
+  std::sort(merged.begin(), merged.end(),
+            [](const ScanResult& a, const ScanResult& b) { return a.file < b.file; });
+  return merged;
+}
+#endif
+
+// --- the report ------------------------------------------------------------------------------
+
+void writeReport(const Context& ctx, const std::vector<ScanResult>& results, const batch::Totals& totals,
+                 const std::string& note) {
+  const fs::path& dir = ctx.cfg.report_dir;
+  fs::create_directories(dir);
+  hgd::writeFileAtomically((dir / "summary.json").string(), batch::summaryJson(results, totals));
+  hgd::writeFileAtomically((dir / "summary.csv").string(), batch::summaryCsv(results));
+  hgd::writeFileAtomically((dir / "index.html").string(), batch::indexHtml(results, totals, note));
+}
+
+int run(const Config& cfg, MpiSession& mpi) {
+  const auto t_start = Clock::now();
+  const bool root = mpi.rank == 0;
+  Context ctx;
+  ctx.cfg = cfg;
+  ctx.rank = mpi.rank;
+  ctx.default_scenario = hgd::readScenario(cfg.scenario_path.string());
+
+  const std::vector<Scan> all = listScans(cfg);
+  std::vector<Scan> scans;
+  for (std::size_t i = 0; i < all.size(); ++i)
+    if (static_cast<int>(i % static_cast<std::size_t>(cfg.shard_n)) == cfg.shard_k) scans.push_back(all[i]);
+  if (all.empty() && root)
+    std::fprintf(stderr, "hgdeform batch: warning: no PLY, PCD or OBJ file in %s%s\n", cfg.input_dir.c_str(),
+                 cfg.recursive ? "" : " (subfolders are searched with --recursive)");
+
+  std::string note;
+  if (!cfg.report_dir.empty()) {
+#ifdef HGD_HAVE_RENDER
+    const char* display = std::getenv("DISPLAY");
+    ctx.thumbnails = display && *display;
+    if (!ctx.thumbnails)
+      note =
+          "No thumbnails: rendering them needs an X display and DISPLAY is not set. Run the batch under "
+          "xvfb-run -a (or with a display) to get before/after pictures.";
+#else
+    note = "No thumbnails: this hgdeform was built without PCL visualization (the hgdeform_render target).";
+#endif
+  }
+
+  mpi.collectives_started = true;  // the other ranks wait for rank 0 from here on
+  if (root) {
+    fs::create_directories(cfg.output_dir);
+    removeStaleTemporaries(cfg.output_dir);
+    if (!cfg.report_dir.empty()) {
+      fs::create_directories(cfg.report_dir);
+      removeStaleTemporaries(cfg.report_dir);
+    }
+  }
+  mpi.barrier();  // no rank writes before the stale files are gone
+  installSignalHandlers();
+
+  if (mpi.active && root && cfg.jobs > 1 && !cfg.quiet)
+    std::fprintf(stderr,
+                 "hgdeform batch: note: under MPI each rank processes one scan at a time (--jobs unused)\n");
+  const bool tty = !mpi.active && ::isatty(STDOUT_FILENO);
+  const std::string prefix = mpi.active ? "[rank " + std::to_string(mpi.rank) + "] " : "";
+  Progress progress(scans.size(), tty, cfg.quiet, prefix);
+  std::vector<ScanResult> results;
+  int any_failed = 0;
+#ifdef HGD_HAVE_MPI
+  if (mpi.active) {
+    results = runMpi(scans, ctx, progress, mpi);
+    int mine = 0;
+    for (const auto& r : results) mine |= r.status == "failed" ? 1 : 0;
+    MPI_Allreduce(&mine, &any_failed, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
+  }
+#endif
+  if (!mpi.active) {
+    results = runThreads(scans, ctx, progress);
+    for (const auto& r : results) any_failed |= r.status == "failed" ? 1 : 0;
+  }
+  progress.close();
+  if (!root) return any_failed ? 1 : 0;
+
+  batch::Totals totals = batch::countResults(results);
+  totals.wall_s = std::chrono::duration<double>(Clock::now() - t_start).count();
+  totals.jobs = mpi.active ? 1 : cfg.jobs;
+  totals.ranks = mpi.size;
+  if (cfg.sharded) totals.shard = std::to_string(cfg.shard_k) + "/" + std::to_string(cfg.shard_n);
+  int status = any_failed ? 1 : 0;
+  if (!cfg.report_dir.empty()) {
+    try {
+      writeReport(ctx, results, totals, note);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "hgdeform batch: report: %s\n", e.what());
+      status = 1;
+    }
+  }
+  if (!cfg.quiet) {
+    std::printf(
+        "hgdeform batch: %zu scans in %.1f s (%.2f files/s): %zu ok, %zu failed, %zu skipped (up to date)",
+        totals.scans, totals.wall_s,
+        totals.wall_s > 0 ? static_cast<double>(totals.scans) / totals.wall_s : 0.0, totals.ok, totals.failed,
+        totals.skipped);
+    if (cfg.sharded) std::printf("; shard %s", totals.shard.c_str());
+    if (mpi.active) std::printf("; %d MPI ranks", mpi.size);
+    if (!cfg.report_dir.empty()) std::printf("; report %s", (cfg.report_dir / "index.html").c_str());
+    std::printf("\n");
+    std::fflush(stdout);
+  }
+  if (totals.failed) {
+    std::string names;
+    for (const auto& r : results)
+      if (r.status == "failed") names += (names.empty() ? "" : ", ") + r.file;
+    std::fprintf(stderr, "hgdeform batch: %zu of %zu scans failed: %s\n", totals.failed, totals.scans,
+                 names.c_str());
+  }
+  return status;
+}
+
+}  // namespace
+
+int runBatch(int argc, char** argv) {
+  MpiSession mpi;
+  const bool root = mpi.rank == 0;
+  Config cfg;
+  try {
+    cfg = parseArgs(argc, argv);
+    if (cfg.help) {
+      if (root) std::fputs(kBatchHelp, stdout);
+      return 0;
+    }
+    checkDirectories(cfg);
+  } catch (const UsageError& e) {
+    if (root) std::fprintf(stderr, "hgdeform batch: %s\n(see 'hgdeform batch --help')\n", e.what());
+    return 2;
+  }
+  try {
+    return run(cfg, mpi);
+  } catch (const std::exception& e) {
+    // Before the first collective call every rank fails alike (same files, same checks): rank 0
+    // says why. After it, a rank failing alone must not leave the others waiting forever.
+#ifdef HGD_HAVE_MPI
+    if (mpi.active && mpi.collectives_started) {
+      std::fprintf(stderr, "hgdeform batch: [rank %d] %s\n", mpi.rank, e.what());
+      std::fflush(stderr);
+      MPI_Abort(MPI_COMM_WORLD, 1);
+    }
+#endif
+    if (root) std::fprintf(stderr, "hgdeform batch: %s\n", e.what());
+    return 1;
+  }
+}
+
 }  // namespace hgdcli

@@ -1,0 +1,238 @@
+#include "batch_report.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cstdio>
+#include <string>
+
+namespace hgdcli {
+namespace batch {
+
+namespace {
+
+std::string fixed(double v, int digits) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.*f", digits, v);
+  return buf;
+}
+
+std::string general(double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.6g", v);
+  return buf;
+}
+
+std::vector<ScanResult> sorted(std::vector<ScanResult> v) {
+  std::sort(v.begin(), v.end(), [](const ScanResult& a, const ScanResult& b) { return a.file < b.file; });
+  return v;
+}
+
+}  // namespace
+
+Totals countResults(const std::vector<ScanResult>& results) {
+  Totals t;
+  t.scans = results.size();
+  for (const auto& r : results) {
+    if (r.status == "ok") {
+      ++t.ok;
+      t.points += r.points;
+    } else if (r.status == "skipped") {
+      ++t.skipped;
+    } else {
+      ++t.failed;
+    }
+  }
+  return t;
+}
+
+nlohmann::json toJson(const ScanResult& r) {
+  nlohmann::json j;
+  j["file"] = r.file;
+  j["output"] = r.output;
+  j["scenario"] = r.scenario;
+  j["own_scenario"] = r.own_scenario;
+  j["status"] = r.status;
+  j["error"] = r.error;
+  j["warning"] = r.warning;
+  j["notes"] = r.notes;
+  j["thumbnail"] = r.thumbnail;
+  j["rank"] = r.rank;
+  j["ms_wall"] = r.ms_wall;
+  if (r.has_metrics) {
+    j["points"] = r.points;
+    j["clusters"] = r.clusters;
+    j["iterations"] = r.iterations;
+    j["frames"] = r.frames;
+    j["handle_error"] = r.handle_error;
+    j["ms"] = {{"read", r.ms_read},
+               {"build", r.ms_build},
+               {"field", r.ms_field},
+               {"sampling", r.ms_sampling},
+               {"clusters", r.ms_clusters},
+               {"solve", r.ms_solve},
+               {"interpolation", r.ms_interpolation},
+               {"total", r.ms_total},
+               {"write", r.ms_write}};
+  } else {
+    for (const char* k : {"points", "clusters", "iterations", "frames", "handle_error", "ms"}) j[k] = nullptr;
+  }
+  return j;
+}
+
+ScanResult fromJson(const nlohmann::json& j) {
+  ScanResult r;
+  r.file = j.at("file").get<std::string>();
+  r.output = j.at("output").get<std::string>();
+  r.scenario = j.at("scenario").get<std::string>();
+  r.own_scenario = j.at("own_scenario").get<bool>();
+  r.status = j.at("status").get<std::string>();
+  r.error = j.at("error").get<std::string>();
+  r.warning = j.value("warning", std::string());
+  r.notes = j.value("notes", std::vector<std::string>());
+  r.thumbnail = j.at("thumbnail").get<std::string>();
+  r.rank = j.at("rank").get<int>();
+  r.ms_wall = j.at("ms_wall").get<double>();
+  r.has_metrics = !j.at("points").is_null();
+  if (r.has_metrics) {
+    r.points = j.at("points").get<std::size_t>();
+    r.clusters = j.at("clusters").get<std::size_t>();
+    r.iterations = j.at("iterations").get<int>();
+    r.frames = j.at("frames").get<int>();
+    r.handle_error = j.at("handle_error").get<double>();
+    const auto& ms = j.at("ms");
+    r.ms_read = ms.at("read").get<double>();
+    r.ms_build = ms.at("build").get<double>();
+    r.ms_field = ms.at("field").get<double>();
+    r.ms_sampling = ms.at("sampling").get<double>();
+    r.ms_clusters = ms.at("clusters").get<double>();
+    r.ms_solve = ms.at("solve").get<double>();
+    r.ms_interpolation = ms.at("interpolation").get<double>();
+    r.ms_total = ms.at("total").get<double>();
+    r.ms_write = ms.at("write").get<double>();
+  }
+  return r;
+}
+
+std::string summaryJson(const std::vector<ScanResult>& results, const Totals& t) {
+  nlohmann::json j;
+  j["format"] = "hgdeform-batch-summary/1";
+  j["scans"] = nlohmann::json::array();
+  for (const auto& r : sorted(results)) j["scans"].push_back(toJson(r));
+  j["totals"] = {{"scans", t.scans},
+                 {"ok", t.ok},
+                 {"failed", t.failed},
+                 {"skipped", t.skipped},
+                 {"points", t.points},
+                 {"wall_s", t.wall_s},
+                 {"files_per_s", t.wall_s > 0 ? static_cast<double>(t.scans) / t.wall_s : 0.0},
+                 {"jobs", t.jobs},
+                 {"ranks", t.ranks},
+                 {"shard", t.shard}};
+  return j.dump(2) + "\n";
+}
+
+std::string csvField(const std::string& s) {
+  if (s.find_first_of(",\"\r\n") == std::string::npos) return s;
+  std::string q = "\"";
+  for (char c : s) {
+    if (c == '"') q += '"';
+    q += c;
+  }
+  return q + "\"";
+}
+
+std::string summaryCsv(const std::vector<ScanResult>& results) {
+  std::string out =
+      "file,status,error,points,clusters,iterations,handle_error,ms_build,ms_field,ms_sampling,ms_clusters,"
+      "ms_solve,ms_interpolation,ms_total\r\n";
+  for (const auto& r : sorted(results)) {
+    out += csvField(r.file) + ',' + csvField(r.status) + ',' + csvField(r.error);
+    if (r.has_metrics) {
+      out += ',' + std::to_string(r.points) + ',' + std::to_string(r.clusters) + ',' +
+             std::to_string(r.iterations) + ',' + general(r.handle_error);
+      for (double ms :
+           {r.ms_build, r.ms_field, r.ms_sampling, r.ms_clusters, r.ms_solve, r.ms_interpolation, r.ms_total})
+        out += ',' + fixed(ms, 3);
+    } else {
+      out += ",,,,,,,,,,,";
+    }
+    out += "\r\n";
+  }
+  return out;
+}
+
+std::string htmlEscape(const std::string& s) {
+  std::string o;
+  o.reserve(s.size());
+  for (char c : s) {
+    switch (c) {
+      case '&': o += "&amp;"; break;
+      case '<': o += "&lt;"; break;
+      case '>': o += "&gt;"; break;
+      case '"': o += "&quot;"; break;
+      case '\'': o += "&#39;"; break;
+      default: o += c;
+    }
+  }
+  return o;
+}
+
+std::string urlPath(const std::string& s) {
+  static const char* hex = "0123456789ABCDEF";
+  std::string o;
+  for (unsigned char c : s) {
+    if (std::isalnum(c) || c == '-' || c == '_' || c == '.' || c == '~' || c == '/') {
+      o += static_cast<char>(c);
+    } else {
+      o += '%';
+      o += hex[c >> 4];
+      o += hex[c & 15];
+    }
+  }
+  return o;
+}
+
+std::string indexHtml(const std::vector<ScanResult>& results, const Totals& t, const std::string& note) {
+  std::string h =
+      "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
+      "<title>hgdeform batch</title>\n<style>\n"
+      "body { font-family: sans-serif; margin: 1.5em; }\n"
+      "table { border-collapse: collapse; }\n"
+      "td, th { border: 1px solid #ccc; padding: 4px 8px; vertical-align: top; text-align: left; }\n"
+      "td.ok { color: #080; } td.failed { color: #b00; font-weight: bold; } td.skipped { color: #666; }\n"
+      "img { max-width: 480px; }\n"
+      ".note { background: #ffd; border: 1px solid #cc8; padding: 0.5em; }\n"
+      "</style>\n</head>\n<body>\n<h1>hgdeform batch</h1>\n";
+  h += "<p>" + std::to_string(t.scans) + " scans: " + std::to_string(t.ok) + " ok, " +
+       std::to_string(t.failed) + " failed, " + std::to_string(t.skipped) + " skipped (up to date); " +
+       fixed(t.wall_s, 1) + " s";
+  if (!t.shard.empty()) h += "; shard " + htmlEscape(t.shard);
+  if (t.ranks > 1) h += "; " + std::to_string(t.ranks) + " MPI ranks";
+  h += ".</p>\n";
+  if (!note.empty()) h += "<p class=\"note\">" + htmlEscape(note) + "</p>\n";
+  h += "<table>\n<tr><th>#</th><th>file</th><th>status</th><th>points</th><th>clusters</th>"
+       "<th>iterations</th><th>ms</th><th>before / after</th></tr>\n";
+  int n = 0;
+  for (const auto& r : sorted(results)) {
+    h += "<tr id=\"" + htmlEscape(urlPath(r.file)) + "\"><td>" + std::to_string(++n) + "</td><td>" +
+         htmlEscape(r.file);
+    if (r.own_scenario) h += "<br><small>scenario " + htmlEscape(r.scenario) + "</small>";
+    h += "</td><td class=\"" + htmlEscape(r.status) + "\">" + htmlEscape(r.status) + "</td>";
+    if (r.has_metrics)
+      h += "<td>" + std::to_string(r.points) + "</td><td>" + std::to_string(r.clusters) + "</td><td>" +
+           std::to_string(r.iterations) + "</td><td>" + fixed(r.ms_total, 0) + "</td>";
+    else
+      h += "<td></td><td></td><td></td><td></td>";
+    h += "<td>";
+    if (!r.error.empty()) h += "<pre>" + htmlEscape(r.error) + "</pre>";
+    if (!r.thumbnail.empty())
+      h += "<a href=\"" + htmlEscape(urlPath(r.thumbnail)) + "\"><img src=\"" +
+           htmlEscape(urlPath(r.thumbnail)) + "\" alt=\"" + htmlEscape(r.file) + " before and after\"></a>";
+    h += "</td></tr>\n";
+  }
+  h += "</table>\n</body>\n</html>\n";
+  return h;
+}
+
+}  // namespace batch
+}  // namespace hgdcli

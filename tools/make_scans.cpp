@@ -1,0 +1,51 @@
+// hgdeform-make-scans OUT_DIR COUNT POINTS: writes COUNT procedural scans (bumpy planes of about
+// POINTS points, alternately PLY and PCD) and scenario.json, for timing `hgdeform batch`.
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <exception>
+#include <filesystem>
+#include <string>
+
+#include "hgdeform/io.h"
+#include "hgdeform/shapes.h"
+
+int main(int argc, char** argv) {
+  if (argc != 4) {
+    std::fprintf(stderr, "usage: hgdeform-make-scans OUT_DIR COUNT POINTS\n");
+    return 2;
+  }
+  const std::filesystem::path dir = argv[1];
+  const long count = std::strtol(argv[2], nullptr, 10), points = std::strtol(argv[3], nullptr, 10);
+  if (count < 1 || points < 100) {
+    std::fprintf(stderr, "hgdeform-make-scans: COUNT must be >= 1 and POINTS >= 100\n");
+    return 2;
+  }
+  // bumpyPlane samples (cells + 1)^2 points with cells = round(1 / h).
+  const double cells = std::max(2.0, std::round(std::sqrt(static_cast<double>(points))) - 1);
+  try {
+    std::filesystem::create_directories(dir);
+    const float h = static_cast<float>(1.0 / cells);
+    for (long i = 0; i < count; ++i) {
+      char name[64];
+      std::snprintf(name, sizeof name, "scan_%03ld.%s", i, i % 2 ? "pcd" : "ply");
+      const int bumps = 3 + static_cast<int>(i % 4);
+      const float height = 0.04f + 0.01f * static_cast<float>(i % 3);
+      hgd::writeShape((dir / name).string(), hgd::shapes::bumpyPlane(bumps, height, h));
+    }
+    hgd::writeFileAtomically((dir / "scenario.json").string(), R"({
+  "format": "hgdeform-scenario/1",
+  "fixed": [ { "box": { "min": [-1, -1, -1], "max": [0.05, 2, 1] } } ],
+  "manipulated": { "box": { "min": [0.95, -1, -1], "max": [2, 2, 1] } },
+  "move": { "frame": { "translate": [0, 0, 0.2], "rotate": { "axis": [0, 1, 0], "degrees": -15 } } }
+}
+)");
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "hgdeform-make-scans: %s\n", e.what());
+    return 1;
+  }
+  std::printf("%ld scans of %.0f points and scenario.json in %s\n", count, (cells + 1) * (cells + 1),
+              dir.c_str());
+  return 0;
+}
