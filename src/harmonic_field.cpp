@@ -120,7 +120,7 @@ void multiply(const RowMat& a, const Eigen::VectorXd& diag, const Eigen::VectorX
   y.resize(a.rows());
   const int* outer = a.outerIndexPtr();
   const int* inner = a.innerIndexPtr();
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (rows > kParallelMin)
   for (long long r = 0; r < rows; ++r) {
     double s = 0;
     for (int m = outer[r]; m < outer[r + 1]; ++m) s += x[inner[m]];
@@ -294,7 +294,7 @@ void solveDirichlet(const NeighborGraph& graph, const std::vector<char>& constra
     int* inner = a.innerIndexPtr();
     double* val = a.valuePtr();
     const long long rows = nf;
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (rows > kParallelMin)
     for (long long rr = 0; rr < rows; ++rr) {
       const auto r = static_cast<std::size_t>(rr);
       const auto i = static_cast<std::size_t>(free_points[r]);

@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "timer.h"
+
 namespace hgd {
 
 InterpolationTable buildInterpolation(const std::vector<float>& phi, const Handles& handles,
@@ -77,7 +79,7 @@ void interpolate(const InterpolationTable& table, const std::vector<LocalAffine>
   const long long n = static_cast<long long>(table.size());
   const bool do_normals = normals != nullptr && out_normals != nullptr && normals->size() == table.size();
   if (blend == Blend::Linear) {
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (n > kParallelMin)
     for (long long ii = 0; ii < n; ++ii) {
       const auto i = static_cast<std::size_t>(ii);
       const LocalAffine& a = transforms[static_cast<std::size_t>(table.lo[i])];
@@ -108,7 +110,7 @@ void interpolate(const InterpolationTable& table, const std::vector<LocalAffine>
     f.qa = a.q.coeffs();
     f.qb = a.q.dot(b.q) < 0 ? Eigen::Vector4f(-b.q.coeffs()) : Eigen::Vector4f(b.q.coeffs());
   }
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (n > kParallelMin)
   for (long long ii = 0; ii < n; ++ii) {
     const auto i = static_cast<std::size_t>(ii);
     const PairFrame& f = frames[static_cast<std::size_t>(table.pair[i])];

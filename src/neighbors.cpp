@@ -6,6 +6,8 @@
 #include <cmath>
 #include <flann/flann.hpp>
 
+#include "timer.h"
+
 namespace hgd {
 
 KnnTable computeKnn(const pcl::PointCloud<pcl::PointXYZ>& points, int k) {
@@ -54,7 +56,7 @@ pcl::PointCloud<pcl::Normal>::Ptr estimateNormals(const pcl::PointCloud<pcl::Poi
   normals->resize(n);
   const int kn = std::min(k_normals, knn.k);
   const long long nn = static_cast<long long>(n);
-#pragma omp parallel
+#pragma omp parallel if (nn > kParallelMin)
   {
     pcl::Indices idx;
 #pragma omp for schedule(static)
