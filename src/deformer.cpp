@@ -63,7 +63,9 @@ void Deformer::rebuild() {
   build_.setup_ms = sw.lap();
 }
 
-DeformerState Deformer::state() const { return {solver_.transforms(), frame_mode_}; }
+DeformerState Deformer::state() const {
+  return {solver_.transforms(), frame_mode_};
+}
 
 void Deformer::restore(const DeformerState& state) {
   if (state.transforms.size() != clustering_.clusters.size())
@@ -189,8 +191,11 @@ DragResult Deformer::dragTo(const Eigen::Vector3d& from, const Eigen::Vector3d& 
   const Eigen::Vector3d start = deformedWorld(static_cast<std::size_t>(picked_));
   last_to_ = from;
   const double diag = 1.0 / scale_;
+  // The cursor's path in frames of at most max_drag_step; a target absurdly far away gets at
+  // most half the frame budget for the path (longer steps) instead of running for ever.
+  const double steps = std::ceil((to - start).norm() / (options_.max_drag_step * diag));
   const int path_frames =
-      std::max(1, static_cast<int>(std::ceil((to - start).norm() / (options_.max_drag_step * diag))));
+      static_cast<int>(std::clamp(steps, 1.0, std::max(1.0, 0.5 * options_.max_drag_frames)));
   // Frames between the first and the last change only the solver's state: the shape is
   // interpolated once at the end (the result is the same; the replay is faster).
   auto frame = [&](const Eigen::Vector3d& next) {
@@ -230,8 +235,9 @@ SolveStats Deformer::setHandleTransform(const Eigen::Affine3d& transform) {
   c /= static_cast<double>(handles_.manipulated.size());
   const double angle = Eigen::AngleAxisd(rot).angle();
   const double travel = (motion * c - c).norm() * scale_;
-  const int steps = std::max({1, static_cast<int>(std::ceil(angle / (20.0 * M_PI / 180.0))),
-                              static_cast<int>(std::ceil(travel / 0.1))});
+  // (At most 200 steps: a handle sent absurdly far still ends, in longer steps.)
+  const double wanted = std::max({1.0, std::ceil(angle / (20.0 * M_PI / 180.0)), std::ceil(travel / 0.1)});
+  const int steps = static_cast<int>(std::min(wanted, 200.0));
   SolveStats total;
   const Eigen::Quaterniond q0 = Eigen::Quaterniond::Identity(), q1(rot);
   for (int k = 1; k <= steps; ++k) {
