@@ -3,6 +3,7 @@
 #include <pcl/features/normal_3d.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <flann/flann.hpp>
 
@@ -10,7 +11,53 @@
 
 namespace hgd {
 
+namespace {
+KnnTable knnOfDistinct(const pcl::PointCloud<pcl::PointXYZ>& points, int k, bool* coincident = nullptr);
+}  // namespace
+
 KnnTable computeKnn(const pcl::PointCloud<pcl::PointXYZ>& points, int k) {
+  // Coincident copies of a point (scans merged twice, say) would fill each other's kNN rows
+  // and cut the graph apart: the search runs on distinct positions, and every copy takes the
+  // neighbours of its position (copies share them, so they stay connected).
+  const std::size_t n = points.size();
+  bool coincident = false;
+  KnnTable plain = knnOfDistinct(points, k, &coincident);
+  if (!coincident) return plain;
+  std::vector<std::pair<std::array<float, 3>, int>> keyed(n);
+  for (std::size_t i = 0; i < n; ++i)
+    keyed[i] = {{points[i].x, points[i].y, points[i].z}, static_cast<int>(i)};
+  std::sort(keyed.begin(), keyed.end());
+  std::vector<int> rep(n);
+  pcl::PointCloud<pcl::PointXYZ> distinct;
+  std::vector<int> first_of;  // distinct point -> its first copy
+  for (std::size_t m = 0; m < n; ++m) {
+    if (m == 0 || keyed[m].first != keyed[m - 1].first) {
+      distinct.push_back(points[static_cast<std::size_t>(keyed[m].second)]);
+      first_of.push_back(keyed[m].second);
+    }
+    rep[static_cast<std::size_t>(keyed[m].second)] = static_cast<int>(distinct.size()) - 1;
+  }
+  if (distinct.size() == n) return plain;
+  const KnnTable d = knnOfDistinct(distinct, k);
+  KnnTable t;
+  t.k = d.k;
+  t.index.resize(n * static_cast<std::size_t>(t.k));
+  for (std::size_t i = 0; i < n; ++i) {
+    const int* row = d.k > 0 ? d.row(static_cast<std::size_t>(rep[i])) : nullptr;
+    for (int m = 0; m < t.k; ++m) {
+      const int j = row[m];
+      // Self entries (fewer distinct neighbours than k) stay self-loops, ignored later; a
+      // copy other than the first links to the first, so the copies hang together.
+      t.index[i * static_cast<std::size_t>(t.k) + static_cast<std::size_t>(m)] =
+          j == rep[i] ? (m == 0 ? first_of[static_cast<std::size_t>(j)] : static_cast<int>(i))
+                      : first_of[static_cast<std::size_t>(j)];
+    }
+  }
+  return t;
+}
+
+namespace {
+KnnTable knnOfDistinct(const pcl::PointCloud<pcl::PointXYZ>& points, int k, bool* coincident) {
   KnnTable t;
   const std::size_t n = points.size();
   t.k = std::max(0, std::min<int>(k, static_cast<int>(n) - 1));
@@ -41,12 +88,17 @@ KnnTable computeKnn(const pcl::PointCloud<pcl::PointXYZ>& points, int k) {
     int m = 0;
     for (std::size_t q = 0; q < kk && m < t.k; ++q) {
       const int j = idx[i * kk + q];
-      if (j != static_cast<int>(i) && j >= 0) row[m++] = j;
+      if (j != static_cast<int>(i) && j >= 0) {
+        if (coincident && d2[i * kk + q] == 0.0f) *coincident = true;
+        row[m++] = j;
+      }
     }
     for (; m < t.k; ++m) row[m] = static_cast<int>(i);  // fewer found: self-loops are ignored later
   }
   return t;
 }
+
+}  // namespace
 
 pcl::PointCloud<pcl::Normal>::Ptr estimateNormals(const pcl::PointCloud<pcl::PointXYZ>& points,
                                                   const KnnTable& knn, int k_normals, bool use_viewpoint,

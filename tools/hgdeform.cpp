@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <map>
@@ -125,6 +126,14 @@ Args parseArgs(int argc, char** argv, const std::vector<std::string>& with_value
   return a;
 }
 
+// Whether two paths name the same file (existing or not): compared after normalisation.
+bool samePath(const std::string& a, const std::string& b) {
+  std::error_code ea, eb;
+  if (std::filesystem::exists(a) && std::filesystem::exists(b)) return std::filesystem::equivalent(a, b, ea);
+  const auto ca = std::filesystem::weakly_canonical(a, ea), cb = std::filesystem::weakly_canonical(b, eb);
+  return !ea && !eb && ca == cb;
+}
+
 int intOption(const Args& a, const std::string& name, int fallback, int lo, int hi) {
   auto it = a.values.find(name);
   if (it == a.values.end()) return fallback;
@@ -241,8 +250,11 @@ int runDeform(int argc, char** argv) {
   const std::string& scenario_path = required(a, "scenario");
   const std::string& output = required(a, "output");
   hgd::formatFromPath(output);
-  if (auto it = a.values.find("report"); it != a.values.end() && it->second == input)
-    throw UsageError("--report must not be the input file");
+  // The report must not replace the input, the scenario or the output, however spelt.
+  if (auto it = a.values.find("report"); it != a.values.end())
+    for (const std::string* other : {&input, &scenario_path, &output})
+      if (samePath(it->second, *other))
+        throw UsageError("--report " + it->second + " would replace " + *other);
 
   hgd::DeformOptions opt;
   opt.field.k_neighbors = intOption(a, "k", opt.field.k_neighbors, 2, 100);
