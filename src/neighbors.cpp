@@ -40,12 +40,14 @@ KnnTable computeKnn(const pcl::PointCloud<pcl::PointXYZ>& points, int k) {
   if (distinct.size() == n) return plain;
   const KnnTable d = knnOfDistinct(distinct, k);
   KnnTable t;
-  t.k = d.k;
+  t.n = n;
+  // One distinct position only: every copy links to the first one (a star keeps them whole).
+  t.k = std::max(d.k, 1);
   t.index.resize(n * static_cast<std::size_t>(t.k));
   for (std::size_t i = 0; i < n; ++i) {
     const int* row = d.k > 0 ? d.row(static_cast<std::size_t>(rep[i])) : nullptr;
     for (int m = 0; m < t.k; ++m) {
-      const int j = row[m];
+      const int j = row ? row[m] : rep[i];
       // Self entries (fewer distinct neighbours than k) stay self-loops, ignored later; a
       // copy other than the first links to the first, so the copies hang together.
       t.index[i * static_cast<std::size_t>(t.k) + static_cast<std::size_t>(m)] =
@@ -59,6 +61,7 @@ KnnTable computeKnn(const pcl::PointCloud<pcl::PointXYZ>& points, int k) {
 namespace {
 KnnTable knnOfDistinct(const pcl::PointCloud<pcl::PointXYZ>& points, int k, bool* coincident) {
   KnnTable t;
+  t.n = points.size();
   const std::size_t n = points.size();
   t.k = std::max(0, std::min<int>(k, static_cast<int>(n) - 1));
   if (t.k == 0) return t;

@@ -13,9 +13,10 @@ namespace hgd {
 /// k nearest neighbours of every point (the point itself excluded), row-major n x k.
 struct KnnTable {
   int k = 0;
+  std::size_t n = 0;  ///< points (rows), also when k is 0
   std::vector<int> index;
   const int* row(std::size_t i) const { return index.data() + i * static_cast<std::size_t>(k); }
-  std::size_t size() const { return k > 0 ? index.size() / static_cast<std::size_t>(k) : 0; }
+  std::size_t size() const { return n; }
 };
 
 /// A symmetric graph in compressed rows (CSR): neighbours of i are adj[offsets[i] .. offsets[i+1]).
