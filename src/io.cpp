@@ -249,15 +249,30 @@ bool computeDense(const pcl::PCLPointCloud2& cloud) {
 class InputFile {
  public:
   explicit InputFile(std::string path) : path_(std::move(path)) {
-    std::FILE* f = std::fopen(path_.c_str(), "rb");
-    if (!f) fail(path_, "cannot open: " + errnoText(errno));
+    // Non-blocking, so that a FIFO (or a device) given as input is refused instead of waiting
+    // for a writer; regular files ignore the flag.
+    const int fd = ::open(path_.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);
+    if (fd < 0) fail(path_, "cannot open: " + errnoText(errno));
+    std::FILE* f = ::fdopen(fd, "rb");
+    if (!f) {
+      const int e = errno;
+      ::close(fd);
+      fail(path_, "cannot open: " + errnoText(e));
+    }
     file_.reset(f);
     struct stat st {};
-    if (::fstat(::fileno(f), &st) != 0) fail(path_, "cannot open: " + errnoText(errno));
+    if (::fstat(fd, &st) != 0) fail(path_, "cannot open: " + errnoText(errno));
     if (S_ISDIR(st.st_mode)) fail(path_, "cannot open: " + errnoText(EISDIR));
     if (!S_ISREG(st.st_mode)) fail(path_, "cannot open: not a regular file");
     size_ = static_cast<std::uint64_t>(st.st_size);
     if (size_ == 0) fail(path_, "empty file");
+    // A UTF-8 byte-order mark (editors on Windows add one) is not part of any format: skip it,
+    // so that an OBJ's first vertex is not lost and a PLY's magic line is found.
+    unsigned char bom[3] = {0, 0, 0};
+    if (size_ >= 3 && std::fread(bom, 1, 3, f) == 3 && bom[0] == 0xEF && bom[1] == 0xBB && bom[2] == 0xBF)
+      pos_ = 3;
+    else if (::fseeko(f, 0, SEEK_SET) != 0)
+      fail(path_, "cannot read: " + errnoText(errno));
   }
 
   const std::string& path() const { return path_; }
@@ -617,7 +632,9 @@ Shape readPly(const std::string& path) {
           in.skip(el.count * el.minBytes(), "element data");
         continue;
       }
-      if (static_cast<int>(e) == face_el) shape.polygons.reserve(el.count);
+      // Each face takes at least a count and three indices: reserve no more than the data can hold.
+      if (static_cast<int>(e) == face_el)
+        shape.polygons.reserve(std::min<std::uint64_t>(el.count, in.remaining() / 4));
       for (std::uint64_t r = 0; r < el.count; ++r) {
         std::uint8_t* out = is_vertex ? cloud.data.data() + r * step : nullptr;
         for (std::size_t k = 0; k < el.props.size(); ++k) {
@@ -652,6 +669,12 @@ Shape readPly(const std::string& path) {
       }
     }
     if (swap) swapCloud(cloud);
+    // Data beyond the last element that could hold another vertex: the header's counts are
+    // wrong, and reading on would silently drop points.
+    if (in.remaining() > 1 && in.remaining() >= vel.minBytes())
+      fail(path, "malformed data: " + num(in.remaining()) +
+                     " bytes after the last element: more data than the header declares (" + num(vel.count) +
+                     " vertices)");
   } else {
     Lexer lex(in.rest(), in.linesRead());
     for (std::size_t e = 0; e < elements.size(); ++e) {
@@ -714,6 +737,9 @@ Shape readPly(const std::string& path) {
                          " has more values than the header declares for " + "element '" + el.name + "'");
       }
     }
+    if (lex.nextLine())
+      fail(path, "malformed data: line " + num(lex.line()) + ": more data than the header declares (" +
+                     num(vel.count) + " vertices)");
   }
 
   cloud.is_dense = computeDense(cloud);
@@ -890,6 +916,12 @@ Shape readPcd(const std::string& path) {
     if (!mulOk(points, std::max<std::uint64_t>(ascii_values, 1), &tokens) || tokens > avail / 2 + 1)
       fail(path, "truncated data: " + declared + " (" + num(ascii_values) +
                      " values each), the file holds only " + num(avail) + " bytes of text");
+    // Padding fields have no text in ascii, yet take memory: a header with a huge padding COUNT
+    // must not make a few lines of text allocate gigabytes. A value takes at least two bytes of
+    // text and at most eight in memory; padding up to a few times the data is what PCL writes.
+    if (!need_ok || need > 16 * avail + (std::uint64_t{1} << 20))
+      fail(path, "malformed header: " + declared + " (" + (need_ok ? num(need) : std::string("too many")) +
+                     " bytes in memory), implausible for " + num(avail) + " bytes of ascii data");
   }
   std::uint32_t comp = 0, uncomp = 0;
   if (data_kind == "binary_compressed") {
@@ -921,6 +953,9 @@ Shape readPcd(const std::string& path) {
   if (data_kind == "binary") {
     cloud.data.resize(need);
     in.read(cloud.data.data(), need, "point data");
+    if (in.remaining() >= step)
+      fail(path, "malformed data: " + num(in.remaining()) + " bytes after the last point: more data than " +
+                     declared);
   } else if (data_kind == "binary_compressed") {
     const std::uint64_t need_nopad = points * (step - pad_bytes);
     if (uncomp != need && uncomp != need_nopad)
@@ -977,6 +1012,9 @@ Shape readPcd(const std::string& path) {
         fail(path, "malformed data: line " + num(lex.line()) + " (point " + num(i) + ") has more than " +
                        num(ascii_values) + " values");
     }
+    if (lex.nextLine())
+      fail(path, "malformed data: line " + num(lex.line()) + ": more data than the header declares (" +
+                     num(points) + " points)");
   }
   cloud.is_dense = computeDense(cloud);
   return shape;

@@ -1,6 +1,8 @@
 #include "hgdeform/scenario.h"
 
+#include <fcntl.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <cerrno>
 #include <cfloat>
@@ -307,8 +309,15 @@ Scenario readScenario(const std::string& path) {
   struct Closer {
     void operator()(std::FILE* f) const { std::fclose(f); }
   };
-  std::unique_ptr<std::FILE, Closer> file(std::fopen(path.c_str(), "rb"));
-  if (!file) throw ScenarioError(path + ": cannot open scenario file: " + std::strerror(errno));
+  // Non-blocking, so that a FIFO given as the scenario is refused instead of waiting for a writer.
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);
+  if (fd < 0) throw ScenarioError(path + ": cannot open scenario file: " + std::strerror(errno));
+  std::unique_ptr<std::FILE, Closer> file(::fdopen(fd, "rb"));
+  if (!file) {
+    const int e = errno;
+    ::close(fd);
+    throw ScenarioError(path + ": cannot open scenario file: " + std::strerror(e));
+  }
   struct stat st {};
   if (::fstat(::fileno(file.get()), &st) != 0)
     throw ScenarioError(path + ": cannot open scenario file: " + std::strerror(errno));

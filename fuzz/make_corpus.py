@@ -1,0 +1,136 @@
+#!/usr/bin/env python3
+"""Writes the fuzzers' seed corpus (fuzz/corpus/<target>/): small valid and near-valid files.
+
+Run from anywhere: python3 fuzz/make_corpus.py. The files are committed; rerun only to change them.
+"""
+import json
+import math
+import os
+import struct
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+
+
+def out(target, name, data):
+    d = os.path.join(HERE, "corpus", target)
+    os.makedirs(d, exist_ok=True)
+    if isinstance(data, str):
+        data = data.encode("utf-8")
+    with open(os.path.join(d, name), "wb") as f:
+        f.write(data)
+
+
+PTS = [(0.0, 0.0, 0.0), (1.0, 0.0, 0.0), (1.0, 1.0, 0.0), (0.0, 1.0, 0.0), (0.5, 0.5, 1.0)]
+NRM = [(0.0, 0.0, 1.0)] * 5
+FACES = [(0, 1, 2), (0, 2, 3), (0, 1, 4, 3)]
+
+# --- PLY -----------------------------------------------------------------------------------
+
+
+def ply_header(fmt, n, props, faces=0, extra=""):
+    h = "ply\nformat %s 1.0\ncomment seed\nelement vertex %d\n" % (fmt, n)
+    h += "".join("property %s %s\n" % p for p in props)
+    if faces:
+        h += "element face %d\nproperty list uchar int vertex_indices\n" % faces
+    return h + extra + "end_header\n"
+
+
+xyz = [("float", "x"), ("float", "y"), ("float", "z")]
+out("ply", "ascii_cloud.ply",
+    ply_header("ascii", 5, xyz) + "".join("%g %g %g\n" % p for p in PTS))
+out("ply", "ascii_mesh.ply",
+    ply_header("ascii", 5, xyz + [("uchar", "red")], faces=3) +
+    "".join("%g %g %g 200\n" % p for p in PTS) +
+    "".join("%d %s\n" % (len(f), " ".join(map(str, f))) for f in FACES))
+body = b"".join(struct.pack("<6f", *p, *n) for p, n in zip(PTS, NRM))
+out("ply", "binary_le_normals.ply",
+    ply_header("binary_little_endian", 5, xyz + [("float", "nx"), ("float", "ny"), ("float", "nz")]).encode() + body)
+body = b"".join(struct.pack(">3d", *p) for p in PTS)
+body += b"".join(struct.pack(">B", len(f)) + struct.pack(">%di" % len(f), *f) for f in FACES)
+out("ply", "binary_be_double_mesh.ply",
+    ply_header("binary_big_endian", 5, [("double", "x"), ("double", "y"), ("double", "z")], faces=3).encode() + body)
+body = b"".join(struct.pack("<3f", *p) for p in PTS)
+out("ply", "binary_extra_element.ply",
+    ply_header("binary_little_endian", 5, xyz,
+               extra="element edge 1\nproperty int vertex1\nproperty int vertex2\n").encode() +
+    body + struct.pack("<2i", 0, 1))
+out("ply", "ascii_nan.ply", ply_header("ascii", 3, xyz) + "nan 0 0\n1 inf 0\n0 1 0\n")
+out("ply", "truncated.ply", ply_header("ascii", 5, xyz) + "0 0 0\n1 0")
+out("ply", "crlf.ply", (ply_header("ascii", 2, [("float32", "x"), ("float32", "y"), ("float32", "z")]) +
+                        "1 2 3\n4 5 6\n").replace("\n", "\r\n"))
+
+# --- PCD -----------------------------------------------------------------------------------
+
+
+def pcd_header(fields, size, typ, count, width, height, data):
+    return ("# .PCD v0.7\nVERSION 0.7\nFIELDS %s\nSIZE %s\nTYPE %s\nCOUNT %s\nWIDTH %d\nHEIGHT %d\n"
+            "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS %d\nDATA %s\n" %
+            (fields, size, typ, count, width, height, width * height, data))
+
+
+out("pcd", "ascii.pcd", pcd_header("x y z", "4 4 4", "F F F", "1 1 1", 5, 1, "ascii") +
+    "".join("%g %g %g\n" % p for p in PTS))
+out("pcd", "binary_rgb.pcd", pcd_header("x y z rgb", "4 4 4 4", "F F F U", "1 1 1 1", 5, 1, "binary").encode() +
+    b"".join(struct.pack("<3fI", *p, 0xff8040) for p in PTS))
+out("pcd", "organized_nan.pcd", pcd_header("x y z", "4 4 4", "F F F", "1 1 1", 3, 2, "binary").encode() +
+    b"".join(struct.pack("<3f", *p) for p in PTS) + struct.pack("<3f", math.nan, math.nan, math.nan))
+out("pcd", "padding.pcd", pcd_header("x y z _ intensity", "4 4 4 1 2", "F F F U U", "1 1 1 4 1", 2, 1,
+                                     "ascii") + "1 2 3 7\n4 5 6 8\n")
+out("pcd", "double_count.pcd", pcd_header("x y z normal", "8 8 8 4", "F F F F", "1 1 1 3", 2, 1, "binary").encode() +
+    struct.pack("<3d3f", 1, 2, 3, 0, 0, 1) + struct.pack("<3d3f", 4, 5, 6, 0, 1, 0))
+
+
+def lzf_literals(raw):
+    """LZF stream of literal runs only (what the decoder must accept)."""
+    o = bytearray()
+    for i in range(0, len(raw), 32):
+        chunk = raw[i:i + 32]
+        o.append(len(chunk) - 1)
+        o += chunk
+    return bytes(o)
+
+
+soa = b"".join(struct.pack("<5f", *[p[k] for p in PTS]) for k in range(3))
+comp = lzf_literals(soa)
+out("pcd", "compressed.pcd", pcd_header("x y z", "4 4 4", "F F F", "1 1 1", 5, 1, "binary_compressed").encode() +
+    struct.pack("<2I", len(comp), len(soa)) + comp)
+# A back reference: 8 zero bytes as one literal then a copy of length 7 + 2 from offset 1.
+zeros = bytes([0, 0]) + bytes([(7 << 5) | 0, 0])
+out("pcd", "compressed_backref.pcd",
+    pcd_header("x y", "4 4", "F F", "1 1", 1, 1, "binary_compressed").encode() +
+    struct.pack("<2I", len(zeros), 8) + zeros)
+out("pcd", "old_columns.pcd", "COLUMNS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS 2\nDATA ascii\n1 2 3\n4 5 6\n")
+out("pcd", "truncated.pcd", pcd_header("x y z", "4 4 4", "F F F", "1 1 1", 5, 1, "binary").encode() + b"\0" * 17)
+
+# --- OBJ -----------------------------------------------------------------------------------
+
+out("obj", "mesh.obj", "# seed\nmtllib a.mtl\no thing\n" + "".join("v %g %g %g\n" % p for p in PTS) +
+    "vn 0 0 1\nvt 0 0\ng g1\nusemtl m\ns 1\nf 1 2 3\nf 1/1 3/1 4/1\nf 1//1 2//1 5//1 4//1\nl 1 2\n")
+out("obj", "colours.obj", "".join("v %g %g %g 0.5 0.25 1\n" % p for p in PTS) + "f -3 -2 -1\n")
+out("obj", "cloud.obj", "v 1 2 3\nv 4 5 6\nv nan 0 0\nv 7 8 9 1.0\n")
+out("obj", "bad_face.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n")
+
+# --- scenario --------------------------------------------------------------------------------
+
+F = "hgdeform-scenario/1"
+sc = [
+    {"format": F, "fixed": [{"box": {"min": [-1, -1, -1], "max": [0.1, 1, 1]}}],
+     "manipulated": {"box": {"min": [0.9, -1, -1], "max": [2, 1, 1]}},
+     "move": {"frame": {"translate": [0, 0.2, 0]}}},
+    {"fixed": [{"sphere": {"center": [0, 0, 0], "radius": 0.1}}, {"indices": [1, 2, 3]}],
+     "manipulated": {"sphere": {"center": [1, 0, 0], "radius": 0.1}}, "clusters": 8,
+     "move": {"drag": {"from": [1, 0, 0], "to": [1, 0.3, 0]}}},
+    {"fixed": [{"indices": [0]}], "manipulated": {"indices": [9, 10]},
+     "joints": [{"sphere": {"center": [0.5, 0, 0], "radius": 0.05}}],
+     "move": [{"frame": {"rotate": {"axis": [0, 0, 1], "degrees": 30, "center": [0, 0, 0]}}},
+              {"frame": {"translate": [1, 2, 3], "rotate": {"axis": [1, 0, 0], "degrees": -10}}},
+              [{"drag": {"from": [0, 0, 0], "to": [1, 1, 1]}}]]},
+    {"fixed": [{"box": {"min": [0, 0, 0], "max": [1e6, 1e6, 1e6]}}], "manipulated": {"indices": [5]}},
+]
+for i, s in enumerate(sc):
+    out("scenario", "valid%d.json" % i, json.dumps(s, indent=1))
+out("scenario", "unknown_key.json", '{"fixed": [{"indices": [0]}], "manipulated": {"indices": [1]}, "fixd": 1}')
+out("scenario", "bad_radius.json",
+    '{"fixed": [{"sphere": {"center": [0, 0, 0], "radius": -1}}], "manipulated": {"indices": [1]}}')
+out("scenario", "truncated.json", '{"fixed": [{"indices": [0, 1')
+out("scenario", "overflow.json", '{"fixed": [{"indices": [1e400]}], "manipulated": {"indices": [1]}}')
