@@ -12,6 +12,7 @@
 #include "test_util.h"
 
 using hgdtest::pointsWhere;
+using hgdtest::rigidResidual;
 
 namespace {
 
@@ -81,30 +82,6 @@ TEST(Deform, BarArcDragKeepsClustersRigid) {
 }  // namespace
 
 namespace {
-
-// Best rigid fit (Kabsch) of `after` to `before`; RMS residual.
-double rigidResidual(const std::vector<Eigen::Vector3d>& before, const std::vector<Eigen::Vector3d>& after) {
-  const std::size_t n = before.size();
-  Eigen::Vector3d cb = Eigen::Vector3d::Zero(), ca = Eigen::Vector3d::Zero();
-  for (std::size_t i = 0; i < n; ++i) {
-    cb += before[i];
-    ca += after[i];
-  }
-  cb /= static_cast<double>(n);
-  ca /= static_cast<double>(n);
-  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-  for (std::size_t i = 0; i < n; ++i) cov += (after[i] - ca) * (before[i] - cb).transpose();
-  Eigen::JacobiSVD<Eigen::Matrix3d> svd(cov, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  Eigen::Matrix3d r = svd.matrixU() * svd.matrixV().transpose();
-  if (r.determinant() < 0) {
-    Eigen::Matrix3d d = Eigen::Matrix3d::Identity();
-    d(2, 2) = -1;
-    r = svd.matrixU() * d * svd.matrixV().transpose();
-  }
-  double s = 0;
-  for (std::size_t i = 0; i < n; ++i) s += (r * (before[i] - cb) + ca - after[i]).squaredNorm();
-  return std::sqrt(s / static_cast<double>(n));
-}
 
 std::vector<Eigen::Vector3d> worldPoints(const hgd::Geometry& g) {
   std::vector<Eigen::Vector3d> out(g.size());

@@ -7,28 +7,9 @@
 #include "test_util.h"
 
 using hgdtest::pointsWhere;
+using hgdtest::rigidResidual;
 
 namespace {
-
-// Best rigid fit (Kabsch) of `after` to `before`: RMS residual.
-double rigidResidual(const std::vector<Eigen::Vector3d>& before, const std::vector<Eigen::Vector3d>& after) {
-  Eigen::Vector3d cb = Eigen::Vector3d::Zero(), ca = Eigen::Vector3d::Zero();
-  for (std::size_t i = 0; i < before.size(); ++i) {
-    cb += before[i];
-    ca += after[i];
-  }
-  cb /= static_cast<double>(before.size());
-  ca /= static_cast<double>(before.size());
-  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-  for (std::size_t i = 0; i < before.size(); ++i) cov += (after[i] - ca) * (before[i] - cb).transpose();
-  Eigen::JacobiSVD<Eigen::Matrix3d> svd(cov, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  Eigen::Matrix3d d = Eigen::Matrix3d::Identity();
-  if ((svd.matrixU() * svd.matrixV().transpose()).determinant() < 0) d(2, 2) = -1;
-  const Eigen::Matrix3d r = svd.matrixU() * d * svd.matrixV().transpose();
-  double s = 0;
-  for (std::size_t i = 0; i < before.size(); ++i) s += (r * (before[i] - cb) + ca - after[i]).squaredNorm();
-  return std::sqrt(s / static_cast<double>(before.size()));
-}
 
 // The points that lie wholly in one bone (both bracketing clusters are that range cluster).
 std::vector<std::vector<int>> bones(const hgd::Deformer& d) {
