@@ -77,7 +77,7 @@ KnnTable knnOfDistinct(const pcl::PointCloud<pcl::PointXYZ>& points, int k, bool
   flann::Index<flann::L2_Simple<float>> index(data, flann::KDTreeSingleIndexParams(15));
   index.buildIndex();
   const std::size_t kk = static_cast<std::size_t>(t.k) + 1;
-  std::vector<int> idx(n * kk);
+  std::vector<int> idx(n * kk, -1);  // FLANN leaves slots unset when distances overflow float
   std::vector<float> d2(n * kk);
   flann::Matrix<int> indices(idx.data(), n, kk);
   flann::Matrix<float> dists(d2.data(), n, kk);
@@ -91,7 +91,7 @@ KnnTable knnOfDistinct(const pcl::PointCloud<pcl::PointXYZ>& points, int k, bool
     int m = 0;
     for (std::size_t q = 0; q < kk && m < t.k; ++q) {
       const int j = idx[i * kk + q];
-      if (j != static_cast<int>(i) && j >= 0) {
+      if (j != static_cast<int>(i) && j >= 0 && static_cast<std::size_t>(j) < n) {
         if (coincident && d2[i * kk + q] == 0.0f) *coincident = true;
         row[m++] = j;
       }
