@@ -3,6 +3,7 @@
 #include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <stdexcept>
 
 #include "timer.h"
@@ -351,9 +352,21 @@ DeformReport deformShape(Shape& shape, const Scenario& scenario, const DeformOpt
   rep.unreachable = d.harmonicField().unreachable().size();
   rep.notes = d.clustering().notes;
 
+  const double diagonal = d.diagonal();
+  int move_number = 0;
   for (const Move& m : scenario.moves) {
+    ++move_number;
     if (m.kind == Move::Kind::Drag) {
       const DragResult r = d.dragTo(m.drag.from, m.drag.to);
+      if (!r.reached) {
+        char buf[320];
+        std::snprintf(buf, sizeof buf,
+                      "move %d (drag): the picked point stopped %.6g (%.3g of the diagonal) from its "
+                      "target after %d frames%s",
+                      move_number, r.error, r.error / diagonal, r.frames,
+                      r.last.decreased ? "" : "; Gauss-Newton could not decrease the energy further");
+        rep.warnings.emplace_back(buf);
+      }
       rep.frames += r.frames;
       rep.iterations += r.iterations;
       rep.max_frame_iterations = std::max(rep.max_frame_iterations, r.max_frame_iterations);
@@ -376,6 +389,10 @@ DeformReport deformShape(Shape& shape, const Scenario& scenario, const DeformOpt
       motion.rotate(Eigen::AngleAxisd(f.degrees * M_PI / 180.0, f.axis.normalized()));
       motion.translate(-center);
       const SolveStats st = d.setHandleTransform(motion * d.handleTransform());
+      if (!st.decreased)
+        rep.warnings.push_back("move " + std::to_string(move_number) +
+                               " (frame): Gauss-Newton could not decrease the energy; the shape may not "
+                               "follow the handle exactly");
       rep.frames += 1;
       rep.iterations += st.iterations;
       rep.max_frame_iterations = std::max(rep.max_frame_iterations, st.iterations);

@@ -73,6 +73,7 @@ std::string reportJson(const DeformReport& r) {
   j["handle_error"] = r.handle_error;
   j["reached"] = r.reached;
   j["notes"] = r.notes;
+  j["warnings"] = r.warnings;
   j["energy"] = {{"detail", r.energy.detail},
                  {"prop", r.energy.prop},
                  {"manip", r.energy.manip},

@@ -400,7 +400,7 @@ std::string thumbnail(const Context& ctx, const Scan& s, const hgd::Shape* befor
     }
     return name;
   } catch (const std::exception& e) {
-    warning = "no thumbnail: " + std::string(e.what());
+    warning += (warning.empty() ? "" : "; ") + std::string("no thumbnail: ") + e.what();
     return "";
   }
 #else
@@ -458,6 +458,7 @@ ScanResult processScan(const Scan& s, const Context& ctx) {
     r.ms_interpolation = rep.interpolation_ms;
     r.ms_total = rep.total_ms;
     r.notes = rep.notes;
+    for (const auto& w : rep.warnings) r.warning += (r.warning.empty() ? "" : "; ") + w;
     if (ctx.thumbnails) r.thumbnail = thumbnail(ctx, s, &*before, &shape, r.warning);
   } catch (const std::bad_alloc&) {
     r.status = "failed";

@@ -164,8 +164,9 @@ struct DeformReport {
   int frames = 0;
   int max_frame_iterations = 0;
   bool reached = true;
-  double handle_error = 0;         ///< world units; drags only
-  std::vector<std::string> notes;  ///< what clustering merged or adjusted (overlapping joints)
+  double handle_error = 0;            ///< world units; drags only
+  std::vector<std::string> notes;     ///< what clustering merged or adjusted (overlapping joints)
+  std::vector<std::string> warnings;  ///< a move that ended short of its target, and why
   Energies energy;
   double read_ms = 0, build_ms = 0, field_ms = 0, sampling_ms = 0, clusters_ms = 0, solve_ms = 0,
          solve_per_iteration_ms = 0, interpolation_ms = 0, total_ms = 0;
