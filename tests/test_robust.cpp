@@ -1454,6 +1454,33 @@ TEST(RobustNumerics, CappedGaussNewtonKeepsTheShapeFinite) {
   expectFinite(d);
 }
 
+TEST(RobustNumerics, GaussNewtonThatCannotDecreaseIsReportedByTheLibrary) {
+  // A target 1e15 diagonals away: the energies overflow, no step decreases them.
+  const hgd::Geometry g = hgd::extractGeometry(hgd::shapes::bar());
+  hgd::Deformer d(g, barHandles(g));
+  const hgd::DragResult r = d.dragTo(Eigen::Vector3d(1, 0, 0), Eigen::Vector3d(1e15, 0, 1));
+  expectFinite(d);
+  EXPECT_FALSE(r.reached);
+  EXPECT_FALSE(r.last.decreased && r.last.converged) << "a frame that could not decrease claims success";
+  std::printf("[ robust   ] drag 1e15 away: reached %d, last frame decreased %d converged %d, error %.3g\n",
+              r.reached, r.last.decreased, r.last.converged, r.error);
+}
+
+TEST(RobustNumerics, GaussNewtonThatCannotDecreaseIsReportedByTheCli) {
+  TempDir dir;
+  hgd::writeShape(dir.file("bar.ply"), hgd::shapes::bar());
+  writeBytes(dir.file("s.json"),
+             "{" + kBarHandles + R"(, "move": {"drag": {"from": [1, 0, 0], "to": [1e15, 0, 1]}}})");
+  const CliRun r = cli("deform " + quote(dir.file("bar.ply")) + " -s " + quote(dir.file("s.json")) + " -o " +
+                       quote(dir.file("out.ply")) + " -q");
+  // The shape written is valid (finite, the closest the solver got), so the exit is 0, but the
+  // user is told the move fell short.
+  EXPECT_TRUE(contains(r.err, "hgdeform: warning: move 1 (drag): the picked point stopped"))
+      << "exit " << r.code << ", stderr: " << r.err;
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(nonFinite(positions(hgd::readShape(dir.file("out.ply")))), 0u);
+}
+
 // --- coordinates far from the origin ----------------------------------------------------------
 
 TEST(RobustGeoreferenced, OffsetShapeDeformsLikeTheCentredOne) {
@@ -1549,6 +1576,40 @@ TEST(RobustMemory, OutOfMemoryEndsWithAMessage) {
   EXPECT_EQ(r.code, 1) << r.err;
   EXPECT_TRUE(contains(r.err, dir.file("claims.ply") + ": truncated data")) << r.err;
   EXPECT_FALSE(fs::exists(dir.file("out.ply")));
+#endif
+}
+
+TEST(RobustMemory, AddressSpaceLimitsAroundBlasNeitherHangNorKill) {
+#ifdef HGD_TEST_ASAN
+  GTEST_SKIP() << "ulimit -v cannot apply under AddressSanitizer";
+#else
+  // OpenBLAS 0.3.21 retries a failed mmap of its 128 MiB thread buffers for ever (a worker at
+  // start-up, CHOLMOD's dpotrf later): under these limits the small bar used to hang. 200 MB
+  // leaves too little for that buffer (a message), 280 MB about the buffer and no more, 400 MB
+  // enough for one buffer but not two (it deforms).
+  TempDir dir;
+  hgd::writeShape(dir.file("bar.ply"), hgd::shapes::bar());
+  writeBytes(dir.file("s.json"), kBarScenario);
+  for (const std::string limit : {"200000", "280000", "400000"}) {
+    SCOPED_TRACE("ulimit -v " + limit);
+    const CliRun r =
+        shell("timeout 60 bash -c " + quote("ulimit -v " + limit + "; exec " + quote(HGD_TOOL) + " deform " +
+                                            quote(dir.file("bar.ply")) + " -s " + quote(dir.file("s.json")) +
+                                            " -o " + quote(dir.file("out.ply")) + " -q"));
+    std::printf("[ robust   ] bar under ulimit -v %s: exit %d %s", limit.c_str(), r.code, r.err.c_str());
+    if (limit == "400000") {
+      ASSERT_EQ(r.code, 0) << r.err;
+      EXPECT_EQ(nonFinite(positions(hgd::readShape(dir.file("out.ply")))), 0u);
+      fs::remove(dir.file("out.ply"));
+    } else if (r.code != 0) {
+      EXPECT_EQ(r.code, 1) << "killed (-1) or hung (124)? " << r.err;
+      EXPECT_TRUE(contains(r.err, "hgdeform deform: out of memory")) << r.err;
+      EXPECT_FALSE(fs::exists(dir.file("out.ply")));
+    } else {
+      fs::remove(dir.file("out.ply"));
+    }
+    EXPECT_EQ(listing(dir.path()).size(), 2u) << "files left behind";
+  }
 #endif
 }
 

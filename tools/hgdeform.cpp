@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "blas_guard.h"
 #include "hgdeform/deformer.h"
 #include "hgdeform/fields.h"
 #include "hgdeform/geometry.h"
@@ -283,6 +284,7 @@ int runDeform(int argc, char** argv) {
   hgd::writeShape(output, shape, wo);
   if (auto it = a.values.find("report"); it != a.values.end()) hgd::writeReportJson(it->second, report);
   for (const auto& note : report.notes) std::fprintf(stderr, "hgdeform: note: %s\n", note.c_str());
+  for (const auto& w : report.warnings) std::fprintf(stderr, "hgdeform: warning: %s\n", w.c_str());
   if (!a.flags.count("quiet"))
     std::printf("%s -> %s: %s\n", input.c_str(), output.c_str(), hgd::summaryLine(report).c_str());
   return 0;
@@ -291,6 +293,11 @@ int runDeform(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  if (const std::string problem = hgdcli::reserveBlasBuffer(argv); !problem.empty()) {
+    std::cerr << "hgdeform" << (argc > 1 ? std::string(" ") + argv[1] : std::string()) << ": " << problem
+              << "\n";
+    return 1;
+  }
   if (argc < 2) {
     std::cerr << kUsage;
     return 2;

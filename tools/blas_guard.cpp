@@ -1,0 +1,90 @@
+#include "blas_guard.h"
+
+#include <dlfcn.h>
+#include <omp.h>
+#include <pthread.h>
+#include <sys/resource.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+
+namespace {
+
+bool addressSpaceLimited(rlim_t* limit = nullptr) {
+  rlimit rl{};
+  if (getrlimit(RLIMIT_AS, &rl) != 0 || rl.rlim_cur == RLIM_INFINITY) return false;
+  if (limit) *limit = rl.rlim_cur;
+  return true;
+}
+
+/// Mapped address space of this process, from /proc/self/statm.
+bool mappedBytes(unsigned long long* bytes) {
+  std::FILE* f = std::fopen("/proc/self/statm", "r");
+  if (!f) return false;
+  unsigned long long pages = 0;
+  const bool ok = std::fscanf(f, "%llu", &pages) == 1;
+  std::fclose(f);
+  *bytes = pages * static_cast<unsigned long long>(sysconf(_SC_PAGESIZE));
+  return ok;
+}
+
+}  // namespace
+
+namespace hgdcli {
+
+std::string reserveBlasBuffer(char** argv) {
+  rlim_t limit = 0;
+  if (!addressSpaceLimited(&limit)) return "";
+  if (!dlsym(RTLD_DEFAULT, "openblas_get_config")) return "";  // another BLAS: nothing known to fix
+  if (!std::getenv("OPENBLAS_NUM_THREADS")) {
+    // OpenBLAS read its thread count when it was loaded, and its worker may already be stuck
+    // mapping its buffer: start again with one thread (exec ends the worker). An environment
+    // variable set here before libc initialises would be lost, hence the exec.
+    setenv("OPENBLAS_NUM_THREADS", "1", 1);
+    execv("/proc/self/exe", argv);
+    return std::string("cannot restart itself with OPENBLAS_NUM_THREADS=1 under the address-space limit: ") +
+           std::strerror(errno);
+  }
+  using Potrf = void (*)(const char*, const int*, double*, const int*, int*);
+  const auto potrf = reinterpret_cast<Potrf>(dlsym(RTLD_DEFAULT, "dpotrf_"));
+  if (!potrf) return "";
+  // OpenBLAS's x86-64 buffer: 128 MiB plus a page, which it retries for ever if it cannot map.
+  // Then the OpenMP team's stacks (libgomp exits the program when it cannot create a thread).
+  constexpr unsigned long long kBuffer = (128ull << 20) + (2ull << 20);
+  pthread_attr_t attr;
+  std::size_t stack = 8u << 20;
+  if (pthread_getattr_default_np(&attr) == 0) {
+    pthread_attr_getstacksize(&attr, &stack);
+    pthread_attr_destroy(&attr);
+  }
+  const int threads = omp_get_max_threads();
+  const unsigned long long team = static_cast<unsigned long long>(threads - 1) * (stack + (1u << 20));
+  unsigned long long mapped = 0;
+  if (!mappedBytes(&mapped)) return "";
+  if (limit < mapped + kBuffer + team + (16ull << 20)) {
+    char buf[320];
+    std::snprintf(buf, sizeof buf,
+                  "out of memory: the address-space limit (ulimit -v %llu kB) leaves %lld MB after start-up; "
+                  "the BLAS library and %d threads alone need %llu MB",
+                  static_cast<unsigned long long>(limit) / 1024,
+                  (static_cast<long long>(limit) - static_cast<long long>(mapped)) / (1 << 20), threads,
+                  (kBuffer + team + (16ull << 20)) >> 20);
+    return buf;
+  }
+  // potrf takes OpenBLAS's buffer for any n > 0; OpenBLAS keeps it mapped for the later calls.
+  double one = 1.0;
+  const int n = 1;
+  int info = 0;
+  potrf("L", &n, &one, &n, &info);
+  // libgomp keeps its team: start it now, while its stacks fit.
+  int started = 0;
+#pragma omp parallel reduction(+ : started)
+  started += 1;
+  (void)started;
+  return "";
+}
+
+}  // namespace hgdcli

@@ -1,0 +1,22 @@
+#pragma once
+// Running under an address-space limit (`ulimit -v`, RLIMIT_AS) with OpenBLAS.
+//
+// OpenBLAS (Debian 12 ships 0.3.21) maps a 128 MiB work buffer per thread and, when mmap fails,
+// retries for ever (OpenMathLib/OpenBLAS#5289, fixed upstream in 0.3.30). Under a tight
+// `ulimit -v` its worker thread spins at start-up and exit() waits on it; a later BLAS call on
+// the main thread (CHOLMOD's dpotrf) would spin the same way. So, only when RLIMIT_AS is set:
+//  - reserveBlasBuffer(), first thing in main, re-executes the program with
+//    OPENBLAS_NUM_THREADS=1 unless the user chose a value: no worker thread, one buffer;
+//  - then maps that one buffer while the address space is still free (OpenBLAS keeps and
+//    reuses it), or fails with a message if it cannot fit.
+// Without a limit nothing changes.
+
+#include <string>
+
+namespace hgdcli {
+
+/// `argv` as main received it (for the exec). Returns "" when it is safe to go on, otherwise the message to
+/// print before exiting 1.
+std::string reserveBlasBuffer(char** argv);
+
+}  // namespace hgdcli
