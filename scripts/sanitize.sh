@@ -11,14 +11,26 @@ cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DHGDEFORM_SAN
 cmake --build "$build" -j "${JOBS:-2}"
 
 # Suppressions cover third-party code only; each entry is explained in its file.
-export ASAN_OPTIONS="detect_leaks=1:abort_on_error=1"
+asan="detect_leaks=1:abort_on_error=1"
 export LSAN_OPTIONS="suppressions=$PWD/tests/lsan.supp:print_suppressions=0"
 export UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1:suppressions=$PWD/tests/ubsan.supp"
+run() { ctest --test-dir "$build" --output-on-failure --timeout 1800 "$@"; }
 status=0
-ctest --test-dir "$build" --output-on-failure -j 2 --timeout 1800 -E '^BatchMpi\.' || status=1
-# OpenMPI never frees what MPI_Init allocates, much of it inside plugins that MPI_Finalize
-# unloads: only full stacks (the slow unwinder) reach the libmpi frames that lsan.supp names.
-# So the tests that run under mpirun get the slow unwinder, and only they.
-ASAN_OPTIONS="$ASAN_OPTIONS:fast_unwind_on_malloc=0" \
-  ctest --test-dir "$build" --output-on-failure --timeout 1800 -R '^BatchMpi\.' || status=1
+
+# Everything but the two tests that need third-party allowances (below).
+ASAN_OPTIONS="$asan" run -j 2 -E '^(BatchMpi\..*|batch_thumbnails_xvfb)$' || status=1
+
+# `hgdeform batch` under mpirun: OpenMPI never frees what MPI_Init allocates, much of it inside
+# plugins that MPI_Finalize unloads. Only full stacks (the slow unwinder) reach the libmpi
+# frames that lsan.supp names, so these tests, and only they, get the slow unwinder.
+ASAN_OPTIONS="$asan:fast_unwind_on_malloc=0" run -R '^BatchMpi\.' || status=1
+
+# Thumbnails under Xvfb (PCLVisualizer, VTK, Mesa): libpcl_visualization's addPolygonMesh frees
+# with operator delete what it allocated with malloc (inside the installed library), and Mesa's
+# GL driver leaks per context and is unloaded before LeakSanitizer looks, leaving nameless
+# stacks no suppression can match (with the slow unwinder the test outruns its timeout). So
+# this one test runs without those two checks; every other ASan and UBSan check stays on, and
+# the same batch code is leak-checked without thumbnails in test_batch above.
+ASAN_OPTIONS="detect_leaks=0:alloc_dealloc_mismatch=0:abort_on_error=1" run -R '^batch_thumbnails_xvfb$' ||
+  status=1
 exit $status
