@@ -2,11 +2,14 @@
 #include <array>
 #include <cmath>
 #include <cstring>
+#include <map>
 #include <numeric>
 #include <random>
+#include <string>
 
 #include "hgdeform/geometry.h"
 #include "hgdeform/harmonic_field.h"
+#include "hgdeform/neighbors.h"
 #include "hgdeform/shapes.h"
 #include "test_util.h"
 
@@ -234,3 +237,63 @@ TEST(Field, ReusesGraphWhenOnlyHandlesChange) {
 }
 
 }  // namespace
+
+// computeKnn against brute force: the same distances in the same order, on clouds that take
+// the grid path (surfaces, a plane, a line, a volume) and ones that leave it (far outliers).
+TEST(Knn, ExactOnSurfacesVolumesAndOutliers) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(-1, 1);
+  std::normal_distribution<float> noise(0, 0.002f);
+  const auto cloudOf = [](const std::vector<Eigen::Vector3f>& v) {
+    pcl::PointCloud<pcl::PointXYZ> c;
+    for (const auto& p : v) c.push_back(pcl::PointXYZ(p.x(), p.y(), p.z()));
+    return c;
+  };
+  std::map<std::string, std::vector<Eigen::Vector3f>> clouds;
+  {
+    const hgd::Shape s = hgd::shapes::bumpySphere(30000);
+    const hgd::Geometry g = hgd::extractGeometry(s);
+    auto& v = clouds["bumpy sphere 30k"];
+    for (const auto& p : *g.points) v.push_back(p.getVector3fMap());
+    auto& w = clouds["bumpy sphere with 40 far outliers"];  // searched against every point
+    w = v;
+    for (int i = 0; i < 40; ++i) w.emplace_back(50 * u(rng), 50 * u(rng), 1000 + 50 * u(rng));
+    auto& c = clouds["bumpy sphere with a dense clump"];  // too crowded for a grid: the k-d tree
+    c = v;
+    for (int i = 0; i < 6000; ++i) c.emplace_back(0.3f + 1e-4f * u(rng), 1e-4f * u(rng), 1e-4f * u(rng));
+  }
+  for (int i = 0; i < 20000; ++i) clouds["noisy plane"].emplace_back(u(rng), 0.01f * u(rng), noise(rng));
+  for (int i = 0; i < 5000; ++i) {
+    const float t = u(rng);
+    clouds["line"].emplace_back(t, 2 * t + 1, 0.5f);
+  }
+  for (int i = 0; i < 20000; ++i) clouds["volume"].emplace_back(u(rng), u(rng), u(rng));
+  for (const auto& [name, pts] : clouds) {
+    SCOPED_TRACE(name);
+    for (const int k : {10, 16}) {
+      const auto cloud = cloudOf(pts);
+      const hgd::KnnTable t = hgd::computeKnn(cloud, k);
+      ASSERT_EQ(t.k, k);
+      std::size_t wrong = 0;
+      std::vector<float> d(pts.size());
+      // Brute force on a spread subset of the points (every point is queried by computeKnn).
+      for (std::size_t i = 0; i < pts.size(); i += 97) {
+        for (std::size_t j = 0; j < pts.size(); ++j)
+          d[j] = j == i ? INFINITY : (pts[j] - pts[i]).squaredNorm();
+        std::vector<float> best(d);
+        std::nth_element(best.begin(), best.begin() + k - 1, best.end());
+        const float kth = best[static_cast<std::size_t>(k) - 1];
+        float previous = 0;
+        for (int m = 0; m < k; ++m) {
+          const int j = t.row(i)[m];
+          const float dj = j == static_cast<int>(i) ? INFINITY : d[static_cast<std::size_t>(j)];
+          // Every listed neighbour is among the k nearest (ties at the k-th distance aside) and
+          // the list is sorted.
+          if (!(dj <= kth) || dj < previous) ++wrong;
+          previous = dj;
+        }
+      }
+      EXPECT_EQ(wrong, 0u) << "k = " << k;
+    }
+  }
+}

@@ -29,7 +29,8 @@ struct NeighborGraph {
   const int* end(std::size_t i) const { return adj.data() + offsets[i + 1]; }
 };
 
-/// kNN through FLANN (pcl::KdTreeFLANN), in parallel. k is clamped to n - 1.
+/// Exact kNN, in parallel: on a uniform grid for surface-like clouds, else through FLANN
+/// (a k-d tree). k is clamped to n - 1.
 KnnTable computeKnn(const pcl::PointCloud<pcl::PointXYZ>& points, int k);
 
 /// PCA normals over each point's k nearest neighbours (PCL's computePointNormal), oriented

@@ -1,0 +1,337 @@
+#include "grid_knn.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <limits>
+#include <vector>
+
+#include "timer.h"
+
+namespace hgd {
+
+namespace {
+
+// Points per occupied cell aimed at: a surface crossing a cell of side h puts about m points
+// in it and about 2.4 m within distance h of a point; m = 0.6 kk keeps the kk nearest inside
+// the 3 x 3 x 3 block around a point (which reaches at least h from it) nearly always, so the
+// search rarely widens, while the block stays small (about 100 candidates at kk = 17).
+double targetPerCell(int kk) {
+  return std::max(2.0, kk * 0.6);
+}
+
+constexpr int kMaxDim = 1 << 20;       // cells per axis (keys pack into 60 bits)
+constexpr int kMaxRing = 8;            // widest shell searched cell by cell before brute force
+constexpr std::size_t kMaxBrute = 64;  // points searched against all others before giving up
+
+struct Grid {
+  double lo[3] = {0, 0, 0};
+  double h = 1, inv_h = 1;
+  std::int64_t dim[3] = {1, 1, 1};
+  std::vector<std::uint64_t> cell_key;    // occupied cells, in key order
+  std::vector<std::uint32_t> cell_start;  // their points: sorted[cell_start[c] .. cell_start[c+1])
+  std::vector<std::uint32_t> order;       // sorted position -> point index
+  std::vector<std::int32_t> table;        // open-addressing hash: cell key -> cell id (-1 empty)
+  std::uint64_t mask = 0;
+
+  std::uint64_t key(std::int64_t x, std::int64_t y, std::int64_t z) const {
+    return static_cast<std::uint64_t>(x + dim[0] * (y + dim[1] * z));
+  }
+  static std::uint64_t hash(std::uint64_t k) { return (k * 0x9E3779B97F4A7C15ull) >> 20; }
+  int find(std::int64_t x, std::int64_t y, std::int64_t z) const {
+    if (x < 0 || y < 0 || z < 0 || x >= dim[0] || y >= dim[1] || z >= dim[2]) return -1;
+    const std::uint64_t k = key(x, y, z);
+    for (std::uint64_t s = hash(k) & mask;; s = (s + 1) & mask) {
+      const int c = table[s];
+      if (c < 0 || cell_key[static_cast<std::size_t>(c)] == k) return c;
+    }
+  }
+};
+
+/// Sorts the points into cells of side h (LSD radix sort on the cell keys). Returns false when
+/// h gives too many cells per axis.
+bool bin(const float* xyz, std::size_t n, double h, Grid& g, const double hi[3]) {
+  g.h = h;
+  g.inv_h = 1.0 / h;
+  for (int a = 0; a < 3; ++a) {
+    const double cells = std::floor((hi[a] - g.lo[a]) * g.inv_h) + 1;
+    if (!(cells <= kMaxDim)) return false;
+    g.dim[a] = static_cast<std::int64_t>(cells);
+  }
+  std::vector<std::uint64_t> keys(n), tmp_keys(n);
+  std::vector<std::uint32_t> tmp_order(n);
+  g.order.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    std::int64_t c[3];
+    for (int a = 0; a < 3; ++a)
+      c[a] = std::clamp<std::int64_t>(static_cast<std::int64_t>((xyz[3 * i + a] - g.lo[a]) * g.inv_h), 0,
+                                      g.dim[a] - 1);
+    keys[i] = g.key(c[0], c[1], c[2]);
+    g.order[i] = static_cast<std::uint32_t>(i);
+  }
+  const std::uint64_t max_key = g.key(g.dim[0] - 1, g.dim[1] - 1, g.dim[2] - 1);
+  std::vector<std::uint32_t> count(1u << 11);
+  for (int shift = 0; shift < 64 && (max_key >> shift) != 0; shift += 11) {
+    std::fill(count.begin(), count.end(), 0u);
+    for (std::size_t i = 0; i < n; ++i) ++count[(keys[i] >> shift) & 2047u];
+    std::uint32_t sum = 0;
+    for (auto& c : count) {
+      const std::uint32_t v = c;
+      c = sum;
+      sum += v;
+    }
+    for (std::size_t i = 0; i < n; ++i) {
+      const std::uint32_t dst = count[(keys[i] >> shift) & 2047u]++;
+      tmp_keys[dst] = keys[i];
+      tmp_order[dst] = g.order[i];
+    }
+    keys.swap(tmp_keys);
+    g.order.swap(tmp_order);
+  }
+  g.cell_key.clear();
+  g.cell_start.clear();
+  for (std::size_t i = 0; i < n; ++i)
+    if (i == 0 || keys[i] != keys[i - 1]) {
+      g.cell_key.push_back(keys[i]);
+      g.cell_start.push_back(static_cast<std::uint32_t>(i));
+    }
+  g.cell_start.push_back(static_cast<std::uint32_t>(n));
+  return true;
+}
+
+/// The kk best so far, sorted by distance.
+struct Best {
+  float* d;
+  int* id;
+  int kk;
+  void insert(float dist, int who) {
+    if (!(dist < d[kk - 1])) return;
+    int m = kk - 1;
+    while (m > 0 && d[m - 1] > dist) {
+      d[m] = d[m - 1];
+      id[m] = id[m - 1];
+      --m;
+    }
+    d[m] = dist;
+    id[m] = who;
+  }
+};
+
+}  // namespace
+
+bool gridKnn(const float* xyz, std::size_t n, int kk, int* idx, float* d2) {
+  if (n == 0 || kk <= 0) return true;
+  if (static_cast<std::size_t>(kk) > n || n >= (1ull << 31)) return false;
+  Grid g;
+  double hi[3];
+  for (int a = 0; a < 3; ++a) {
+    g.lo[a] = std::numeric_limits<double>::infinity();
+    hi[a] = -std::numeric_limits<double>::infinity();
+  }
+  for (std::size_t i = 0; i < n; ++i)
+    for (int a = 0; a < 3; ++a) {
+      const double v = xyz[3 * i + a];
+      if (!std::isfinite(v)) return false;
+      g.lo[a] = std::min(g.lo[a], v);
+      hi[a] = std::max(hi[a], v);
+    }
+  const double ex = hi[0] - g.lo[0], ey = hi[1] - g.lo[1], ez = hi[2] - g.lo[2];
+  const double extent = std::max({ex, ey, ez});
+  if (!(extent > 0) || !std::isfinite(extent)) return false;
+  // First guess: a surface about as large as the box's faces; then rescale h until the cells
+  // hold about the target (a surface's count per cell grows as h squared).
+  const double target = targetPerCell(kk);
+  const double area = std::max(ex * ey + ey * ez + ez * ex, 1e-6 * extent * extent);
+  double h = std::sqrt(target * area / static_cast<double>(n));
+  h = std::max(h, extent / (kMaxDim - 2));
+  for (int attempt = 0;; ++attempt) {
+    if (!bin(xyz, n, h, g, hi)) return false;
+    const double per_cell = static_cast<double>(n) / static_cast<double>(g.cell_key.size());
+    if (attempt == 3 || (per_cell > target / 2 && per_cell < target * 2)) break;
+    const double next =
+        std::max(h * std::clamp(std::sqrt(target / per_cell), 0.125, 8.0), extent / (kMaxDim - 2));
+    if (next == h) break;
+    h = next;
+  }
+  // Crowded cells cost their population squared: a grid is the wrong tool for such clouds.
+  double cost = 0;
+  for (std::size_t c = 0; c + 1 < g.cell_start.size(); ++c) {
+    const double m = g.cell_start[c + 1] - g.cell_start[c];
+    cost += m * m;
+  }
+  if (cost > 64.0 * target * static_cast<double>(n)) return false;
+
+  const std::size_t cells = g.cell_key.size();
+  std::size_t table_size = 1;
+  while (table_size < 2 * cells) table_size <<= 1;
+  g.mask = table_size - 1;
+  g.table.assign(table_size, -1);
+  for (std::size_t c = 0; c < cells; ++c) {
+    std::uint64_t s = Grid::hash(g.cell_key[c]) & g.mask;
+    while (g.table[s] >= 0) s = (s + 1) & g.mask;
+    g.table[s] = static_cast<std::int32_t>(c);
+  }
+  // Positions in cell order (structure of arrays) for contiguous scans.
+  std::vector<float> px(n), py(n), pz(n);
+  for (std::size_t s = 0; s < n; ++s) {
+    const std::size_t i = g.order[s];
+    px[s] = xyz[3 * i];
+    py[s] = xyz[3 * i + 1];
+    pz[s] = xyz[3 * i + 2];
+  }
+
+  std::size_t brute = 0;
+  bool gave_up = false;
+  const long long ncells = static_cast<long long>(cells);
+#pragma omp parallel if (static_cast <long long>(n) > kParallelMin)
+  {
+    std::vector<float> bd(static_cast<std::size_t>(kk));
+    std::vector<int> bi(static_cast<std::size_t>(kk));
+    std::vector<float> cand_x, cand_y, cand_z, dist;
+    std::vector<std::uint32_t> cand_id;
+    std::vector<std::uint64_t> keys;
+#pragma omp for schedule(dynamic, 64)
+    for (long long c = 0; c < ncells; ++c) {
+      const std::uint64_t key = g.cell_key[static_cast<std::size_t>(c)];
+      const std::int64_t cx = static_cast<std::int64_t>(key % static_cast<std::uint64_t>(g.dim[0]));
+      const std::uint64_t rest = key / static_cast<std::uint64_t>(g.dim[0]);
+      const std::int64_t cy = static_cast<std::int64_t>(rest % static_cast<std::uint64_t>(g.dim[1]));
+      const std::int64_t cz = static_cast<std::int64_t>(rest / static_cast<std::uint64_t>(g.dim[1]));
+      // The 3 x 3 x 3 block as 9 runs: cells along x are consecutive keys, so consecutive in
+      // the sorted points.
+      std::uint32_t run_begin[9], run_end[9];
+      int runs = 0;
+      for (int dz = -1; dz <= 1; ++dz)
+        for (int dy = -1; dy <= 1; ++dy) {
+          std::uint32_t b = 0, e = 0;
+          bool any = false;
+          for (int dx = -1; dx <= 1; ++dx) {
+            const int f = g.find(cx + dx, cy + dy, cz + dz);
+            if (f < 0) continue;
+            if (!any) b = g.cell_start[static_cast<std::size_t>(f)];
+            e = g.cell_start[static_cast<std::size_t>(f) + 1];
+            any = true;
+          }
+          if (any) {
+            run_begin[runs] = b;
+            run_end[runs++] = e;
+          }
+        }
+      // The block's points, gathered once for all the cell's queries.
+      cand_x.clear();
+      cand_y.clear();
+      cand_z.clear();
+      cand_id.clear();
+      for (int r = 0; r < runs; ++r)
+        for (std::uint32_t s = run_begin[r]; s < run_end[r]; ++s) {
+          cand_x.push_back(px[s]);
+          cand_y.push_back(py[s]);
+          cand_z.push_back(pz[s]);
+          cand_id.push_back(s);
+        }
+      const std::size_t nc = cand_id.size();
+      dist.resize(nc);
+      keys.resize(nc);
+      float prev_x = 0, prev_y = 0, prev_z = 0, prev_kth = 0;
+      const std::uint32_t q0 = g.cell_start[static_cast<std::size_t>(c)];
+      const std::uint32_t q1 = g.cell_start[static_cast<std::size_t>(c) + 1];
+      for (std::uint32_t q = q0; q < q1; ++q) {
+        Best best{bd.data(), bi.data(), kk};
+        const float x = px[q], y = py[q], z = pz[q];
+        if (q > q0) {
+          prev_x = px[q - 1];
+          prev_y = py[q - 1];
+          prev_z = pz[q - 1];
+          prev_kth = bd[static_cast<std::size_t>(kk) - 1];
+        }
+        for (std::size_t m = 0; m < nc; ++m) {
+          const float dx = cand_x[m] - x, dy = cand_y[m] - y, dz = cand_z[m] - z;
+          dist[m] = dx * dx + dy * dy + dz * dz;
+        }
+        // The previous query's kk-th distance, plus the step from it, bounds this one's
+        // (triangle inequality): only candidates inside that bound take part in the selection.
+        float bound = std::numeric_limits<float>::infinity();
+        if (q > q0) {
+          const float step = std::sqrt((x - prev_x) * (x - prev_x) + (y - prev_y) * (y - prev_y) +
+                                       (z - prev_z) * (z - prev_z));
+          bound = (std::sqrt(prev_kth) + step) * (1 + 1e-5f);
+          bound *= bound;
+        }
+        std::size_t nk = 0;
+        for (std::size_t m = 0; m < nc; ++m) {
+          std::uint32_t bits;
+          std::memcpy(&bits, &dist[m], sizeof bits);
+          keys[nk] = (static_cast<std::uint64_t>(bits) << 32) | m;
+          nk += dist[m] <= bound;
+        }
+        if (nk >= static_cast<std::size_t>(kk)) {
+          // Select on (distance bits, slot): non-negative floats order as their bit patterns.
+          std::nth_element(keys.begin(), keys.begin() + (kk - 1),
+                           keys.begin() + static_cast<std::ptrdiff_t>(nk));
+          std::sort(keys.begin(), keys.begin() + kk);
+          for (int m = 0; m < kk; ++m) {
+            const std::size_t slot = keys[static_cast<std::size_t>(m)] & 0xffffffffu;
+            bd[static_cast<std::size_t>(m)] = dist[slot];
+            bi[static_cast<std::size_t>(m)] = static_cast<int>(cand_id[slot]);
+          }
+        } else {
+          std::fill(bd.begin(), bd.end(), std::numeric_limits<float>::infinity());
+          std::fill(bi.begin(), bi.end(), -1);
+          for (std::size_t m = 0; m < nc; ++m) best.insert(dist[m], static_cast<int>(cand_id[m]));
+        }
+        // Nothing outside the block is nearer than its boundary; otherwise widen shell by shell.
+        double margin = 1;
+        const double pos[3] = {x, y, z};
+        const std::int64_t cc[3] = {cx, cy, cz};
+        for (int a = 0; a < 3; ++a) {
+          const double f = (pos[a] - g.lo[a]) * g.inv_h - static_cast<double>(cc[a]);
+          margin = std::min({margin, std::max(0.0, f), std::max(0.0, 1.0 - f)});
+        }
+        auto safe = [&](int ring) {
+          const double reach = (ring + margin) * g.h * (1 - 1e-6);
+          return static_cast<double>(bd[static_cast<std::size_t>(kk) - 1]) <= reach * reach;
+        };
+        int ring = 1;
+        while (!safe(ring) && ring < kMaxRing) {
+          ++ring;
+          for (int dz = -ring; dz <= ring; ++dz)
+            for (int dy = -ring; dy <= ring; ++dy) {
+              const bool face = std::abs(dz) == ring || std::abs(dy) == ring;
+              for (int dx = -ring; dx <= ring; dx += face ? 1 : 2 * ring) {
+                const int f = g.find(cx + dx, cy + dy, cz + dz);
+                if (f < 0) continue;
+                for (std::uint32_t s = g.cell_start[static_cast<std::size_t>(f)];
+                     s < g.cell_start[static_cast<std::size_t>(f) + 1]; ++s) {
+                  const float ddx = px[s] - x, ddy = py[s] - y, ddz = pz[s] - z;
+                  best.insert(ddx * ddx + ddy * ddy + ddz * ddz, static_cast<int>(s));
+                }
+              }
+            }
+        }
+        if (!safe(ring)) {  // a far outlier: against every point, a few times at most
+          bool go = false;
+#pragma omp critical(hgd_grid_knn_brute)
+          {
+            go = !gave_up && ++brute <= kMaxBrute;
+            if (!go) gave_up = true;
+          }
+          if (!go) continue;
+          std::fill(bd.begin(), bd.end(), std::numeric_limits<float>::infinity());
+          for (std::uint32_t s = 0; s < n; ++s) {
+            const float ddx = px[s] - x, ddy = py[s] - y, ddz = pz[s] - z;
+            best.insert(ddx * ddx + ddy * ddy + ddz * ddz, static_cast<int>(s));
+          }
+        }
+        const std::size_t out = static_cast<std::size_t>(g.order[q]) * static_cast<std::size_t>(kk);
+        for (int m = 0; m < kk; ++m) {
+          idx[out + static_cast<std::size_t>(m)] = static_cast<int>(g.order[static_cast<std::size_t>(bi[m])]);
+          d2[out + static_cast<std::size_t>(m)] = bd[static_cast<std::size_t>(m)];
+        }
+      }
+    }
+  }
+  return !gave_up;
+}
+
+}  // namespace hgd
