@@ -35,6 +35,12 @@ bool mappedBytes(unsigned long long* bytes) {
 
 namespace hgdcli {
 
+void singleThreadBlas() {
+  if (std::getenv("OPENBLAS_NUM_THREADS")) return;
+  using SetThreads = void (*)(int);
+  if (const auto set = reinterpret_cast<SetThreads>(dlsym(RTLD_DEFAULT, "openblas_set_num_threads"))) set(1);
+}
+
 std::string reserveBlasBuffer(char** argv) {
   rlim_t limit = 0;
   if (!addressSpaceLimited(&limit)) return "";

@@ -15,6 +15,12 @@
 
 namespace hgdcli {
 
+/// OpenBLAS on one thread unless OPENBLAS_NUM_THREADS says otherwise. hgdeform's BLAS work is
+/// CHOLMOD on systems of at most a few tens of thousands of unknowns, where a second BLAS
+/// thread gains little, while OpenBLAS's idle threads spin (sched_yield) on the core the
+/// OpenMP team needs: at 173k points that cost the kNN and the field solve up to 2x.
+void singleThreadBlas();
+
 /// `argv` as main received it (for the exec). Returns "" when it is safe to go on, otherwise the message to
 /// print before exiting 1.
 std::string reserveBlasBuffer(char** argv);

@@ -298,6 +298,7 @@ int main(int argc, char** argv) {
               << "\n";
     return 1;
   }
+  hgdcli::singleThreadBlas();
   if (argc < 2) {
     std::cerr << kUsage;
     return 2;

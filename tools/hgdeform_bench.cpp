@@ -23,6 +23,7 @@
 #include <string>
 #include <vector>
 
+#include "blas_guard.h"
 #include "hgdeform/deformer.h"
 #include "hgdeform/io.h"
 #include "hgdeform/report.h"
@@ -194,6 +195,7 @@ nlohmann::json runSize(const std::string& model, const std::string& armadillo, s
 }  // namespace
 
 int main(int argc, char** argv) {
+  hgdcli::singleThreadBlas();  // as hgdeform does (blas_guard.h)
   std::vector<long> sizes{50000, 173000, 438000, 1000000};
   std::string armadillo = HGD_DEFAULT_ARMADILLO;
   std::vector<std::string> models{"sphere", "armadillo"};

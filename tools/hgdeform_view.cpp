@@ -57,6 +57,7 @@
 #include <string>
 #include <vector>
 
+#include "blas_guard.h"
 #include "hgdeform/colormap.h"
 #include "hgdeform/deformer.h"
 #include "hgdeform/fields.h"
@@ -1006,6 +1007,7 @@ const char* kUsage =
 }  // namespace
 
 int main(int argc, char** argv) {
+  hgdcli::singleThreadBlas();  // as hgdeform does (blas_guard.h)
   std::string input, scenario, replay, shot;
   int width = 1100, height = 800;
   bool stats = false, quiet = false;
