@@ -12,6 +12,7 @@ packages=(
   libpng-dev                                # the viewer tests read screenshots
   libgtest-dev libgmock-dev libbenchmark-dev
   xvfb xauth clang-format
+  clang libclang-rt-14-dev                  # scripts/fuzz.sh: libFuzzer targets (clang's runtime)
 )
 
 missing=()
