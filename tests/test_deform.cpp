@@ -1,7 +1,9 @@
 // The paper's demonstrations as checks (ALGORITHM.md §6).
 #include <Eigen/Dense>
+#include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <map>
 #include <random>
 #include <string>
 
@@ -256,6 +258,30 @@ TEST(Deform, BranchesAtSameValueGetSeparateClusters) {
     }
   }
   EXPECT_GE(on_prongs, 4);  // the prongs do carry isoclusters of their own
+}
+
+// An unevenly sampled scan (a quarter of a fine grid kept at random, jittered, in no order):
+// each isoline around the tube is one contour, so one cluster per level, not fragments of it
+// (contours followed one graph hop at a time came out in 2-6 pieces on this tube).
+TEST(Deform, UnevenlySampledTubeHasOneClusterPerLevel) {
+  const hgd::Geometry fine = hgd::extractGeometry(hgd::shapes::cylinder(1.0f, 0.1f, 0.0015f));
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(0, 1);
+  std::vector<Eigen::Vector3f> pts;
+  for (std::size_t i = 0; i < fine.size(); ++i)
+    if (u(rng) < 0.25f)
+      pts.push_back(fine.world(i).cast<float>() + Eigen::Vector3f(u(rng), u(rng), u(rng)) * 0.00045f);
+  std::shuffle(pts.begin(), pts.end(), rng);
+  const hgd::Geometry g = hgd::extractGeometry(hgd::shapes::cloudShape(pts, {}));
+  hgd::Handles h;
+  h.fixed.push_back(pointsWhere(g, 0, -1, 0.03));
+  h.manipulated = pointsWhere(g, 0, 0.97, 2);
+  hgd::Deformer d(g, h);
+  std::map<int, int> per_level;
+  for (const auto& cl : d.clustering().clusters)
+    if (cl.kind == hgd::ClusterKind::Iso) ++per_level[cl.level];
+  EXPECT_EQ(per_level.size(), 16u);
+  for (const auto& [level, count] : per_level) EXPECT_EQ(count, 1) << "level " << level;
 }
 
 // The Botsch-Sorkine deformation benchmark (../shared/datasets/deformation_survey): the handle
