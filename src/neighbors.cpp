@@ -151,11 +151,15 @@ pcl::PointCloud<pcl::Normal>::Ptr estimateNormals(const pcl::PointCloud<pcl::Poi
   // at a fraction of the cost.
   const NeighborGraph g = knnGraph(knn, std::min(kn, 8), nullptr);
   std::vector<char> done(n, 0);
-  std::vector<int> order(n);
-  for (std::size_t i = 0; i < n; ++i) order[i] = static_cast<int>(i);
-  // Seeds: outermost (largest x) first, so that each piece starts from a point whose outward
-  // direction is known.
-  std::sort(order.begin(), order.end(), [&](int a, int b) { return points[a].x > points[b].x; });
+  // Seeds: each connected piece's outermost point (largest x), whose outward direction is
+  // known (one pass over the pieces instead of sorting every point by x).
+  std::vector<int> label;
+  const int pieces = connectedComponents(g, label);
+  std::vector<int> order(static_cast<std::size_t>(pieces), -1);
+  for (std::size_t i = 0; i < n; ++i) {
+    int& best = order[static_cast<std::size_t>(label[i])];
+    if (best < 0 || points[i].x > points[static_cast<std::size_t>(best)].x) best = static_cast<int>(i);
+  }
   constexpr int kBuckets = 256;
   std::vector<std::vector<std::pair<int, int>>> bucket(kBuckets);  // (to, from)
   int lowest = kBuckets;
