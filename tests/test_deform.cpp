@@ -337,9 +337,9 @@ TEST_P(Survey, HandleReachedFixedStayRigidAsLaplacianEditing) {
   ASSERT_EQ(sel.size(), g.size());
   hgd::Handles h;
   h.fixed.emplace_back();
-  for (std::size_t i = 0; i < sel.size(); ++i) {
-    if (sel[i] == 0) h.fixed[0].push_back(static_cast<int>(i));
-    if (sel[i] == 2) h.manipulated.push_back(static_cast<int>(i));
+  for (std::size_t i = 0; i < sel.size(); ++i) {  // file vertex i is geometry point finite_index[i]
+    if (sel[i] == 0) h.fixed[0].push_back(g.finite_index[i]);
+    if (sel[i] == 2) h.manipulated.push_back(g.finite_index[i]);
   }
   const Eigen::Affine3d t = readDef(dir + name + ".def");
   hgd::Deformer d(g, h);
@@ -358,7 +358,12 @@ TEST_P(Survey, HandleReachedFixedStayRigidAsLaplacianEditing) {
   const hgd::NeighborGraph ring = oneRing(g);
   const auto rest = worldPoints(g);
   const double ours = ringRigidity(ring, rest, deformedPoints(d));  // the default blend
-  const double theirs = ringRigidity(ring, rest, worldPoints(reference));
+  // The reference's points in g's order (each geometry orders its points in space).
+  std::vector<Eigen::Vector3d> their_points(g.size());
+  for (std::size_t k = 0; k < g.size(); ++k)
+    their_points[k] = reference.world(
+        static_cast<std::size_t>(reference.finite_index[static_cast<std::size_t>(g.raw_index[k])]));
+  const double theirs = ringRigidity(ring, rest, their_points);
   d.setBlend(hgd::Blend::Linear);
   const double linear = ringRigidity(ring, rest, deformedPoints(d));
   d.setBlend(hgd::Blend::Rotation);
@@ -400,7 +405,9 @@ TEST(Deform, UnitsDoNotMatter) {
     h.manipulated = pointsWhere(g, 0, 0.95 * s, 1e9);
     hgd::Deformer d(g, h);
     d.dragTo(Eigen::Vector3d(1.0, 0.0, 0.05) * s, Eigen::Vector3d(0.8, 0.45, 0.1) * s);
-    for (std::size_t i = 0; i < g.size(); ++i) results[k].push_back(d.deformedWorld(i) / s);
+    results[k].resize(g.size());  // in the order of pts (each geometry orders its points in space)
+    for (std::size_t i = 0; i < g.size(); ++i)
+      results[k][static_cast<std::size_t>(g.raw_index[i])] = d.deformedWorld(i) / s;
   }
   ASSERT_EQ(results[0].size(), results[1].size());
   double worst = 0;

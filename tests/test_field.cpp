@@ -1,4 +1,5 @@
 // The harmonic field (ALGORITHM.md §1) on shapes whose answer is known.
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstring>
@@ -111,7 +112,7 @@ TEST(Field, MeshAndSampledCloudAgree) {
       for (int k = 0; k < 3; ++k)
         v += bary[i][k] * pm[static_cast<std::size_t>(tri[i][static_cast<std::size_t>(k)])];
       a.push_back(v);
-      b.push_back(pc[i]);
+      b.push_back(pc[static_cast<std::size_t>(cloud.finite_index[i])]);  // geometry order is spatial
     }
     const double r = correlation(a, b);
     std::printf("mesh (%s) vs sampled cloud: correlation %.5f over %zu points\n", ring ? "1-ring" : "kNN", r,
@@ -296,4 +297,32 @@ TEST(Knn, ExactOnSurfacesVolumesAndOutliers) {
       EXPECT_EQ(wrong, 0u) << "k = " << k;
     }
   }
+}
+
+// extractGeometry orders points in space whatever the file's order, and its index maps stay
+// exact: a shuffled cloud gets neighbours close in memory, and every point maps back.
+TEST(Geometry, SpatialOrderWithExactIndexMaps) {
+  const hgd::Geometry sphere = hgd::extractGeometry(hgd::shapes::bumpySphere(40000));
+  std::vector<Eigen::Vector3f> pts;
+  for (std::size_t i = 0; i < sphere.size(); ++i) pts.push_back(sphere.world(i).cast<float>());
+  std::mt19937 rng(11);
+  std::shuffle(pts.begin(), pts.end(), rng);
+  pts.insert(pts.begin() + 123, Eigen::Vector3f(NAN, 0, 0));  // a NaN point keeps its place in the file
+  const hgd::Geometry g = hgd::extractGeometry(hgd::shapes::cloudShape(pts, {}));
+  ASSERT_EQ(g.size(), pts.size() - 1);
+  EXPECT_EQ(g.finite_index[123], -1);
+  for (std::size_t k = 0; k < g.size(); ++k) {
+    const auto raw = static_cast<std::size_t>(g.raw_index[k]);
+    ASSERT_EQ(g.finite_index[raw], static_cast<int>(k));
+    ASSERT_LE((g.world(k) - pts[raw].cast<double>()).norm(), 1e-6);
+  }
+  // Mean index distance between a point and its 10 nearest: a small fraction of n.
+  const hgd::KnnTable t = hgd::computeKnn(*g.points, 10);
+  double spread = 0;
+  for (std::size_t i = 0; i < g.size(); ++i)
+    for (int m = 0; m < t.k; ++m)
+      spread += std::abs(static_cast<double>(t.row(i)[m]) - static_cast<double>(i));
+  spread /= static_cast<double>(g.size() * static_cast<std::size_t>(t.k));
+  std::printf("mean index distance to the 10 nearest: %.0f of %zu points\n", spread, g.size());
+  EXPECT_LT(spread, 0.02 * static_cast<double>(g.size()));
 }

@@ -72,7 +72,11 @@ double maxDistance(const std::string& a, const std::string& b, double& diag) {
   diag = hgd::boundingBoxDiagonal(ga);
   if (ga.size() != gb.size()) return INFINITY;
   double worst = 0;
-  for (std::size_t i = 0; i < ga.size(); ++i) worst = std::max(worst, (ga.world(i) - gb.world(i)).norm());
+  for (std::size_t i = 0; i < ga.size(); ++i) {  // the same file point in both
+    const int j = gb.finite_index[static_cast<std::size_t>(ga.raw_index[i])];
+    if (j < 0) return INFINITY;
+    worst = std::max(worst, (ga.world(i) - gb.world(static_cast<std::size_t>(j))).norm());
+  }
   return worst;
 }
 

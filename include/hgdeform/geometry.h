@@ -13,7 +13,9 @@
 namespace hgd {
 
 struct Geometry {
-  /// Finite points, relative to `origin` (world = local + origin).
+  /// Finite points, relative to `origin` (world = local + origin), in space-filling-curve
+  /// (Morton) order, not the file's: neighbours lie near each other in memory whatever order
+  /// the file has. raw_index / finite_index translate.
   pcl::PointCloud<pcl::PointXYZ>::Ptr points{new pcl::PointCloud<pcl::PointXYZ>};
   /// Normals from the file (finite, non-zero), or empty when the file has none.
   pcl::PointCloud<pcl::Normal>::Ptr file_normals{new pcl::PointCloud<pcl::Normal>};
