@@ -30,62 +30,23 @@
 namespace {
 
 namespace fs = std::filesystem;
+using hgdtest::contains;
+using hgdtest::quote;
+using hgdtest::shell;
+using hgdtest::slurp;
 using hgdtest::TempDir;
 using hgdtest::writeText;
+using Result = hgdtest::CommandResult;
 
 // --- helpers ---------------------------------------------------------------------------------
-
-std::string quote(const std::string& s) {
-  std::string q = "'";
-  for (char c : s) {
-    if (c == '\'')
-      q += "'\\''";
-    else
-      q += c;
-  }
-  return q + "'";
-}
 
 std::string q(const fs::path& p) {
   return quote(p.string());
 }
 
-std::string slurp(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-struct Result {
-  int code = -1;
-  std::string out;  // stdout
-  std::string err;  // stderr
-};
-
-/// Runs a shell command with stdout and stderr captured separately.
-Result shell(const std::string& command) {
-  static TempDir err_dir;  // stderr goes here, never into a directory a test inspects
-  const std::string err_file = err_dir.file("stderr.txt");
-  Result r;
-  FILE* pipe = popen((command + " 2>" + quote(err_file)).c_str(), "r");
-  if (!pipe) return r;
-  char buf[4096];
-  std::size_t got;
-  while ((got = fread(buf, 1, sizeof buf, pipe)) > 0) r.out.append(buf, got);
-  const int status = pclose(pipe);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  r.err = slurp(err_file);
-  return r;
-}
-
 /// `hgdeform ARGS`.
 Result cli(const std::string& args) {
   return shell(quote(HGD_TOOL) + " " + args);
-}
-
-bool contains(const std::string& text, const std::string& part) {
-  return text.find(part) != std::string::npos;
 }
 
 std::size_t countOf(const std::string& text, const std::string& part) {

@@ -30,54 +30,19 @@
 namespace {
 
 namespace fs = std::filesystem;
+using hgdtest::contains;
+using hgdtest::quote;
+using hgdtest::shell;
+using hgdtest::slurp;
 using hgdtest::TempDir;
 using hgdtest::writeText;
+using Result = hgdtest::CommandResult;
 
 // --- helpers ---------------------------------------------------------------------------------
 
-std::string quote(const std::string& s) {
-  std::string q = "'";
-  for (char c : s) {
-    if (c == '\'')
-      q += "'\\''";
-    else
-      q += c;
-  }
-  return q + "'";
-}
-
-struct Result {
-  int code = -1;
-  std::string out;  // stdout
-  std::string err;  // stderr
-};
-
-std::string slurp(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
 /// Runs `hgdeform ARGS` with stdout and stderr captured separately.
 Result cli(const std::string& args) {
-  static TempDir err_dir;  // stderr goes here, never into a directory a test inspects
-  const std::string err_file = err_dir.file("stderr.txt");
-  const std::string command = quote(HGD_TOOL) + " " + args + " 2>" + quote(err_file);
-  Result r;
-  FILE* pipe = popen(command.c_str(), "r");
-  if (!pipe) return r;
-  char buf[4096];
-  std::size_t got;
-  while ((got = fread(buf, 1, sizeof buf, pipe)) > 0) r.out.append(buf, got);
-  const int status = pclose(pipe);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  r.err = slurp(err_file);
-  return r;
-}
-
-bool contains(const std::string& text, const std::string& part) {
-  return text.find(part) != std::string::npos;
+  return shell(quote(HGD_TOOL) + " " + args);
 }
 
 std::set<std::string> listing(const TempDir& dir) {

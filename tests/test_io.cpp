@@ -19,23 +19,17 @@
 
 #include "hgdeform/fields.h"
 #include "hgdeform/io.h"
+#include "test_util.h"
 
 namespace {
 
 namespace fs = std::filesystem;
 using hgd::IoError;
 using hgd::Shape;
+using hgdtest::put;
 using Field = pcl::PCLPointField;
 
 // --- helpers ---------------------------------------------------------------------------------
-
-template <typename T>
-void put(std::string& s, T v, bool big_endian = false) {
-  char b[sizeof(T)];
-  std::memcpy(b, &v, sizeof v);
-  if (big_endian) std::reverse(b, b + sizeof b);
-  s.append(b, sizeof b);
-}
 
 class IoTest : public ::testing::Test {
  public:

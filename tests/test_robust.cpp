@@ -57,18 +57,16 @@ namespace {
 
 namespace fs = std::filesystem;
 using hgd::Shape;
+using hgdtest::contains;
+using hgdtest::put;
+using hgdtest::quote;
+using hgdtest::shell;
+using hgdtest::slurp;
 using hgdtest::TempDir;
+using CliRun = hgdtest::CommandResult;
 using Field = pcl::PCLPointField;
 
 // --- helpers ---------------------------------------------------------------------------------
-
-template <typename T>
-void put(std::string& s, T v, bool big_endian = false) {
-  char b[sizeof(T)];
-  std::memcpy(b, &v, sizeof v);
-  if (big_endian) std::reverse(b, b + sizeof b);
-  s.append(b, sizeof b);
-}
 
 std::string floats(std::initializer_list<float> v, bool big_endian = false) {
   std::string s;
@@ -83,19 +81,6 @@ std::string repeat(const std::string& s, std::size_t n) {
   return out;
 }
 
-std::string quote(const std::string& s) {
-  std::string q = "'";
-  for (const char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return q + "'";
-}
-
-std::string slurp(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
 void writeBytes(const std::string& path, const std::string& bytes) {
   std::ofstream out(path, std::ios::binary | std::ios::trunc);
   out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
@@ -103,35 +88,10 @@ void writeBytes(const std::string& path, const std::string& bytes) {
   ASSERT_TRUE(out.good()) << path;
 }
 
-bool contains(const std::string& text, const std::string& part) {
-  return text.find(part) != std::string::npos;
-}
-
 std::set<std::string> listing(const fs::path& dir) {
   std::set<std::string> names;
   for (const auto& e : fs::directory_iterator(dir)) names.insert(e.path().filename().string());
   return names;
-}
-
-struct CliRun {
-  int code = -1;  ///< exit status; -1 when killed by a signal
-  std::string out, err;
-};
-
-/// Runs a shell command line with stdout and stderr captured separately.
-CliRun shell(const std::string& command) {
-  static TempDir err_dir;  // stderr goes here, never into a directory a test inspects
-  const std::string err_file = err_dir.file("stderr.txt");
-  CliRun r;
-  FILE* pipe = popen((command + " 2>" + quote(err_file)).c_str(), "r");
-  if (!pipe) return r;
-  char buf[4096];
-  std::size_t got;
-  while ((got = fread(buf, 1, sizeof buf, pipe)) > 0) r.out.append(buf, got);
-  const int status = pclose(pipe);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  r.err = slurp(err_file);
-  return r;
 }
 
 /// `hgdeform ARGS` under `timeout 60`: a hang is exit status 124, a crash 128 + signal.

@@ -4,8 +4,10 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -45,6 +47,55 @@ class TempDir {
  private:
   std::filesystem::path path_;
 };
+
+/// Appends the bytes of `v` (in this machine's order, or reversed for the other endianness).
+template <typename T>
+void put(std::string& s, T v, bool big_endian = false) {
+  char b[sizeof(T)];
+  std::memcpy(b, &v, sizeof v);
+  if (big_endian) std::reverse(b, b + sizeof b);
+  s.append(b, sizeof b);
+}
+
+/// `s` as one single-quoted shell word.
+inline std::string quote(const std::string& s) {
+  std::string q = "'";
+  for (const char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return q + "'";
+}
+
+/// A whole file's bytes ("" when it cannot be read).
+inline std::string slurp(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+inline bool contains(const std::string& text, const std::string& part) {
+  return text.find(part) != std::string::npos;
+}
+
+struct CommandResult {
+  int code = -1;  ///< exit status; -1 when killed by a signal
+  std::string out, err;
+};
+
+/// Runs a shell command line with stdout and stderr captured separately.
+inline CommandResult shell(const std::string& command) {
+  static TempDir err_dir;  // stderr goes here, never into a directory a test inspects
+  const std::string err_file = err_dir.file("stderr.txt");
+  CommandResult r;
+  FILE* pipe = popen((command + " 2>" + quote(err_file)).c_str(), "r");
+  if (!pipe) return r;
+  char buf[4096];
+  std::size_t got;
+  while ((got = fread(buf, 1, sizeof buf, pipe)) > 0) r.out.append(buf, got);
+  const int status = pclose(pipe);
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  r.err = slurp(err_file);
+  return r;
+}
 
 inline void writeText(const std::string& path, const std::string& text) {
   std::ofstream out(path, std::ios::binary);
