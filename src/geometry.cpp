@@ -2,10 +2,10 @@
 
 #include <cmath>
 #include <cstdint>
-#include <utility>
 
 #include "hgdeform/fields.h"
 #include "hgdeform/io.h"
+#include "radix_sort.h"
 
 namespace hgd {
 
@@ -53,27 +53,14 @@ Geometry extractGeometry(const Shape& shape) {
       x = (x | (x << 2)) & 0x09249249u;
       return x;
     };
-    std::vector<std::uint32_t> key(m), key2(m), perm2(m);
+    std::vector<std::uint32_t> key(m);
     for (std::size_t k = 0; k < m; ++k) {
       const Eigen::Vector3d q = (world[k] - lo) * scale;
       key[k] = spread(static_cast<std::uint32_t>(q.x())) | (spread(static_cast<std::uint32_t>(q.y())) << 1) |
                (spread(static_cast<std::uint32_t>(q.z())) << 2);
       perm[k] = static_cast<std::uint32_t>(k);
     }
-    std::vector<std::uint32_t> count(1u << 15);
-    for (int shift = 0; shift < 30; shift += 15) {  // LSD radix sort: stable
-      std::fill(count.begin(), count.end(), 0u);
-      for (std::size_t k = 0; k < m; ++k) ++count[(key[k] >> shift) & 0x7fffu];
-      std::uint32_t sum = 0;
-      for (auto& slot : count) sum += std::exchange(slot, sum);
-      for (std::size_t k = 0; k < m; ++k) {
-        const std::uint32_t dst = count[(key[k] >> shift) & 0x7fffu]++;
-        key2[dst] = key[k];
-        perm2[dst] = perm[k];
-      }
-      key.swap(key2);
-      perm.swap(perm2);
-    }
+    radixSort(key, perm, (std::uint32_t{1} << 30) - 1, 15);  // stable: file order within a cell
     std::vector<int> raw(m);
     for (std::size_t k = 0; k < m; ++k) {
       raw[k] = g.raw_index[perm[k]];

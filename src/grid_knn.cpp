@@ -7,6 +7,7 @@
 #include <limits>
 #include <vector>
 
+#include "radix_sort.h"
 #include "timer.h"
 
 namespace hgd {
@@ -49,7 +50,7 @@ struct Grid {
   }
 };
 
-/// Sorts the points into cells of side h (LSD radix sort on the cell keys). Returns false when
+/// Sorts the points into cells of side h (radix sort on the cell keys). Returns false when
 /// h gives too many cells per axis.
 bool bin(const float* xyz, std::size_t n, double h, Grid& g, const double hi[3]) {
   g.h = h;
@@ -59,8 +60,7 @@ bool bin(const float* xyz, std::size_t n, double h, Grid& g, const double hi[3])
     if (!(cells <= kMaxDim)) return false;
     g.dim[a] = static_cast<std::int64_t>(cells);
   }
-  std::vector<std::uint64_t> keys(n), tmp_keys(n);
-  std::vector<std::uint32_t> tmp_order(n);
+  std::vector<std::uint64_t> keys(n);
   g.order.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
     std::int64_t c[3];
@@ -70,25 +70,7 @@ bool bin(const float* xyz, std::size_t n, double h, Grid& g, const double hi[3])
     keys[i] = g.key(c[0], c[1], c[2]);
     g.order[i] = static_cast<std::uint32_t>(i);
   }
-  const std::uint64_t max_key = g.key(g.dim[0] - 1, g.dim[1] - 1, g.dim[2] - 1);
-  std::vector<std::uint32_t> count(1u << 11);
-  for (int shift = 0; shift < 64 && (max_key >> shift) != 0; shift += 11) {
-    std::fill(count.begin(), count.end(), 0u);
-    for (std::size_t i = 0; i < n; ++i) ++count[(keys[i] >> shift) & 2047u];
-    std::uint32_t sum = 0;
-    for (auto& c : count) {
-      const std::uint32_t v = c;
-      c = sum;
-      sum += v;
-    }
-    for (std::size_t i = 0; i < n; ++i) {
-      const std::uint32_t dst = count[(keys[i] >> shift) & 2047u]++;
-      tmp_keys[dst] = keys[i];
-      tmp_order[dst] = g.order[i];
-    }
-    keys.swap(tmp_keys);
-    g.order.swap(tmp_order);
-  }
+  radixSort(keys, g.order, g.key(g.dim[0] - 1, g.dim[1] - 1, g.dim[2] - 1), 11);
   g.cell_key.clear();
   g.cell_start.clear();
   for (std::size_t i = 0; i < n; ++i)
