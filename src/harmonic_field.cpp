@@ -326,51 +326,31 @@ void solveDirichlet(const NeighborGraph& graph, const std::vector<char>& constra
   Stopwatch sw;
   const std::size_t n = graph.size();
   // Free points reachable from a constraint; the others cannot be given a harmonic value.
-  // The free points are numbered in breadth-first order (Cuthill-McKee without the degree
-  // sort): neighbours get nearby numbers, so the solver's sweeps over the Laplacian, the
-  // coarsening and the Galerkin product stay in cache even when the cloud's own order is
-  // random (a resampled or merged scan): 2x faster at 1M shuffled points.
   std::vector<int> free_index(n, -1);
-  std::vector<int> order;
-  order.reserve(n);
-  std::vector<char> visited(n, 0);
   std::vector<char> reached(n, 0);
-  for (std::size_t s = 0; s < n; ++s) {
-    if (visited[s]) continue;
-    const std::size_t begin = order.size();
-    visited[s] = 1;
-    order.push_back(static_cast<int>(s));
-    bool has_constraint = false;
-    for (std::size_t head = begin; head < order.size(); ++head) {
-      const auto v = static_cast<std::size_t>(order[head]);
-      has_constraint = has_constraint || constrained[v];
-      for (const int* j = graph.begin(v); j != graph.end(v); ++j)
-        if (!visited[static_cast<std::size_t>(*j)]) {
-          visited[static_cast<std::size_t>(*j)] = 1;
-          order.push_back(*j);
-        }
+  std::vector<int> stack;
+  for (std::size_t i = 0; i < n; ++i)
+    if (constrained[i]) {
+      reached[i] = 1;
+      stack.push_back(static_cast<int>(i));
     }
-    if (has_constraint)
-      for (std::size_t m = begin; m < order.size(); ++m) reached[static_cast<std::size_t>(order[m])] = 1;
+  while (!stack.empty()) {
+    const int v = stack.back();
+    stack.pop_back();
+    for (const int* j = graph.begin(static_cast<std::size_t>(v)); j != graph.end(static_cast<std::size_t>(v));
+         ++j)
+      if (!reached[static_cast<std::size_t>(*j)]) {
+        reached[static_cast<std::size_t>(*j)] = 1;
+        stack.push_back(*j);
+      }
   }
   unreachable.clear();
-  for (std::size_t i = 0; i < n; ++i)
+  std::vector<int> free_points;
+  for (std::size_t i = 0; i < n; ++i) {
     if (!reached[i]) {
       unreachable.push_back(static_cast<int>(i));
       value[i] = 0.0;
-    }
-  // Only a cloud whose neighbours lie far apart in its own order is renumbered: a scan in
-  // scan-line order (or a generated shape) is already local, and keeps it.
-  double spread = 0;
-  std::size_t edges = 0;
-  for (std::size_t i = 0; i < n; i += 61)
-    for (const int* j = graph.begin(i); j != graph.end(i); ++j, ++edges)
-      spread += std::abs(static_cast<double>(*j) - static_cast<double>(i));
-  const bool renumber = edges > 0 && spread / static_cast<double>(edges) > static_cast<double>(n) / 64;
-  std::vector<int> free_points;
-  for (std::size_t m = 0; m < n; ++m) {
-    const auto i = renumber ? static_cast<std::size_t>(order[m]) : m;
-    if (reached[i] && !constrained[i]) {
+    } else if (!constrained[i]) {
       free_index[i] = static_cast<int>(free_points.size());
       free_points.push_back(static_cast<int>(i));
     }
@@ -382,7 +362,8 @@ void solveDirichlet(const NeighborGraph& graph, const std::vector<char>& constra
     return;
   }
   // Free block of D - W (uniform weights) and the right-hand side from constrained neighbours,
-  // written straight into compressed rows.
+  // written straight into compressed rows (the graph's rows are sorted, and so stay the
+  // columns, free indices growing with point indices).
   Eigen::VectorXd b = Eigen::VectorXd::Zero(nf);
   RowMat a(nf, nf);
   {
@@ -404,18 +385,26 @@ void solveDirichlet(const NeighborGraph& graph, const std::vector<char>& constra
       const auto r = static_cast<std::size_t>(rr);
       const auto i = static_cast<std::size_t>(free_points[r]);
       int k = outer[r];
+      bool diagonal_done = false;
       double rhs = 0;
-      inner[k++] = static_cast<int>(r);
       for (const int* j = graph.begin(i); j != graph.end(i); ++j) {
         const int fj = free_index[static_cast<std::size_t>(*j)];
-        if (fj < 0)
+        if (fj < 0) {
           rhs += value[static_cast<std::size_t>(*j)];
-        else
-          inner[k++] = fj;
+          continue;
+        }
+        if (!diagonal_done && fj > static_cast<int>(r)) {
+          inner[k] = static_cast<int>(r);
+          val[k++] = graph.degree(i);
+          diagonal_done = true;
+        }
+        inner[k] = fj;
+        val[k++] = -1.0;
       }
-      // Columns sorted; the diagonal is the degree, every other entry -1.
-      std::sort(inner + outer[r], inner + k);
-      for (int m = outer[r]; m < k; ++m) val[m] = inner[m] == static_cast<int>(r) ? graph.degree(i) : -1.0;
+      if (!diagonal_done) {
+        inner[k] = static_cast<int>(r);
+        val[k++] = graph.degree(i);
+      }
       b[static_cast<Eigen::Index>(r)] = rhs;
     }
   }
