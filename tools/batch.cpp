@@ -379,6 +379,11 @@ void renderThumbnail(const hgd::Shape& before, const hgd::Shape& after, const fs
 #endif
 
 /// Thumbnail of a deformed scan, or of an up-to-date one (from its input and existing output).
+/// A scan's warnings are one line, joined by "; ".
+void appendWarning(std::string& warning, const std::string& more) {
+  warning += (warning.empty() ? "" : "; ") + more;
+}
+
 /// Returns the name relative to the report directory, "" (and a warning) on failure.
 std::string thumbnail(const Context& ctx, const Scan& s, const hgd::Shape* before, const hgd::Shape* after,
                       std::string& warning) {
@@ -400,7 +405,7 @@ std::string thumbnail(const Context& ctx, const Scan& s, const hgd::Shape* befor
     }
     return name;
   } catch (const std::exception& e) {
-    warning += (warning.empty() ? "" : "; ") + std::string("no thumbnail: ") + e.what();
+    appendWarning(warning, std::string("no thumbnail: ") + e.what());
     return "";
   }
 #else
@@ -458,7 +463,7 @@ ScanResult processScan(const Scan& s, const Context& ctx) {
     r.ms_interpolation = rep.interpolation_ms;
     r.ms_total = rep.total_ms;
     r.notes = rep.notes;
-    for (const auto& w : rep.warnings) r.warning += (r.warning.empty() ? "" : "; ") + w;
+    for (const auto& w : rep.warnings) appendWarning(r.warning, w);
     if (ctx.thumbnails) r.thumbnail = thumbnail(ctx, s, &*before, &shape, r.warning);
   } catch (const std::bad_alloc&) {
     r.status = "failed";

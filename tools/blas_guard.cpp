@@ -13,10 +13,10 @@
 
 namespace {
 
-bool addressSpaceLimited(rlim_t* limit = nullptr) {
+bool addressSpaceLimited(rlim_t& limit) {
   rlimit rl{};
   if (getrlimit(RLIMIT_AS, &rl) != 0 || rl.rlim_cur == RLIM_INFINITY) return false;
-  if (limit) *limit = rl.rlim_cur;
+  limit = rl.rlim_cur;
   return true;
 }
 
@@ -43,7 +43,7 @@ void singleThreadBlas() {
 
 std::string reserveBlasBuffer(char** argv) {
   rlim_t limit = 0;
-  if (!addressSpaceLimited(&limit)) return "";
+  if (!addressSpaceLimited(limit)) return "";
   if (!dlsym(RTLD_DEFAULT, "openblas_get_config")) return "";  // another BLAS: nothing known to fix
   if (!std::getenv("OPENBLAS_NUM_THREADS")) {
     // OpenBLAS read its thread count when it was loaded, and its worker may already be stuck

@@ -9,15 +9,15 @@
 //    OPENBLAS_NUM_THREADS=1 unless the user chose a value: no worker thread, one buffer;
 //  - then maps that one buffer while the address space is still free (OpenBLAS keeps and
 //    reuses it), or fails with a message if it cannot fit.
-// Without a limit nothing changes.
+// Without a limit reserveBlasBuffer() does nothing.
 
 #include <string>
 
 namespace hgdcli {
 
 /// OpenBLAS on one thread unless OPENBLAS_NUM_THREADS says otherwise. hgdeform's BLAS work is
-/// CHOLMOD on systems of at most a few tens of thousands of unknowns, where a second BLAS
-/// thread gains little, while OpenBLAS's idle threads spin (sched_yield) on the core the
+/// CHOLMOD on the field's coarse system (10k unknowns at 173k points, 61k at 1M), where a
+/// second BLAS thread gains little, while OpenBLAS's idle threads spin (sched_yield) on the core the
 /// OpenMP team needs: at 173k points that cost the kNN and the field solve up to 2x.
 void singleThreadBlas();
 
