@@ -1441,6 +1441,21 @@ TEST(RobustNumerics, GaussNewtonThatCannotDecreaseIsReportedByTheCli) {
   EXPECT_EQ(nonFinite(positions(hgd::readShape(dir.file("out.ply")))), 0u);
 }
 
+TEST(RobustNumerics, FrameMoveThatCannotDecreaseIsReportedByTheCli) {
+  TempDir dir;
+  hgd::writeShape(dir.file("bar.ply"), hgd::shapes::bar());
+  writeBytes(dir.file("s.json"), "{" + kBarHandles + R"(, "move": {"frame": {"translate": [1e15, 0, 0]}}})");
+  const CliRun r = cli("deform " + quote(dir.file("bar.ply")) + " -s " + quote(dir.file("s.json")) + " -o " +
+                       quote(dir.file("out.ply")) + " --report " + quote(dir.file("r.json")) + " -q");
+  EXPECT_TRUE(
+      contains(r.err, "hgdeform: warning: move 1 (frame): Gauss-Newton could not decrease the energy"))
+      << "exit " << r.code << ", stderr: " << r.err;
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(nonFinite(positions(hgd::readShape(dir.file("out.ply")))), 0u);
+  const std::string report = slurp(dir.file("r.json"));
+  EXPECT_TRUE(contains(report, "\"warnings\"") && contains(report, "move 1 (frame): Gauss-Newton")) << report;
+}
+
 // --- coordinates far from the origin ----------------------------------------------------------
 
 TEST(RobustGeoreferenced, OffsetShapeDeformsLikeTheCentredOne) {
