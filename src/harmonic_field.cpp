@@ -116,24 +116,51 @@ namespace {
 using SpMat = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
 using RowMat = Eigen::SparseMatrix<double, Eigen::RowMajor, int>;
 
-// y = A x for a row-major sparse matrix, in parallel.
-// y = A x for the free block of the graph Laplacian: off-diagonal entries are all -1, so only
-// the column indices are read (half the memory traffic of a general product).
-void multiply(const RowMat& a, const Eigen::VectorXd& diag, const Eigen::VectorXd& x, Eigen::VectorXd& y) {
+// Calls f(r, (A x)_r) for every row r of a row-major sparse matrix, in parallel, and returns
+// the sum of what f returns (for the dot products that ride along). `unit`: the free block of
+// the graph Laplacian, whose off-diagonal entries are all -1, so only the column indices are
+// read (half the memory traffic of a general product). The solver's vector updates are fused
+// into these passes: at a million points it is bound by memory traffic, not arithmetic.
+template <typename F>
+double forRows(const RowMat& a, bool unit, const Eigen::VectorXd& diag, const Eigen::VectorXd& x, F&& f) {
   const long long rows = a.rows();
-  y.resize(a.rows());
   const int* outer = a.outerIndexPtr();
   const int* inner = a.innerIndexPtr();
-#pragma omp parallel for schedule(static) if (rows > kParallelMin)
-  for (long long r = 0; r < rows; ++r) {
-    double s = 0;
-    for (int m = outer[r]; m < outer[r + 1]; ++m) s += x[inner[m]];
-    y[r] = (diag[r] + 1.0) * x[r] - s;  // the diagonal's own column was summed with the rest
+  const double* val = a.valuePtr();
+  const double* xp = x.data();
+  double sum = 0;
+  if (unit) {
+    const double* dp = diag.data();
+#pragma omp parallel for schedule(static) reduction(+ : sum) if (rows > kParallelMin)
+    for (long long r = 0; r < rows; ++r) {
+      double s = 0;
+      for (int m = outer[r]; m < outer[r + 1]; ++m) s += xp[inner[m]];
+      sum += f(r, (dp[r] + 1.0) * xp[r] - s);  // the diagonal's own column was summed with the rest
+    }
+  } else {
+#pragma omp parallel for schedule(static) reduction(+ : sum) if (rows > kParallelMin)
+    for (long long r = 0; r < rows; ++r) {
+      double s = 0;
+      for (int m = outer[r]; m < outer[r + 1]; ++m) s += val[m] * xp[inner[m]];
+      sum += f(r, s);
+    }
   }
+  return sum;
 }
 
-// Coarse points: a maximal distance-2 independent set of the graph (greedy), so that every
-// point is within two hops of a coarse point and coarse points follow the graph's topology.
+// y = P x (or P^T x given as a row-major matrix).
+void apply(const RowMat& p, const Eigen::VectorXd& x, Eigen::VectorXd& y) {
+  y.resize(p.rows());
+  double* yp = y.data();
+  forRows(p, false, x, x, [yp](long long r, double px) {
+    yp[r] = px;
+    return 0.0;
+  });
+}
+
+// Coarse points: a maximal distance-2 independent set of the matrix graph (greedy), so that
+// every point is within two hops of a coarse point and coarse points follow the graph's
+// topology.
 std::vector<int> coarsen(const RowMat& a, std::vector<int>& coarse_of) {
   const int n = static_cast<int>(a.rows());
   coarse_of.assign(static_cast<std::size_t>(n), -1);
@@ -155,52 +182,113 @@ std::vector<int> coarsen(const RowMat& a, std::vector<int>& coarse_of) {
   return coarse;
 }
 
+// Splits [0, n) into one contiguous block per thread and runs body(begin, end, thread), in
+// parallel when n is large; returns the number of blocks.
+template <typename Body>
+int forBlocks(long long n, Body&& body) {
+  int threads = 1;
+#ifdef _OPENMP
+  if (n > kParallelMin) threads = omp_get_max_threads();
+#endif
+#pragma omp parallel num_threads(threads)
+  {
+    int t = 0;
+#ifdef _OPENMP
+    t = omp_get_thread_num();
+#endif
+    body(static_cast<int>(n * t / threads), static_cast<int>(n * (t + 1) / threads), t);
+  }
+  return threads;
+}
+
+// Assembles a row-major matrix from per-thread blocks of consecutive rows.
+RowMat fromBlocks(int rows, int cols, std::vector<int>& row_nnz, const std::vector<std::vector<int>>& inner,
+                  const std::vector<std::vector<double>>& val) {
+  for (int r = 0; r < rows; ++r)
+    row_nnz[static_cast<std::size_t>(r) + 1] += row_nnz[static_cast<std::size_t>(r)];
+  RowMat m(rows, cols);
+  m.resizeNonZeros(row_nnz.back());
+  std::copy(row_nnz.begin(), row_nnz.end(), m.outerIndexPtr());
+  std::size_t at = 0;
+  for (std::size_t t = 0; t < inner.size(); ++t) {
+    std::copy(inner[t].begin(), inner[t].end(), m.innerIndexPtr() + at);
+    std::copy(val[t].begin(), val[t].end(), m.valuePtr() + at);
+    at += inner[t].size();
+  }
+  return m;
+}
+
 // Prolongation: each fine point takes its coarse value (coarse points), else the mean of the
-// coarse points among its neighbours, else of those two hops away.
+// coarse points among its neighbours, else of those two hops away (the union of its
+// neighbours' rows). Rows in parallel; columns come out sorted, as coarse indices grow with
+// point indices.
 RowMat prolongation(const RowMat& a, const std::vector<int>& coarse_of, int n_coarse) {
   const int n = static_cast<int>(a.rows());
-  // Written straight into compressed rows (rows in order, columns sorted within each).
-  std::vector<int> outer(static_cast<std::size_t>(n) + 1, 0), inner;
-  std::vector<double> val;
-  inner.reserve(static_cast<std::size_t>(n) * 3);
-  val.reserve(static_cast<std::size_t>(n) * 3);
   const int* ao = a.outerIndexPtr();
   const int* ai = a.innerIndexPtr();
-  std::vector<int> found;
-  for (int i = 0; i < n; ++i) {
-    found.clear();
-    if (coarse_of[static_cast<std::size_t>(i)] >= 0) {
-      found.push_back(coarse_of[static_cast<std::size_t>(i)]);
-    } else {
-      for (int m = ao[i]; m < ao[i + 1]; ++m)
-        if (ai[m] != i && coarse_of[static_cast<std::size_t>(ai[m])] >= 0)
-          found.push_back(coarse_of[static_cast<std::size_t>(ai[m])]);
-      if (found.empty())
-        for (int m = ao[i]; m < ao[i + 1]; ++m)
-          for (int q = ao[ai[m]]; q < ao[ai[m] + 1]; ++q)
-            if (coarse_of[static_cast<std::size_t>(ai[q])] >= 0)
-              found.push_back(coarse_of[static_cast<std::size_t>(ai[q])]);
-      std::sort(found.begin(), found.end());
-      found.erase(std::unique(found.begin(), found.end()), found.end());
-    }
-    for (int c : found) {
-      inner.push_back(c);
-      val.push_back(1.0 / static_cast<double>(found.size()));
-    }
-    outer[static_cast<std::size_t>(i) + 1] = static_cast<int>(inner.size());
+  const int* co = coarse_of.data();
+  const long long rows = n;
+  // Rows of the coarse points and their neighbours.
+  std::vector<int> near(static_cast<std::size_t>(n) + 1, 0);
+#pragma omp parallel for schedule(static) if (rows > kParallelMin)
+  for (long long i = 0; i < rows; ++i) {
+    int c = 0;
+    if (co[i] >= 0)
+      c = 1;
+    else
+      for (int m = ao[i]; m < ao[i + 1]; ++m) c += co[ai[m]] >= 0;
+    near[static_cast<std::size_t>(i) + 1] = c;
   }
-  RowMat p(n, n_coarse);
-  p.resizeNonZeros(static_cast<Eigen::Index>(inner.size()));
-  std::copy(outer.begin(), outer.end(), p.outerIndexPtr());
-  std::copy(inner.begin(), inner.end(), p.innerIndexPtr());
-  std::copy(val.begin(), val.end(), p.valuePtr());
-  return p;
+  for (int i = 0; i < n; ++i) near[static_cast<std::size_t>(i) + 1] += near[static_cast<std::size_t>(i)];
+  std::vector<int> near_cols(static_cast<std::size_t>(near.back()));
+#pragma omp parallel for schedule(static) if (rows > kParallelMin)
+  for (long long i = 0; i < rows; ++i) {
+    int at = near[static_cast<std::size_t>(i)];
+    if (co[i] >= 0)
+      near_cols[static_cast<std::size_t>(at)] = co[i];
+    else
+      for (int m = ao[i]; m < ao[i + 1]; ++m)
+        if (co[ai[m]] >= 0) near_cols[static_cast<std::size_t>(at++)] = co[ai[m]];
+  }
+  int threads = 1;
+#ifdef _OPENMP
+  if (n > kParallelMin) threads = omp_get_max_threads();
+#endif
+  std::vector<std::vector<int>> inner(static_cast<std::size_t>(threads));
+  std::vector<std::vector<double>> val(static_cast<std::size_t>(threads));
+  std::vector<int> row_nnz(static_cast<std::size_t>(n) + 1, 0);
+  forBlocks(n, [&](int begin, int end, int t) {
+    auto& my_inner = inner[static_cast<std::size_t>(t)];
+    auto& my_val = val[static_cast<std::size_t>(t)];
+    my_inner.reserve(static_cast<std::size_t>(end - begin) * 3 / 2);
+    my_val.reserve(static_cast<std::size_t>(end - begin) * 3 / 2);
+    std::vector<int> found;
+    for (int i = begin; i < end; ++i) {
+      const int* b = near_cols.data() + near[static_cast<std::size_t>(i)];
+      const int* e = near_cols.data() + near[static_cast<std::size_t>(i) + 1];
+      if (b == e) {  // two hops from the nearest coarse points
+        found.clear();
+        for (int m = ao[i]; m < ao[i + 1]; ++m)
+          found.insert(found.end(), near_cols.data() + near[static_cast<std::size_t>(ai[m])],
+                       near_cols.data() + near[static_cast<std::size_t>(ai[m]) + 1]);
+        std::sort(found.begin(), found.end());
+        found.erase(std::unique(found.begin(), found.end()), found.end());
+        b = found.data();
+        e = found.data() + found.size();
+      }
+      const double w = 1.0 / static_cast<double>(e - b);
+      my_inner.insert(my_inner.end(), b, e);
+      my_val.insert(my_val.end(), static_cast<std::size_t>(e - b), w);
+      row_nnz[static_cast<std::size_t>(i) + 1] = static_cast<int>(e - b);
+    }
+  });
+  return fromBlocks(n, n_coarse, row_nnz, inner, val);
 }
 
 // The Galerkin coarse operator P^T A P in one pass per coarse row (Eigen's two general sparse
 // products cost three times as much): row I sums w_iI a_ij w_jJ over the fine rows i that I
 // interpolates to, their neighbours j, and j's coarse points J. Rows run in parallel.
-SpMat galerkin(const RowMat& a, const RowMat& p, const RowMat& pt) {
+RowMat galerkin(const RowMat& a, const RowMat& p, const RowMat& pt) {
   const int nc = static_cast<int>(p.cols());
   int threads = 1;
 #ifdef _OPENMP
@@ -221,19 +309,23 @@ SpMat galerkin(const RowMat& a, const RowMat& p, const RowMat& pt) {
     std::vector<int> slot(static_cast<std::size_t>(nc), -1), touched;
     auto& my_cols = cols[static_cast<std::size_t>(t)];
     auto& my_vals = vals[static_cast<std::size_t>(t)];
+    const int *po = p.outerIndexPtr(), *pi = p.innerIndexPtr(), *to = pt.outerIndexPtr(),
+              *ti = pt.innerIndexPtr(), *ao = a.outerIndexPtr(), *ai = a.innerIndexPtr();
+    const double *pv = p.valuePtr(), *tv = pt.valuePtr(), *av = a.valuePtr();
     for (int ci = begin; ci < end; ++ci) {
       touched.clear();
-      for (RowMat::InnerIterator pi(pt, ci); pi; ++pi) {
-        const int i = static_cast<int>(pi.index());
-        for (RowMat::InnerIterator ai(a, i); ai; ++ai) {
-          const double w = pi.value() * ai.value();
-          for (RowMat::InnerIterator pj(p, ai.index()); pj; ++pj) {
-            const int cj = static_cast<int>(pj.index());
+      for (int m = to[ci]; m < to[ci + 1]; ++m) {
+        const int i = ti[m];
+        for (int q = ao[i]; q < ao[i + 1]; ++q) {
+          const double w = tv[m] * av[q];
+          const int j = ai[q];
+          for (int s = po[j]; s < po[j + 1]; ++s) {
+            const int cj = pi[s];
             if (slot[static_cast<std::size_t>(cj)] < 0) {
               slot[static_cast<std::size_t>(cj)] = 1;
               touched.push_back(cj);
             }
-            acc[static_cast<std::size_t>(cj)] += w * pj.value();
+            acc[static_cast<std::size_t>(cj)] += w * pv[s];
           }
         }
       }
@@ -247,75 +339,182 @@ SpMat galerkin(const RowMat& a, const RowMat& p, const RowMat& pt) {
       row_nnz[static_cast<std::size_t>(ci) + 1] = static_cast<int>(touched.size());
     }
   }
-  for (int ci = 0; ci < nc; ++ci)
-    row_nnz[static_cast<std::size_t>(ci) + 1] += row_nnz[static_cast<std::size_t>(ci)];
-  RowMat ac(nc, nc);
-  ac.resizeNonZeros(row_nnz.back());
-  std::copy(row_nnz.begin(), row_nnz.end(), ac.outerIndexPtr());
-  std::size_t at = 0;
-  for (int t = 0; t < threads; ++t) {
-    std::copy(cols[static_cast<std::size_t>(t)].begin(), cols[static_cast<std::size_t>(t)].end(),
-              ac.innerIndexPtr() + at);
-    std::copy(vals[static_cast<std::size_t>(t)].begin(), vals[static_cast<std::size_t>(t)].end(),
-              ac.valuePtr() + at);
-    at += cols[static_cast<std::size_t>(t)].size();
-  }
-  return SpMat(ac);
+  return fromBlocks(nc, nc, row_nnz, cols, vals);
 }
 
-// Two-grid preconditioned conjugate gradients: damped-Jacobi smoothing around an exact
-// Galerkin coarse solve. Symmetric, so CG applies; converges in a few dozen iterations
-// independently of the size.
+// A multigrid hierarchy for the free block of the Laplacian: each level's coarse points are a
+// distance-2 independent set of its graph, prolongation averages, and the coarse operator is
+// Galerkin's P^T A P, down to a level small enough for a sparse Cholesky factor. One V-cycle
+// (damped Jacobi before and after the coarse correction, so the cycle is symmetric) is the
+// preconditioner of conjugate gradients.
+class Hierarchy {
+ public:
+  static constexpr int kDirect = 4000;  ///< coarsest level: at most this many unknowns
+
+  bool build(const RowMat& a0) {
+    levels_.reserve(8);  // Levels hold Eigen matrices, whose moves may copy: no reallocation
+    levels_.emplace_back();
+    levels_.back().a = &a0;
+    levels_.back().unit = true;
+    for (;;) {
+      Level& l = levels_.back();
+      l.diag = l.a->diagonal();
+      l.inv_diag = l.diag.cwiseInverse();
+      if (l.a->rows() <= kDirect || levels_.size() >= 8) break;
+      std::vector<int> coarse_of;
+      const std::vector<int> coarse = coarsen(*l.a, coarse_of);
+      // Coarsening that stalls (a dense graph) gains nothing from another level.
+      if (coarse.size() * 10 > static_cast<std::size_t>(l.a->rows()) * 9) break;
+      l.p = prolongation(*l.a, coarse_of, static_cast<int>(coarse.size()));
+      l.pt = l.p.transpose();
+      levels_.emplace_back();
+      levels_.back().own = galerkin(*l.a, l.p, l.pt);
+      levels_.back().a = &levels_.back().own;
+    }
+    // AMD alone (CHOLMOD's default also tries METIS, which costs more than it saves here), and
+    // CHOLMOD's own choice of simplicial or supernodal.
+    direct_.setMode(Eigen::CholmodAuto);
+    direct_.cholmod().nmethods = 1;
+    direct_.cholmod().method[0].ordering = CHOLMOD_AMD;
+    direct_.compute(SpMat(*levels_.back().a));
+    return direct_.info() == Eigen::Success;
+  }
+
+  std::size_t levels() const { return levels_.size(); }
+  /// Calls f(i, (A x)_i) over the finest level's rows; returns the sum of f.
+  template <typename F>
+  double forFineRows(const Eigen::VectorXd& x, F&& f) const {
+    return forRows(*levels_.front().a, true, levels_.front().diag, x, std::forward<F>(f));
+  }
+
+  /// z = one cycle from level li applied to r: damped Jacobi, the coarse correction (twice
+  /// below the finest level: a W-cycle, cheap there, and symmetric like the V), damped Jacobi.
+  void cycle(std::size_t li, const Eigen::VectorXd& r, Eigen::VectorXd& z) {
+    Level& l = levels_[li];
+    if (li + 1 == levels_.size()) {
+      z = direct_.solve(r);
+      return;
+    }
+    constexpr double omega = 0.6;
+    const int sweeps = li == 0 ? 1 : 2;  // the coarse levels are small: smooth them twice
+    const int corrections = li == 0 ? 1 : 2;
+    const long long n = l.a->rows();
+    z.resize(n);
+    l.t.resize(n);
+    l.u.resize(n);
+    const double* rp = r.data();
+    const double* ip = l.inv_diag.data();
+    double* zw = z.data();
+#pragma omp parallel for schedule(static) if (n > kParallelMin)
+    for (long long i = 0; i < n; ++i) zw[i] = omega * ip[i] * rp[i];
+    auto sweep = [&]() {
+      double* up = l.u.data();
+      const double* zp = z.data();
+      forRows(*l.a, l.unit, l.diag, z, [=](long long i, double az) {
+        up[i] = zp[i] + omega * ip[i] * (rp[i] - az);
+        return 0.0;
+      });
+      z.swap(l.u);
+    };
+    for (int s = 1; s < sweeps; ++s) sweep();
+    for (int c = 0; c < corrections; ++c) {
+      double* tp = l.t.data();
+      forRows(*l.a, l.unit, l.diag, z, [=](long long i, double az) {
+        tp[i] = rp[i] - az;
+        return 0.0;
+      });
+      apply(l.pt, l.t, l.rc);
+      cycle(li + 1, l.rc, l.zc);
+      double* zp = z.data();
+      forRows(l.p, false, l.zc, l.zc, [=](long long i, double pz) {
+        zp[i] += pz;
+        return 0.0;
+      });
+    }
+    for (int s = 0; s < sweeps; ++s) sweep();
+  }
+
+  /// The coarsest level's exact solution of the restricted system, prolonged to the finest.
+  void coarseGuess(const Eigen::VectorXd& b, Eigen::VectorXd& x) {
+    std::vector<Eigen::VectorXd> rs(levels_.size());
+    rs[0] = b;
+    for (std::size_t li = 0; li + 1 < levels_.size(); ++li) apply(levels_[li].pt, rs[li], rs[li + 1]);
+    x = direct_.solve(rs.back());
+    for (std::size_t li = levels_.size() - 1; li-- > 0;) {
+      Eigen::VectorXd up;
+      apply(levels_[li].p, x, up);
+      x = std::move(up);
+    }
+  }
+
+ private:
+  struct Level {
+    const RowMat* a = nullptr;
+    RowMat own, p, pt;
+    bool unit = false;  ///< off-diagonals all -1 (the finest level)
+    Eigen::VectorXd diag, inv_diag;
+    Eigen::VectorXd t, u, rc, zc;  // work vectors
+  };
+  std::vector<Level> levels_;
+  Eigen::CholmodDecomposition<SpMat, Eigen::Lower> direct_;
+};
+
+// Multigrid-preconditioned conjugate gradients; converges in a few iterations independently
+// of the size.
 bool solveMultilevel(const RowMat& a, const Eigen::VectorXd& b, Eigen::VectorXd& x, const FieldOptions& opt,
                      int& iterations) {
-  std::vector<int> coarse_of;
-  const std::vector<int> coarse = coarsen(a, coarse_of);
-  const RowMat p = prolongation(a, coarse_of, static_cast<int>(coarse.size()));
-  const RowMat pt = p.transpose();
-  SpMat ac = galerkin(a, p, pt);
-  // AMD alone (CHOLMOD's default also tries METIS, which costs more than it saves here), and
-  // CHOLMOD's own choice of simplicial or supernodal: simplicial at 173k points (10k coarse
-  // unknowns), supernodal at 1M.
-  Eigen::CholmodDecomposition<SpMat, Eigen::Lower> coarse_solver;
-  coarse_solver.setMode(Eigen::CholmodAuto);
-  coarse_solver.cholmod().nmethods = 1;
-  coarse_solver.cholmod().method[0].ordering = CHOLMOD_AMD;
-  coarse_solver.compute(ac);
-  if (coarse_solver.info() != Eigen::Success) return false;
-  const Eigen::VectorXd diag = a.diagonal();
-  const Eigen::VectorXd inv_diag = diag.cwiseInverse();
-  const double omega = 0.6;
-  Eigen::VectorXd t1, t2;
-  auto precondition = [&](const Eigen::VectorXd& r, Eigen::VectorXd& z) {
-    z = omega * inv_diag.cwiseProduct(r);
-    multiply(a, diag, z, t1);
-    Eigen::VectorXd rc = pt * (r - t1);
-    z += p * coarse_solver.solve(rc);
-    multiply(a, diag, z, t1);
-    z += omega * inv_diag.cwiseProduct(r - t1);
-  };
-  // Initial guess: the coarse solution, prolonged.
-  x = p * coarse_solver.solve(pt * b);
-  Eigen::VectorXd r(b.size()), z, d, q;
-  multiply(a, diag, x, t2);
-  r = b - t2;
+  Hierarchy h;
+  if (!h.build(a)) return false;
+  h.coarseGuess(b, x);
+  const long long n = b.size();
+  Eigen::VectorXd r(n), z, d, q(n);
+  {
+    double* rp = r.data();
+    const double* bp = b.data();
+    h.forFineRows(x, [=](long long i, double ax) {
+      rp[i] = bp[i] - ax;
+      return 0.0;
+    });
+  }
   const double bnorm = std::max(b.norm(), 1e-300);
-  precondition(r, z);
+  double rnorm = r.norm();
+  h.cycle(0, r, z);
   d = z;
   double rz = r.dot(z);
   iterations = 0;
-  while (r.norm() / bnorm > opt.tolerance && iterations < opt.max_iterations) {
-    multiply(a, diag, d, q);
-    const double alpha = rz / d.dot(q);
-    x += alpha * d;
-    r -= alpha * q;
-    precondition(r, z);
+  while (rnorm / bnorm > opt.tolerance && iterations < opt.max_iterations) {
+    double* qp = q.data();
+    const double* dp = d.data();
+    const double dq = h.forFineRows(d, [=](long long i, double ad) {
+      qp[i] = ad;
+      return dp[i] * ad;
+    });
+    const double alpha = rz / dq;
+    double rr = 0;
+    {
+      double* xp = x.data();
+      double* rp = r.data();
+#pragma omp parallel for schedule(static) reduction(+ : rr) if (n > kParallelMin)
+      for (long long i = 0; i < n; ++i) {
+        xp[i] += alpha * dp[i];
+        rp[i] -= alpha * qp[i];
+        rr += rp[i] * rp[i];
+      }
+    }
+    rnorm = std::sqrt(rr);
+    h.cycle(0, r, z);
     const double rz_new = r.dot(z);
-    d = z + (rz_new / rz) * d;
+    const double beta = rz_new / rz;
+    {
+      double* dw = d.data();
+      const double* zp = z.data();
+#pragma omp parallel for schedule(static) if (n > kParallelMin)
+      for (long long i = 0; i < n; ++i) dw[i] = zp[i] + beta * dw[i];
+    }
     rz = rz_new;
     ++iterations;
   }
-  return r.norm() / bnorm <= opt.tolerance * 10;
+  return rnorm / bnorm <= opt.tolerance * 10;
 }
 
 }  // namespace

@@ -1353,11 +1353,17 @@ TEST(RobustGeometry, FarAwayTargetsEndInTimeWithFiniteOutput) {
 // --- numerical failure --------------------------------------------------------------------------
 
 TEST(RobustNumerics, FieldSolverThatDoesNotConvergeIsReported) {
-  const hgd::Geometry g = hgd::extractGeometry(hgd::shapes::bar());
-  const hgd::Handles h = barHandles(g);
+  // Large enough for several levels (a small cloud's only level is an exact Cholesky solve).
+  const hgd::Geometry g = hgd::extractGeometry(hgd::shapes::bumpySphere(40000));
+  std::vector<std::vector<int>> fixed(1);
+  std::vector<int> manipulated;
+  for (std::size_t i = 0; i < g.size(); ++i) {
+    if (g.world(i).z() < -0.9) fixed[0].push_back(static_cast<int>(i));
+    if (g.world(i).x() > 0.9) manipulated.push_back(static_cast<int>(i));
+  }
   hgd::HarmonicField field;
   field.setInputCloud(g.points);
-  field.setHandles(h.fixed, h.manipulated);
+  field.setHandles(fixed, manipulated);
   hgd::FieldOptions opt;
   opt.solver = hgd::FieldSolver::Multilevel;
   opt.max_iterations = 1;

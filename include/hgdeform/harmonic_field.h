@@ -24,7 +24,7 @@ namespace hgd {
 enum class FieldSolver {
   Auto,        ///< exact below FieldOptions::exact_limit free points, multilevel above
   Exact,       ///< sparse Cholesky (CHOLMOD supernodal) of the free block: the reference
-  Multilevel,  ///< two-grid preconditioned CG (coarse Galerkin solve, prolongation, smoothing)
+  Multilevel,  ///< multigrid-preconditioned CG (Galerkin levels down to a small Cholesky solve)
 };
 
 struct FieldOptions {
