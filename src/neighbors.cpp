@@ -6,6 +6,7 @@
 #include <array>
 #include <cmath>
 #include <flann/flann.hpp>
+#include <memory>
 
 #include "grid_knn.h"
 #include "timer.h"
@@ -261,21 +262,119 @@ NeighborGraph symmetricGraph(std::size_t n, ForEachEdge&& for_each_edge) {
 }  // namespace
 
 NeighborGraph knnGraph(const KnnTable& knn, int k, const pcl::PointCloud<pcl::Normal>* normals) {
+  // In parallel passes rather than through a generic edge list (this runs once per cloud on
+  // a million points): each row's kept entries sorted; the reverse lists, sorted by
+  // construction (filled in row order); then each row is the merge of the two.
   const std::size_t n = knn.size();
-  const int kk = std::min(k, knn.k);
-  return symmetricGraph(n, [&](auto&& emit) {
-    for (std::size_t i = 0; i < n; ++i) {
-      const int* row = knn.row(i);
-      for (int m = 0; m < kk; ++m) {
-        const int j = row[m];
-        if (j == static_cast<int>(i)) continue;
-        if (normals && (*normals)[i].getNormalVector3fMap().dot(
-                           (*normals)[static_cast<std::size_t>(j)].getNormalVector3fMap()) < 0)
-          continue;
-        emit(static_cast<int>(i), j);
-      }
+  const int kk = std::max(0, std::min(k, knn.k));
+  const long long nn = static_cast<long long>(n);
+  const auto ukk = static_cast<std::size_t>(kk);
+  // Not zero-filled: every slot read is written first (the rows in parallel, first touch).
+  std::unique_ptr<int[]> fwd(new int[n * ukk]), fwd_count(new int[n]);
+#pragma omp parallel for schedule(static) if (nn > kParallelMin)
+  for (long long ii = 0; ii < nn; ++ii) {
+    const auto i = static_cast<std::size_t>(ii);
+    const int* row = knn.row(i);
+    int* out = fwd.get() + i * ukk;
+    int c = 0;
+    for (int m = 0; m < kk; ++m) {
+      const int j = row[m];
+      if (j == static_cast<int>(i)) continue;
+      if (normals && (*normals)[i].getNormalVector3fMap().dot(
+                         (*normals)[static_cast<std::size_t>(j)].getNormalVector3fMap()) < 0)
+        continue;
+      // Insertion into the sorted prefix (k is small), skipping repeats.
+      int at = c;
+      while (at > 0 && out[at - 1] > j) --at;
+      if (at > 0 && out[at - 1] == j) continue;
+      for (int q = c; q > at; --q) out[q] = out[q - 1];
+      out[at] = j;
+      ++c;
     }
-  });
+    fwd_count[i] = c;
+  }
+  // Reverse lists: per-thread counts, so that each thread writes its own rows' entries to
+  // slots reserved for it, in row order.
+  int threads = 1;
+#ifdef _OPENMP
+  if (nn > kParallelMin) threads = omp_get_max_threads();
+#endif
+  std::vector<std::vector<int>> rcount(static_cast<std::size_t>(threads), std::vector<int>(n + 1, 0));
+  auto block = [&](int t) {
+    return std::pair<std::size_t, std::size_t>(
+        n * static_cast<std::size_t>(t) / static_cast<std::size_t>(threads),
+        n * static_cast<std::size_t>(t + 1) / static_cast<std::size_t>(threads));
+  };
+#pragma omp parallel num_threads(threads)
+  {
+    int t = 0;
+#ifdef _OPENMP
+    t = omp_get_thread_num();
+#endif
+    auto& cnt = rcount[static_cast<std::size_t>(t)];
+    const auto [b, e] = block(t);
+    for (std::size_t i = b; i < e; ++i)
+      for (int m = 0; m < fwd_count[i]; ++m)
+        ++cnt[static_cast<std::size_t>(fwd[i * ukk + static_cast<std::size_t>(m)])];
+  }
+  std::vector<int> roff(n + 1, 0);
+  for (std::size_t j = 0; j < n; ++j) {
+    int at = roff[j];
+    for (int t = 0; t < threads; ++t) {
+      const int c = rcount[static_cast<std::size_t>(t)][j];
+      rcount[static_cast<std::size_t>(t)][j] = at;  // this thread's first slot in row j
+      at += c;
+    }
+    roff[j + 1] = at;
+  }
+  std::unique_ptr<int[]> rev(new int[static_cast<std::size_t>(roff[n])]);
+#pragma omp parallel num_threads(threads)
+  {
+    int t = 0;
+#ifdef _OPENMP
+    t = omp_get_thread_num();
+#endif
+    auto& slot = rcount[static_cast<std::size_t>(t)];
+    const auto [b, e] = block(t);
+    for (std::size_t i = b; i < e; ++i)
+      for (int m = 0; m < fwd_count[i]; ++m) {
+        const auto j = static_cast<std::size_t>(fwd[i * ukk + static_cast<std::size_t>(m)]);
+        rev[static_cast<std::size_t>(slot[j]++)] = static_cast<int>(i);
+      }
+  }
+  rcount.clear();
+  rcount.shrink_to_fit();
+  // Each row: the union of its sorted forward and reverse lists; counted, then written.
+  auto merge = [&](std::size_t i, int* out) {
+    const int *a = fwd.get() + i * ukk, *ae = a + fwd_count[i];
+    const int *b = rev.get() + roff[i], *be = rev.get() + roff[i + 1];
+    int c = 0;
+    while (a != ae || b != be) {
+      int v;
+      if (b == be || (a != ae && *a < *b))
+        v = *a++;
+      else if (a == ae || *b < *a)
+        v = *b++;
+      else {
+        v = *a++;
+        ++b;
+      }
+      if (out) out[c] = v;
+      ++c;
+    }
+    return c;
+  };
+  NeighborGraph g;
+  g.offsets.assign(n + 1, 0);
+#pragma omp parallel for schedule(static) if (nn > kParallelMin)
+  for (long long i = 0; i < nn; ++i)
+    g.offsets[static_cast<std::size_t>(i) + 1] = merge(static_cast<std::size_t>(i), nullptr);
+  for (std::size_t i = 0; i < n; ++i) g.offsets[i + 1] += g.offsets[i];
+  g.adj.resize(static_cast<std::size_t>(g.offsets[n]));
+#pragma omp parallel for schedule(static) if (nn > kParallelMin)
+  for (long long i = 0; i < nn; ++i)
+    merge(static_cast<std::size_t>(i), g.adj.data() + g.offsets[static_cast<std::size_t>(i)]);
+  return g;
 }
 
 NeighborGraph ringGraph(std::size_t n, const std::vector<pcl::Vertices>& faces) {
