@@ -299,6 +299,52 @@ TEST(Knn, ExactOnSurfacesVolumesAndOutliers) {
   }
 }
 
+// The neighbour graph is the symmetric closure of the kNN relation, without self-loops,
+// repeats or pairs whose normals disagree: checked against a set-based construction, on a
+// cloud large enough for the parallel passes, with some normals flipped and duplicate rows.
+TEST(Knn, GraphIsTheSymmetricFilteredRelation) {
+  const hgd::Geometry g = hgd::extractGeometry(hgd::shapes::bumpySphere(30000));
+  hgd::KnnTable knn = hgd::computeKnn(*g.points, 12);
+  std::mt19937 rng(3);
+  pcl::PointCloud<pcl::Normal> normals = *g.file_normals;
+  ASSERT_EQ(normals.size(), g.size());
+  for (auto& n : normals)
+    if (rng() % 7 == 0) n.getNormalVector3fMap() *= -1.0f;
+  // Rows with a self entry and a repeated neighbour (as computeKnn leaves for coincident points).
+  for (std::size_t i = 0; i < knn.size(); i += 101) {
+    int* row = knn.index.data() + i * static_cast<std::size_t>(knn.k);
+    row[3] = static_cast<int>(i);
+    row[5] = row[4];
+  }
+  for (const bool filter : {false, true}) {
+    SCOPED_TRACE(filter ? "normal filter" : "no filter");
+    const int k = 10;
+    const hgd::NeighborGraph graph = hgd::knnGraph(knn, k, filter ? &normals : nullptr);
+    std::vector<std::vector<int>> expected(knn.size());
+    for (std::size_t i = 0; i < knn.size(); ++i)
+      for (int m = 0; m < k; ++m) {
+        const int j = knn.row(i)[m];
+        if (j == static_cast<int>(i)) continue;
+        if (filter && normals[i].getNormalVector3fMap().dot(
+                          normals[static_cast<std::size_t>(j)].getNormalVector3fMap()) < 0)
+          continue;
+        expected[i].push_back(j);
+        expected[static_cast<std::size_t>(j)].push_back(static_cast<int>(i));
+      }
+    ASSERT_EQ(graph.size(), knn.size());
+    std::size_t differ = 0;
+    for (std::size_t i = 0; i < knn.size(); ++i) {
+      auto& e = expected[i];
+      std::sort(e.begin(), e.end());
+      e.erase(std::unique(e.begin(), e.end()), e.end());
+      if (!std::equal(e.begin(), e.end(), graph.begin(i), graph.end(i)) ||
+          static_cast<std::size_t>(graph.degree(i)) != e.size())
+        ++differ;
+    }
+    EXPECT_EQ(differ, 0u);
+  }
+}
+
 // extractGeometry orders points in space whatever the file's order, and its index maps stay
 // exact: a shuffled cloud gets neighbours close in memory, and every point maps back.
 TEST(Geometry, SpatialOrderWithExactIndexMaps) {
