@@ -2,9 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
-#include <deque>
 #include <numeric>
 #include <unordered_map>
+
+#include "timer.h"
 
 namespace hgd {
 
@@ -211,7 +212,7 @@ Clustering buildClusters(const pcl::PointCloud<pcl::PointXYZ>& points, const Nei
   handleMembers(handles.manipulated, c.clusters.back());
 
   std::vector<int> down(n, -1), up(n, -1);
-  std::deque<int> down_queue, up_queue;  // seeds: down labels spread upwards into a gap, up downwards
+  std::vector<int> down_queue, up_queue;  // seeds: down labels spread upwards into a gap, up downwards
   std::vector<int> stack, members;
   for (std::size_t i = 0; i < n; ++i) {
     if (role[i] >= 0) down[i] = up[i] = fixed_id[static_cast<std::size_t>(role[i])];
@@ -263,18 +264,37 @@ Clustering buildClusters(const pcl::PointCloud<pcl::PointXYZ>& points, const Nei
       iso_bands.push_back(b);
       iso_values.push_back(bands[static_cast<std::size_t>(b)].lo);
     }
-  for (std::size_t i = 0; i < n; ++i) {
-    if (role[i] == -3) continue;
-    for (const int* j = graph.begin(i); j != graph.end(i); ++j) {
-      const auto u = static_cast<std::size_t>(*j);
-      if (!(phi[i] < phi[u])) continue;
-      // Isovalues v with phi_i < v <= phi_u.
-      auto it = std::upper_bound(iso_values.begin(), iso_values.end(), static_cast<double>(phi[i]));
-      for (; it != iso_values.end() && *it <= phi[u]; ++it) {
-        const auto b = static_cast<std::size_t>(iso_bands[static_cast<std::size_t>(it - iso_values.begin())]);
-        on_line[b].push_back(static_cast<int>(i));
-        on_line[b].push_back(static_cast<int>(u));
+  // An edge crosses the isovalues v with phi_i < v <= phi_u: those from the count of
+  // isovalues <= phi_i to the count <= phi_u, per point once (most edges cross none). Edges in
+  // parallel, each thread collecting its own lists.
+  std::vector<int> below(n);  // isovalues <= phi
+  const long long nn = static_cast<long long>(n);
+#pragma omp parallel for schedule(static) if (nn > kParallelMin)
+  for (long long i = 0; i < nn; ++i)
+    below[static_cast<std::size_t>(i)] =
+        static_cast<int>(std::upper_bound(iso_values.begin(), iso_values.end(),
+                                          static_cast<double>(phi[static_cast<std::size_t>(i)])) -
+                         iso_values.begin());
+#pragma omp parallel if (nn > kParallelMin)
+  {
+    std::vector<std::vector<int>> mine(iso_bands.size());
+#pragma omp for schedule(static) nowait
+    for (long long ii = 0; ii < nn; ++ii) {
+      const auto i = static_cast<std::size_t>(ii);
+      if (role[i] == -3) continue;
+      for (const int* j = graph.begin(i); j != graph.end(i); ++j) {
+        const auto u = static_cast<std::size_t>(*j);
+        if (!(phi[i] < phi[u])) continue;
+        for (int l = below[i]; l < below[u]; ++l) {
+          mine[static_cast<std::size_t>(l)].push_back(static_cast<int>(i));
+          mine[static_cast<std::size_t>(l)].push_back(static_cast<int>(u));
+        }
       }
+    }
+#pragma omp critical
+    for (std::size_t l = 0; l < iso_bands.size(); ++l) {
+      auto& line = on_line[static_cast<std::size_t>(iso_bands[l])];
+      line.insert(line.end(), mine[l].begin(), mine[l].end());
     }
   }
   // Contours: connected pieces of each isoline; every piece of enough points is an isocluster.
@@ -340,10 +360,11 @@ Clustering buildClusters(const pcl::PointCloud<pcl::PointXYZ>& points, const Nei
   }
   // Nearest cluster along the surface within each gap: a down label from band b spreads into
   // gap b, an up label from band b into gap b - 1.
-  auto spread = [&](std::deque<int>& q, std::vector<int>& label, int offset) {
-    while (!q.empty()) {
-      const auto x = static_cast<std::size_t>(q.front());
-      q.pop_front();
+  // The two spreads are independent (each writes its own labels): one thread each.
+  auto spread = [&](const std::vector<int>& seeds, std::vector<int>& label, int offset) {
+    std::vector<int> q(seeds);
+    for (std::size_t head = 0; head < q.size(); ++head) {
+      const auto x = static_cast<std::size_t>(q[head]);
       const int g = c.clusters[static_cast<std::size_t>(label[x])].level - offset;
       for (const int* j = graph.begin(x); j != graph.end(x); ++j) {
         const auto u = static_cast<std::size_t>(*j);
@@ -354,8 +375,13 @@ Clustering buildClusters(const pcl::PointCloud<pcl::PointXYZ>& points, const Nei
       }
     }
   };
-  spread(down_queue, down, 0);
-  spread(up_queue, up, 1);
+#pragma omp parallel sections if (nn > kParallelMin)
+  {
+#pragma omp section
+    spread(down_queue, down, 0);
+#pragma omp section
+    spread(up_queue, up, 1);
+  }
   // A gap region that meets only one side (a part touching one kind of handle only) takes
   // that side for both; parts touching no handle become static clusters.
   for (std::size_t i = 0; i < n; ++i) {
@@ -401,13 +427,17 @@ Clustering buildClusters(const pcl::PointCloud<pcl::PointXYZ>& points, const Nei
   auto isStatic = [&](int id) {
     return c.clusters[static_cast<std::size_t>(id)].kind == ClusterKind::Static;
   };
+  auto addPair = [&](int a, int b) {  // neighbouring points mostly repeat the last pair
+    const std::pair<int, int> pr(std::min(a, b), std::max(a, b));
+    if (c.adjacency.empty() || c.adjacency.back() != pr) c.adjacency.push_back(pr);
+  };
   for (std::size_t i = 0; i < n; ++i) {
-    if (down[i] != up[i]) c.adjacency.emplace_back(std::min(down[i], up[i]), std::max(down[i], up[i]));
+    if (down[i] != up[i]) addPair(down[i], up[i]);
     if (band[i] < 0) continue;
     for (const int* j = graph.begin(i); j != graph.end(i); ++j) {
       const auto u = static_cast<std::size_t>(*j);
       if (band[u] >= 0 && band[u] != band[i] && !isStatic(down[i]) && !isStatic(down[u]))
-        c.adjacency.emplace_back(std::min(down[i], down[u]), std::max(down[i], down[u]));
+        addPair(down[i], down[u]);
     }
   }
   std::sort(c.adjacency.begin(), c.adjacency.end());
