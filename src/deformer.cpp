@@ -54,7 +54,7 @@ void Deformer::rebuild() {
   build_.sampling_ms = sw.lap();
   clustering_ =
       buildClusters(pts, field_.graph(), phi_, handles_, field_.unreachable(), sample, options_.clusters);
-  table_ = buildInterpolation(phi_, handles_, clustering_);
+  table_ = buildInterpolation(phi_, handles_, clustering_, pts, &field_.normals());
   build_.clusters_ms = sw.lap();
 
   setupSolver(false, /*keep_transforms=*/false);
@@ -317,8 +317,7 @@ void Deformer::updateShape() {
     }
     local_[c].set(a.cast<float>(), (image - a * cl.barycenter).cast<float>(), cl.barycenter.cast<float>());
   }
-  interpolate(table_, local_, *geometry_.points, &field_.normals(), positions_, &out_normals_,
-              options_.blend);
+  interpolate(table_, local_, positions_, &out_normals_, options_.blend);
   interp_ms_ = sw.ms();
 }
 

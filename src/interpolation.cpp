@@ -9,33 +9,44 @@
 namespace hgd {
 
 InterpolationTable buildInterpolation(const std::vector<float>& phi, const Handles& handles,
-                                      const Clustering& c) {
+                                      const Clustering& c, const pcl::PointCloud<pcl::PointXYZ>& points,
+                                      const pcl::PointCloud<pcl::Normal>* normals) {
   const std::size_t n = phi.size();
   InterpolationTable t;
-  t.lo = c.down;
-  t.hi = c.up;
-  t.alpha = c.alpha;
-  (void)n;
+  std::vector<int> lo = c.down, hi = c.up;
+  std::vector<float> alpha = c.alpha;
   // Handle points take their handle's transform exactly.
   std::vector<int> fixed_cluster(handles.fixed.size(), -1);
   for (const auto& cl : c.clusters)
     if (cl.kind == ClusterKind::Fixed) fixed_cluster[static_cast<std::size_t>(cl.handle)] = cl.id;
   auto pin = [&](int i, int cluster) {
-    t.lo[static_cast<std::size_t>(i)] = t.hi[static_cast<std::size_t>(i)] = cluster;
-    t.alpha[static_cast<std::size_t>(i)] = 0.0f;
+    lo[static_cast<std::size_t>(i)] = hi[static_cast<std::size_t>(i)] = cluster;
+    alpha[static_cast<std::size_t>(i)] = 0.0f;
   };
   for (std::size_t k = 0; k < handles.fixed.size(); ++k)
     for (int i : handles.fixed[k]) pin(i, fixed_cluster[k]);
   for (int i : handles.manipulated) pin(i, c.manipulated);
   // Pairs: sorted unique (lo, hi), looked up by binary search.
   t.pairs.reserve(c.adjacency.size() * 2 + c.clusters.size());
-  for (std::size_t i = 0; i < t.lo.size(); ++i) t.pairs.emplace_back(t.lo[i], t.hi[i]);
+  for (std::size_t i = 0; i < n; ++i)
+    if (t.pairs.empty() || t.pairs.back() != std::make_pair(lo[i], hi[i])) t.pairs.emplace_back(lo[i], hi[i]);
   std::sort(t.pairs.begin(), t.pairs.end());
   t.pairs.erase(std::unique(t.pairs.begin(), t.pairs.end()), t.pairs.end());
-  t.pair.resize(t.lo.size());
-  for (std::size_t i = 0; i < t.lo.size(); ++i)
-    t.pair[i] = static_cast<int>(
-        std::lower_bound(t.pairs.begin(), t.pairs.end(), std::make_pair(t.lo[i], t.hi[i])) - t.pairs.begin());
+  t.has_normals = normals != nullptr && normals->size() == n;
+  t.points.resize(n);
+  const long long nn = static_cast<long long>(n);
+#pragma omp parallel for schedule(static) if (nn > kParallelMin)
+  for (long long ii = 0; ii < nn; ++ii) {
+    const auto i = static_cast<std::size_t>(ii);
+    InterpolationTable::Point& r = t.points[i];
+    for (int a = 0; a < 3; ++a) {
+      r.p[a] = points[i].data[a];
+      r.n[a] = t.has_normals ? (*normals)[i].normal[a] : 0.0f;
+    }
+    r.pair = static_cast<int>(std::lower_bound(t.pairs.begin(), t.pairs.end(), std::make_pair(lo[i], hi[i])) -
+                              t.pairs.begin());
+    r.alpha = alpha[i];
+  }
   for (const auto& [a, b] : t.pairs)
     t.pair_centre.push_back((0.5 * (c.clusters[static_cast<std::size_t>(a)].barycenter +
                                     c.clusters[static_cast<std::size_t>(b)].barycenter))
@@ -73,21 +84,24 @@ Eigen::Vector3f transformNormal(const Eigen::Matrix3f& m, const Eigen::Vector3f&
 }  // namespace
 
 void interpolate(const InterpolationTable& table, const std::vector<LocalAffine>& transforms,
-                 const pcl::PointCloud<pcl::PointXYZ>& points, const pcl::PointCloud<pcl::Normal>* normals,
                  std::vector<Eigen::Vector3f>& out_points, std::vector<Eigen::Vector3f>* out_normals,
                  Blend blend) {
   const long long n = static_cast<long long>(table.size());
-  const bool do_normals = normals != nullptr && out_normals != nullptr && normals->size() == table.size();
+  const bool do_normals = table.has_normals && out_normals != nullptr;
+  const InterpolationTable::Point* pts = table.points.data();
+  Eigen::Vector3f* out_p = out_points.data();
+  Eigen::Vector3f* out_n = do_normals ? out_normals->data() : nullptr;
   if (blend == Blend::Linear) {
 #pragma omp parallel for schedule(static) if (n > kParallelMin)
-    for (long long ii = 0; ii < n; ++ii) {
-      const auto i = static_cast<std::size_t>(ii);
-      const LocalAffine& a = transforms[static_cast<std::size_t>(table.lo[i])];
-      const LocalAffine& b = transforms[static_cast<std::size_t>(table.hi[i])];
-      const float w = table.alpha[i];
+    for (long long i = 0; i < n; ++i) {
+      const InterpolationTable::Point& r = pts[i];
+      const auto& pr = table.pairs[static_cast<std::size_t>(r.pair)];
+      const LocalAffine& a = transforms[static_cast<std::size_t>(pr.first)];
+      const LocalAffine& b = transforms[static_cast<std::size_t>(pr.second)];
+      const float w = r.alpha;
       const Eigen::Matrix3f m = (1.0f - w) * a.A + w * b.A;
-      out_points[i] = m * points[i].getVector3fMap() + (1.0f - w) * a.b + w * b.b;
-      if (do_normals) (*out_normals)[i] = transformNormal(m, (*normals)[i].getNormalVector3fMap());
+      out_p[i] = m * Eigen::Vector3f(r.p[0], r.p[1], r.p[2]) + (1.0f - w) * a.b + w * b.b;
+      if (out_n) out_n[i] = transformNormal(m, Eigen::Vector3f(r.n[0], r.n[1], r.n[2]));
     }
     return;
   }
@@ -96,36 +110,45 @@ void interpolate(const InterpolationTable& table, const std::vector<LocalAffine>
   struct PairFrame {
     Eigen::Vector4f qa, qb;
     Eigen::Vector3f c, ta, tb;
-    bool rigid;  // lo == hi: the cluster's own (full) transform applies
+    const LocalAffine* own;  // lo == hi: the cluster's own (full) transform applies
   };
   std::vector<PairFrame> frames(table.pairs.size());
   for (std::size_t k = 0; k < table.pairs.size(); ++k) {
     const LocalAffine& a = transforms[static_cast<std::size_t>(table.pairs[k].first)];
     const LocalAffine& b = transforms[static_cast<std::size_t>(table.pairs[k].second)];
     PairFrame& f = frames[k];
-    f.rigid = table.pairs[k].first == table.pairs[k].second;
+    f.own = table.pairs[k].first == table.pairs[k].second ? &a : nullptr;
     f.c = table.pair_centre[k];
     f.ta = a.R * f.c + a.rb;
     f.tb = b.R * f.c + b.rb;
     f.qa = a.q.coeffs();
     f.qb = a.q.dot(b.q) < 0 ? Eigen::Vector4f(-b.q.coeffs()) : Eigen::Vector4f(b.q.coeffs());
   }
+  const PairFrame* fr = frames.data();
 #pragma omp parallel for schedule(static) if (n > kParallelMin)
-  for (long long ii = 0; ii < n; ++ii) {
-    const auto i = static_cast<std::size_t>(ii);
-    const PairFrame& f = frames[static_cast<std::size_t>(table.pair[i])];
-    const Eigen::Vector3f p = points[i].getVector3fMap();
-    if (f.rigid) {
-      const LocalAffine& a = transforms[static_cast<std::size_t>(table.lo[i])];
-      out_points[i] = a.A * p + a.b;
-      if (do_normals) (*out_normals)[i] = transformNormal(a.A, (*normals)[i].getNormalVector3fMap());
+  for (long long i = 0; i < n; ++i) {
+    const InterpolationTable::Point& r = pts[i];
+    const PairFrame& f = fr[r.pair];
+    const Eigen::Vector3f p(r.p[0], r.p[1], r.p[2]);
+    if (f.own) {
+      out_p[i] = f.own->A * p + f.own->b;
+      if (out_n) out_n[i] = transformNormal(f.own->A, Eigen::Vector3f(r.n[0], r.n[1], r.n[2]));
       continue;
     }
-    const float w = table.alpha[i];
-    const Eigen::Quaternionf q(Eigen::Vector4f((1.0f - w) * f.qa + w * f.qb).normalized());
-    const Eigen::Matrix3f m = q.toRotationMatrix();
-    out_points[i] = m * (p - f.c) + (1.0f - w) * f.ta + w * f.tb;
-    if (do_normals) (*out_normals)[i] = m * (*normals)[i].getNormalVector3fMap();  // a rotation: R^-T = R
+    // The rotation of the quaternion (1 - w) qa + w qb without normalising it first: scaled
+    // by s = 2 / |q|^2 (the same matrix, fewer operations in this per-point loop).
+    const float w = r.alpha, v = 1.0f - w;
+    const float qx = v * f.qa[0] + w * f.qb[0], qy = v * f.qa[1] + w * f.qb[1],
+                qz = v * f.qa[2] + w * f.qb[2], qw = v * f.qa[3] + w * f.qb[3];
+    const float s = 2.0f / (qx * qx + qy * qy + qz * qz + qw * qw);
+    const float xx = s * qx * qx, yy = s * qy * qy, zz = s * qz * qz, xy = s * qx * qy, xz = s * qx * qz,
+                yz = s * qy * qz, wx = s * qw * qx, wy = s * qw * qy, wz = s * qw * qz;
+    Eigen::Matrix3f m;
+    m << 1.0f - (yy + zz), xy - wz, xz + wy,  //
+        xy + wz, 1.0f - (xx + zz), yz - wx,   //
+        xz - wy, yz + wx, 1.0f - (xx + yy);
+    out_p[i] = m * (p - f.c) + v * f.ta + w * f.tb;
+    if (out_n) out_n[i] = m * Eigen::Vector3f(r.n[0], r.n[1], r.n[2]);  // a rotation: R^-T = R
   }
 }
 

@@ -36,24 +36,35 @@ struct LocalAffine {
 /// the blend factor (T = (1 - alpha) T_lo + alpha T_hi). Handle points take their handle's
 /// cluster on both sides; points in parts that touch no handle take a static cluster.
 struct InterpolationTable {
-  std::vector<int> lo, hi;
-  std::vector<float> alpha;
-  /// The distinct (lo, hi) pairs, each point's pair, and each pair's rest centre (the mean of
-  /// the two clusters' barycentres): the rotation-aware blend works per pair.
+  /// One record per point, with its rest position and normal: interpolation streams through
+  /// memory once per frame (at millions of points it is bound by memory traffic).
+  struct Point {
+    float p[3];
+    float n[3];   ///< rest normal (zero when the table has none)
+    int pair;     ///< index into `pairs`
+    float alpha;  ///< blend factor between the pair's lo and hi clusters
+  };
+  std::vector<Point> points;
+  bool has_normals = false;
+  /// The distinct (lo, hi) pairs and each pair's rest centre (the mean of the two clusters'
+  /// barycentres): the rotation-aware blend works per pair.
   std::vector<std::pair<int, int>> pairs;
-  std::vector<int> pair;
   std::vector<Eigen::Vector3f> pair_centre;
-  std::size_t size() const { return alpha.size(); }
+  std::size_t size() const { return points.size(); }
+  int lo(std::size_t i) const { return pairs[static_cast<std::size_t>(points[i].pair)].first; }
+  int hi(std::size_t i) const { return pairs[static_cast<std::size_t>(points[i].pair)].second; }
 };
 
+/// The table for `points` (and their `normals`, which may be null) under a clustering.
 InterpolationTable buildInterpolation(const std::vector<float>& phi, const Handles& handles,
-                                      const Clustering& clustering);
+                                      const Clustering& clustering,
+                                      const pcl::PointCloud<pcl::PointXYZ>& points,
+                                      const pcl::PointCloud<pcl::Normal>* normals);
 
 /// Applies the blended transforms: positions p -> T p, normals n -> A^-T n (renormalised).
-/// Parallel over points; writes into preallocated outputs (sized like the table). `normals`
-/// and `out_normals` may be null.
+/// Parallel over points; writes into preallocated outputs (sized like the table).
+/// `out_normals` may be null, and is not written when the table has no normals.
 void interpolate(const InterpolationTable& table, const std::vector<LocalAffine>& transforms,
-                 const pcl::PointCloud<pcl::PointXYZ>& points, const pcl::PointCloud<pcl::Normal>* normals,
                  std::vector<Eigen::Vector3f>& out_points, std::vector<Eigen::Vector3f>* out_normals,
                  Blend blend = Blend::Linear);
 
