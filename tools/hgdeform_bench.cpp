@@ -121,7 +121,7 @@ nlohmann::json runSize(const std::string& model, const std::string& armadillo, s
   json per_clusters = json::array();
   for (long nc : cluster_counts) {
     std::vector<double> build, sampling, clusters, setup, per_iter, interp, frame, interp_linear,
-        interp_rotation;
+        interp_rotation, b_knn, b_graph, b_lap, b_solve, b_field;
     int iterations_first = 0, max_frame_iterations = 0;
     std::size_t cluster_total = 0;
     for (int r = 0; r < std::max(1, repeat / 2); ++r) {
@@ -133,6 +133,11 @@ nlohmann::json runSize(const std::string& model, const std::string& armadillo, s
       build.push_back(
           std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
       sampling.push_back(d.buildTimings().sampling_ms);
+      b_field.push_back(d.buildTimings().field_ms);
+      b_knn.push_back(d.buildTimings().field.knn_ms);
+      b_graph.push_back(d.buildTimings().field.graph_ms);
+      b_lap.push_back(d.buildTimings().field.laplacian_ms);
+      b_solve.push_back(d.buildTimings().field.solve_ms);
       clusters.push_back(d.buildTimings().clusters_ms);
       setup.push_back(d.buildTimings().setup_ms);
       cluster_total = d.clustering().clusters.size();
@@ -171,6 +176,11 @@ nlohmann::json runSize(const std::string& model, const std::string& armadillo, s
                 {"clusters", cluster_total},
                 {"build_ms", median(build)},
                 {"sampling_ms", median(sampling)},
+                {"field_ms", median(b_field)},
+                {"field_knn_ms", median(b_knn)},
+                {"field_graph_ms", median(b_graph)},
+                {"field_laplacian_ms", median(b_lap)},
+                {"field_solve_ms", median(b_solve)},
                 {"clusters_ms", median(clusters)},
                 {"setup_ms", median(setup)},
                 {"gn_iteration_ms", median(per_iter)},
@@ -248,9 +258,9 @@ int main(int argc, char** argv) {
     std::printf("(no %s: the Armadillo rows are left out)\n", armadillo.c_str());
     models.erase(std::find(models.begin(), models.end(), "armadillo"));
   }
-  std::printf("%9s %9s %10s | %6s %6s %6s %6s %6s %7s | %5s %6s %6s %8s %5s %7s %7s %7s | %7s %6s\n", "model",
-              "points", "solver", "knn", "normal", "graph", "lapl", "solve", "field", "clus", "build",
-              "sample", "ms/iter", "iters", "i.lin", "i.rot", "frame", "RSS MB", "xpaper");
+  std::printf("%9s %9s %10s | %6s %6s %6s %6s %6s %7s | %5s %6s %6s %6s %8s %5s %7s %7s %7s | %7s %6s\n",
+              "model", "points", "solver", "knn", "normal", "graph", "lapl", "solve", "field", "clus",
+              "build", "sample", "clust", "ms/iter", "iters", "i.lin", "i.rot", "frame", "RSS MB", "xpaper");
   for (const std::string& model : models)
     for (long n : sizes) {
       int pipefd[2];
@@ -282,24 +292,26 @@ int main(int argc, char** argv) {
       const auto& f = r["field"];
       for (const auto& d : r["deform"]) {
         std::printf(
-            "%9s %9ld %10s | %6.0f %6.0f %6.0f %6.0f %6.0f %7.0f | %5ld %6.0f %6.1f %8.3f %5d %7.2f %7.2f "
+            "%9s %9ld %10s | %6.0f %6.0f %6.0f %6.0f %6.0f %7.0f | %5ld %6.0f %6.1f %6.0f %8.3f %5d %7.2f "
+            "%7.2f "
             "%7.2f | "
             "%7.0f "
             "%6.1f\n",
             model.c_str(), n, f["solver"].get<std::string>().c_str(), f["knn_ms"].get<double>(),
             f["normals_ms"].get<double>(), f["graph_ms"].get<double>(), f["laplacian_ms"].get<double>(),
             f["solve_ms"].get<double>(), f["total_ms"].get<double>(), d["isoclusters"].get<long>(),
-            d["build_ms"].get<double>(), d["sampling_ms"].get<double>(), d["gn_iteration_ms"].get<double>(),
-            d["max_frame_iterations"].get<int>(), d["interpolation_linear_ms"].get<double>(),
-            d["interpolation_rotation_ms"].get<double>(), d["frame_ms"].get<double>(),
-            r["peak_rss_mb"].get<double>(), d["build_speedup"].get<double>());
+            d["build_ms"].get<double>(), d["sampling_ms"].get<double>(), d["clusters_ms"].get<double>(),
+            d["gn_iteration_ms"].get<double>(), d["max_frame_iterations"].get<int>(),
+            d["interpolation_linear_ms"].get<double>(), d["interpolation_rotation_ms"].get<double>(),
+            d["frame_ms"].get<double>(), r["peak_rss_mb"].get<double>(), d["build_speedup"].get<double>());
       }
       std::fflush(stdout);
       all.push_back(r);
     }
   std::printf(
       "columns: field phases in ms (median of %d); clus = isoclusters; build = Deformer construction (field, "
-      "sample, clusters, solver set-up); ms/iter = Gauss-Newton ms per iteration over a 30-frame drag; iters "
+      "sample, clusters, solver set-up), of which sample and clust (clustering) in ms; ms/iter = "
+      "Gauss-Newton ms per iteration over a 30-frame drag; iters "
       "= most "
       "iterations in one frame; i.lin / i.rot = interpolation to all points with the linear / rotation-aware "
       "(default) blend; frame = solve + interpolation per frame (default blend); xpaper = the paper's build "
