@@ -68,43 +68,49 @@ KnnTable knnOfDistinct(const pcl::PointCloud<pcl::PointXYZ>& points, int k, bool
   t.k = std::max(0, std::min<int>(k, static_cast<int>(n) - 1));
   if (t.k == 0) return t;
   // One batch query over all points on every core (PCL's per-query wrapper would cost about
-  // as much as the search itself).
-  std::vector<float> xyz(n * 3);
-  for (std::size_t i = 0; i < n; ++i) {
-    xyz[3 * i] = points[i].x;
-    xyz[3 * i + 1] = points[i].y;
-    xyz[3 * i + 2] = points[i].z;
+  // as much as the search itself). Buffers are not zero-filled: every slot read is written.
+  const long long nn = static_cast<long long>(n);
+  std::unique_ptr<float[]> xyz(new float[n * 3]);
+#pragma omp parallel for schedule(static) if (nn > kParallelMin)
+  for (long long i = 0; i < nn; ++i) {
+    xyz[3 * i] = points[static_cast<std::size_t>(i)].x;
+    xyz[3 * i + 1] = points[static_cast<std::size_t>(i)].y;
+    xyz[3 * i + 2] = points[static_cast<std::size_t>(i)].z;
   }
   const std::size_t kk = static_cast<std::size_t>(t.k) + 1;
-  std::vector<int> idx(n * kk, -1);  // FLANN leaves slots unset when distances overflow float
-  std::vector<float> d2(n * kk);
+  std::unique_ptr<int[]> idx(new int[n * kk]);
+  std::unique_ptr<float[]> d2(new float[n * kk]);
   // A uniform grid first (scans: a few points per cell, several times faster than the k-d
   // tree); FLANN for clouds a grid does not suit (far outliers, extreme extents).
-  if (!gridKnn(xyz.data(), n, static_cast<int>(kk), idx.data(), d2.data())) {
-    std::fill(idx.begin(), idx.end(), -1);
-    const flann::Matrix<float> data(xyz.data(), n, 3);
+  if (!gridKnn(xyz.get(), n, static_cast<int>(kk), idx.get(), d2.get())) {
+    std::fill(idx.get(), idx.get() + n * kk, -1);  // FLANN leaves slots unset when distances overflow
+    const flann::Matrix<float> data(xyz.get(), n, 3);
     flann::Index<flann::L2_Simple<float>> index(data, flann::KDTreeSingleIndexParams(15));
     index.buildIndex();
-    flann::Matrix<int> indices(idx.data(), n, kk);
-    flann::Matrix<float> dists(d2.data(), n, kk);
+    flann::Matrix<int> indices(idx.get(), n, kk);
+    flann::Matrix<float> dists(d2.get(), n, kk);
     flann::SearchParams params(flann::FLANN_CHECKS_UNLIMITED, 0.0f, true);
     params.cores = 0;  // all cores
     index.knnSearch(data, indices, dists, kk, params);
   }
   t.index.resize(n * static_cast<std::size_t>(t.k));
-  for (std::size_t i = 0; i < n; ++i) {
+  bool any_coincident = false;
+#pragma omp parallel for schedule(static) reduction(|| : any_coincident) if (nn > kParallelMin)
+  for (long long ii = 0; ii < nn; ++ii) {
+    const auto i = static_cast<std::size_t>(ii);
     // Sorted by distance; drop the point itself (wherever duplicates put it).
     int* row = t.index.data() + i * static_cast<std::size_t>(t.k);
     int m = 0;
     for (std::size_t q = 0; q < kk && m < t.k; ++q) {
       const int j = idx[i * kk + q];
       if (j != static_cast<int>(i) && j >= 0 && static_cast<std::size_t>(j) < n) {
-        if (coincident && d2[i * kk + q] == 0.0f) *coincident = true;
+        if (d2[i * kk + q] == 0.0f) any_coincident = true;
         row[m++] = j;
       }
     }
     for (; m < t.k; ++m) row[m] = static_cast<int>(i);  // fewer found: self-loops are ignored later
   }
+  if (coincident) *coincident = any_coincident;
   return t;
 }
 
