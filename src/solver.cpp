@@ -1,5 +1,6 @@
 #include "hgdeform/solver.h"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
@@ -220,11 +221,18 @@ SolveStats ClusterSolver::solve(const GaussNewtonOptions& options) {
     // Constant part of the normal equations and the sparsity pattern (all diagonal blocks, and
     // off-diagonal blocks for adjacent free pairs).
     std::vector<Eigen::Triplet<double>> trip;
+    // Off-diagonal blocks keep only what can be nonzero there: E_Prop's kron(S) couples the
+    // same row of the two 3x4 transforms, E_Length the two translations. A third of the dense
+    // block, so the factorisation fills in and costs less.
     auto addBlock = [&](int bi, int bj, const Mat12& m) {
       for (int r = 0; r < 12; ++r)
-        for (int c = 0; c < 12; ++c) trip.emplace_back(12 * bi + r, 12 * bj + c, m(r, c));
+        for (int c = 0; c < 12; ++c)
+          if (bi == bj || r % 3 == c % 3 || (r >= 9 && c >= 9))
+            trip.emplace_back(12 * bi + r, 12 * bj + c, m(r, c));
     };
-    for (int b = 0; b < nb; ++b) addBlock(b, b, Mat12::Zero());
+    // Every diagonal block is dense (Rot couples A's entries); 1e-9 I keeps the system definite
+    // when a cluster is unconstrained (no neighbours).
+    for (int b = 0; b < nb; ++b) addBlock(b, b, 1e-9 * Mat12::Identity());
     for (const auto& p : pairs_) {
       const bool fi = var_[static_cast<std::size_t>(p.i)] >= 0, fj = var_[static_cast<std::size_t>(p.j)] >= 0;
       if (fi) addBlock(block(p.i), block(p.i), w_.prop * kron(p.sii));
@@ -239,6 +247,30 @@ SolveStats ClusterSolver::solve(const GaussNewtonOptions& options) {
     h_const_.setFromTriplets(trip.begin(), trip.end());
     h_const_.makeCompressed();
     h_ = h_const_;
+    // Where the per-iteration terms land in h_'s value array (found once, not per entry and
+    // iteration): Rot's 9x9 in each diagonal block, Length's 3x3 translation blocks.
+    auto at = [&](int row, int col) {
+      const int* b = h_.innerIndexPtr() + h_.outerIndexPtr()[col];
+      const int* e = h_.innerIndexPtr() + h_.outerIndexPtr()[col + 1];
+      return static_cast<int>(std::lower_bound(b, e, row) - h_.innerIndexPtr());
+    };
+    auto positions = [&](int bi, int bj, int off, int size, std::vector<int>& out) {
+      for (int c = 0; c < size; ++c)
+        for (int r = 0; r < size; ++r) out.push_back(at(12 * bi + off + r, 12 * bj + off + c));
+    };
+    rot_at_.clear();
+    for (int b = 0; b < nb; ++b) positions(b, b, 0, 9, rot_at_);
+    length_at_.clear();
+    for (const auto& p : pairs_) {
+      const int bi = var_[static_cast<std::size_t>(p.i)] >= 0 ? block(p.i) : -1;
+      const int bj = var_[static_cast<std::size_t>(p.j)] >= 0 ? block(p.j) : -1;
+      for (const auto& [x, y] : {std::pair<int, int>(bi, bi), {bj, bj}, {bi, bj}, {bj, bi}}) {
+        if (x >= 0 && y >= 0)
+          positions(x, y, 9, 3, length_at_);
+        else
+          length_at_.insert(length_at_.end(), 9, -1);
+      }
+    }
     ldlt_.analyzePattern(h_);
     pattern_ready_ = true;
   }
@@ -246,10 +278,10 @@ SolveStats ClusterSolver::solve(const GaussNewtonOptions& options) {
   Energies e = evaluate(x_);
   double energy = e.total();
   Eigen::VectorXd grad(nv), step(nv), trial(nv);
-  // Adds a dense 12x12 (or smaller, at an offset) block into h_ at block (bi, bj).
-  auto addTo = [&](int bi, int bj, int r0, int c0, const Eigen::MatrixXd& m) {
-    for (int c = 0; c < m.cols(); ++c)
-      for (int r = 0; r < m.rows(); ++r) h_.coeffRef(12 * bi + r0 + r, 12 * bj + c0 + c) += m(r, c);
+  double* hv = h_.valuePtr();
+  // Adds a column-major block at the value positions `pos`.
+  auto addAt = [hv](const int* pos, const double* m, int count) {
+    for (int q = 0; q < count; ++q) hv[pos[q]] += m[q];
   };
   auto uOf = [&](int c) -> Mat34 {
     const int v = var_[static_cast<std::size_t>(c)];
@@ -258,10 +290,11 @@ SolveStats ClusterSolver::solve(const GaussNewtonOptions& options) {
   };
 
   for (int it = 0; it < options.max_iterations; ++it) {
-    // Gradient (Jᵀr) of every term, and the varying part of JᵀJ (Rot, Length).
-    h_ = h_const_;
+    // Gradient (J^T r) of every term, and the varying part of J^T J (Rot, Length).
+    std::copy(h_const_.valuePtr(), h_const_.valuePtr() + h_const_.nonZeros(), hv);
     grad.setZero();
-    for (const auto& p : pairs_) {
+    for (std::size_t pi = 0; pi < pairs_.size(); ++pi) {
+      const Pair& p = pairs_[pi];
       const Mat34 ui = uOf(p.i), uj = uOf(p.j);
       const Eigen::Vector3d d = clusters_[static_cast<std::size_t>(p.i)].barycenter -
                                 clusters_[static_cast<std::size_t>(p.j)].barycenter;
@@ -280,17 +313,19 @@ SolveStats ClusterSolver::solve(const GaussNewtonOptions& options) {
         const Eigen::Vector3d dir = gap / len;
         const double r = len - p.rest_length;
         const Eigen::Matrix3d jj = w_.length * dir * dir.transpose();
+        const Eigen::Matrix3d neg = -jj;
+        const int* pos = length_at_.data() + 36 * pi;  // ii, jj, ij, ji
         if (vi >= 0) {
           grad.segment<3>(vi + 9) += w_.length * r * dir;
-          addTo(block(p.i), block(p.i), 9, 9, jj);
+          addAt(pos, jj.data(), 9);
         }
         if (vj >= 0) {
           grad.segment<3>(vj + 9) -= w_.length * r * dir;
-          addTo(block(p.j), block(p.j), 9, 9, jj);
+          addAt(pos + 9, jj.data(), 9);
         }
         if (vi >= 0 && vj >= 0) {
-          addTo(block(p.i), block(p.j), 9, 9, -jj);
-          addTo(block(p.j), block(p.i), 9, 9, -jj);
+          addAt(pos + 18, neg.data(), 9);
+          addAt(pos + 27, neg.data(), 9);
         }
       }
     }
@@ -302,10 +337,8 @@ SolveStats ClusterSolver::solve(const GaussNewtonOptions& options) {
       rotResiduals(uOf(static_cast<int>(c)).leftCols<3>(), r, j);
       const double w = w_.detail * clusters_[c].rot_weight;
       grad.segment<9>(v) += w * j.transpose() * r;
-      Eigen::Matrix<double, 9, 9> jtj = w * j.transpose() * j;
-      addTo(v / 12, v / 12, 0, 0, jtj);
-      // Keeps the system definite when a cluster is unconstrained (no neighbours).
-      addTo(v / 12, v / 12, 0, 0, 1e-9 * Eigen::Matrix<double, 12, 12>::Identity());
+      const Eigen::Matrix<double, 9, 9> jtj = w * j.transpose() * j;
+      addAt(rot_at_.data() + 81 * (v / 12), jtj.data(), 81);
     }
     if (manip_active_) {
       const int v = var_[static_cast<std::size_t>(manipulated_)];

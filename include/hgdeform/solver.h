@@ -107,6 +107,8 @@ class ClusterSolver {
   double manip_c_ = 0;                                                         // sum w |x - g|^2
   Eigen::SparseMatrix<double> h_const_;  ///< w_Prop·JᵀJ of E_Prop (+ E_Manip when active), full pattern
   Eigen::SparseMatrix<double> h_;
+  std::vector<int> rot_at_;     ///< per free block: h_ value positions of its 9x9 A-A part
+  std::vector<int> length_at_;  ///< per pair: of the 3x3 t-t parts (ii, jj, ij, ji; -1 if constant)
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt_;
   bool pattern_ready_ = false;
 };
