@@ -8,7 +8,6 @@
 
 #include <Eigen/Core>
 #include <Eigen/Sparse>
-#include <Eigen/SparseCholesky>
 #include <memory>
 #include <vector>
 
@@ -50,6 +49,30 @@ struct SolveStats {
 struct GaussNewtonOptions {
   int max_iterations = 20;
   double tolerance = 1e-4;  ///< stop when the relative decrease of the energy falls below this
+};
+
+/// Sparse Cholesky of a symmetric positive definite matrix made of dense 12x12 blocks (the
+/// Gauss-Newton normal equations: one block per cluster, coupled along adjacent pairs), in
+/// fixed-size block operations. Internal to ClusterSolver.
+class BlockCholesky {
+ public:
+  using Block = Eigen::Matrix<double, 12, 12>;
+  /// Symbolic analysis for the scalar pattern of `pattern` (nb*12 square, compressed, both
+  /// triangles): a minimum-degree order of the blocks, the filled structure, and where each
+  /// of the pattern's values goes.
+  void analyze(const Eigen::SparseMatrix<double>& pattern);
+  /// Factorises a matrix with the analysed pattern. False when it is not positive definite.
+  bool factorize(const Eigen::SparseMatrix<double>& matrix);
+  /// x = A^-1 b.
+  void solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) const;
+
+ private:
+  int nb_ = 0;
+  std::vector<int> order_, rank_;         ///< elimination position -> block, block -> position
+  std::vector<int> col_start_, col_row_;  ///< per position j: rows (positions > j) of L's column j
+  std::vector<Block> l_;                  ///< per position: diagonal block, then per row slot
+  std::vector<int> diag_at_;              ///< per position: index into l_ of its diagonal block
+  std::vector<int> value_to_;             ///< per pattern value: index into l_'s doubles, or -1
 };
 
 class ClusterSolver {
@@ -109,7 +132,7 @@ class ClusterSolver {
   Eigen::SparseMatrix<double> h_;
   std::vector<int> rot_at_;     ///< per free block: h_ value positions of its 9x9 A-A part
   std::vector<int> length_at_;  ///< per pair: of the 3x3 t-t parts (ii, jj, ij, ji; -1 if constant)
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt_;
+  BlockCholesky factor_;
   bool pattern_ready_ = false;
 };
 
