@@ -151,6 +151,39 @@ TEST(Field, DetachedPieceIsReportedAndZero) {
   }
 }
 
+// Reachability on a large graph of many pieces (the parallel union-find): 300 chains
+// interleaved in index order, constraints on the first 150 only. Exactly the other chains'
+// points are unreachable, and the constrained chains get their harmonic (linear) values.
+TEST(Field, ManyPiecesOnALargeGraph) {
+  const int chains = 300, length = 200, n = chains * length;
+  hgd::NeighborGraph graph;
+  graph.offsets.assign(1, 0);
+  for (int i = 0; i < n; ++i) {
+    if (i >= chains) graph.adj.push_back(i - chains);
+    if (i + chains < n) graph.adj.push_back(i + chains);
+    graph.offsets.push_back(static_cast<int>(graph.adj.size()));
+  }
+  std::vector<char> constrained(static_cast<std::size_t>(n), 0);
+  std::vector<double> value(static_cast<std::size_t>(n), 0.0);
+  for (int c = 0; c < chains / 2; ++c) {  // ends of chain c: 0 and 1
+    constrained[static_cast<std::size_t>(c)] = 1;
+    constrained[static_cast<std::size_t>(c + (length - 1) * chains)] = 1;
+    value[static_cast<std::size_t>(c + (length - 1) * chains)] = 1.0;
+  }
+  hgd::FieldOptions opt;
+  opt.solver = hgd::FieldSolver::Exact;
+  std::vector<int> unreachable;
+  hgd::FieldTimings timings;
+  hgd::solveDirichlet(graph, constrained, value, opt, unreachable, timings);
+  ASSERT_EQ(unreachable.size(), static_cast<std::size_t>(n / 2));
+  for (int i : unreachable) EXPECT_GE(i % chains, chains / 2);
+  double worst = 0;
+  for (int i = 0; i < n; ++i)
+    if (i % chains < chains / 2)
+      worst = std::max(worst, std::abs(value[static_cast<std::size_t>(i)] - (i / chains) / (length - 1.0)));
+  EXPECT_LT(worst, 1e-9);
+}
+
 // A sheet folded back on itself, the two layers 1 mm apart with opposite normals. The field
 // must follow the surface around the fold, not jump the gap.
 TEST(Field, NormalFilterKeepsThinSheetsApart) {
