@@ -298,55 +298,69 @@ Clustering buildClusters(const pcl::PointCloud<pcl::PointXYZ>& points, const Nei
     }
   }
   // Contours: connected pieces of each isoline; every piece of enough points is an isocluster.
-  std::vector<int> mark(n, -1), seen(n, -1);
-  for (int b : iso_bands) {
-    auto& line = on_line[static_cast<std::size_t>(b)];
-    std::sort(line.begin(), line.end());
-    line.erase(std::unique(line.begin(), line.end()), line.end());
-    for (int i : line) mark[static_cast<std::size_t>(i)] = b;
-    const double v = bands[static_cast<std::size_t>(b)].lo;
-    for (int seed : line) {
-      if (seen[static_cast<std::size_t>(seed)] == b) continue;
-      members.clear();
-      seen[static_cast<std::size_t>(seed)] = b;
-      stack.assign(1, seed);
-      while (!stack.empty()) {
-        const auto x = static_cast<std::size_t>(stack.back());
-        stack.pop_back();
-        members.push_back(static_cast<int>(x));
-        // Two hops: on an unevenly sampled surface consecutive crossing edges need not share
-        // a point or an edge, and one-hop pieces of a single isoline would become separate
-        // clusters (at 1M points of the Armadillo, 12 instead of 5 above the feet).
-        for (const int* j = graph.begin(x); j != graph.end(x); ++j) {
-          const auto u = static_cast<std::size_t>(*j);
-          if (mark[u] == b && seen[u] != b) {
-            seen[u] = b;
-            stack.push_back(static_cast<int>(u));
-          }
-          for (const int* w = graph.begin(u); w != graph.end(u); ++w) {
-            const auto v2 = static_cast<std::size_t>(*w);
-            if (mark[v2] == b && seen[v2] != b) {
-              seen[v2] = b;
-              stack.push_back(static_cast<int>(v2));
+  // Traced for all isovalues in parallel (each thread with its own marks), then made clusters
+  // in band order, so that cluster ids and the spreads' seeds do not depend on the threads.
+  std::vector<std::vector<std::vector<int>>> contours(bands.size());
+  const long long n_iso = static_cast<long long>(iso_bands.size());
+#pragma omp parallel if (nn > kParallelMin && n_iso > 1)
+  {
+    std::vector<int> mark(n, -1), seen(n, -1), trace;
+#pragma omp for schedule(dynamic, 1)
+    for (long long k = 0; k < n_iso; ++k) {
+      const int b = iso_bands[static_cast<std::size_t>(k)];
+      auto& line = on_line[static_cast<std::size_t>(b)];
+      std::sort(line.begin(), line.end());
+      line.erase(std::unique(line.begin(), line.end()), line.end());
+      for (int i : line) mark[static_cast<std::size_t>(i)] = b;
+      for (int seed : line) {
+        if (seen[static_cast<std::size_t>(seed)] == b) continue;
+        std::vector<int> piece;
+        seen[static_cast<std::size_t>(seed)] = b;
+        trace.assign(1, seed);
+        while (!trace.empty()) {
+          const auto x = static_cast<std::size_t>(trace.back());
+          trace.pop_back();
+          piece.push_back(static_cast<int>(x));
+          // Two hops: on an unevenly sampled surface consecutive crossing edges need not
+          // share a point or an edge, and one-hop pieces of a single isoline would become
+          // separate clusters (at 1M points of the Armadillo, 12 instead of 5 above the feet).
+          for (const int* j = graph.begin(x); j != graph.end(x); ++j) {
+            const auto u = static_cast<std::size_t>(*j);
+            if (mark[u] == b && seen[u] != b) {
+              seen[u] = b;
+              trace.push_back(static_cast<int>(u));
+            }
+            for (const int* w = graph.begin(u); w != graph.end(u); ++w) {
+              const auto v2 = static_cast<std::size_t>(*w);
+              if (mark[v2] == b && seen[v2] != b) {
+                seen[v2] = b;
+                trace.push_back(static_cast<int>(v2));
+              }
             }
           }
         }
+        contours[static_cast<std::size_t>(b)].push_back(std::move(piece));
       }
-      if (static_cast<int>(members.size()) < options.min_contour) continue;
+    }
+  }
+  for (int b : iso_bands) {
+    const double v = bands[static_cast<std::size_t>(b)].lo;
+    for (auto& piece : contours[static_cast<std::size_t>(b)]) {
+      if (static_cast<int>(piece.size()) < options.min_contour) continue;
       const int id = newCluster(ClusterKind::Iso, b, -1, v);
       Cluster& cl = c.clusters.back();
-      for (int m : members)
+      for (int m : piece)
         if (in_sample[static_cast<std::size_t>(m)]) cl.members.push_back(m);
       if (cl.members.size() < 3) {  // a short contour: its points nearest the isovalue
-        std::sort(members.begin(), members.end(), [&](int x, int y) {
+        std::sort(piece.begin(), piece.end(), [&](int x, int y) {
           return std::abs(phi[static_cast<std::size_t>(x)] - v) <
                  std::abs(phi[static_cast<std::size_t>(y)] - v);
         });
-        for (std::size_t k = 0; k < members.size() && cl.members.size() < 3; ++k)
-          if (!in_sample[static_cast<std::size_t>(members[k])]) cl.members.push_back(members[k]);
+        for (std::size_t k = 0; k < piece.size() && cl.members.size() < 3; ++k)
+          if (!in_sample[static_cast<std::size_t>(piece[k])]) cl.members.push_back(piece[k]);
       }
       // The contour seeds the gaps on either side of it.
-      for (int m : members) {
+      for (int m : piece) {
         const auto x = static_cast<std::size_t>(m);
         if (gap[x] == b && down[x] < 0) {
           down[x] = id;
