@@ -118,6 +118,21 @@ namespace {
 using SpMat = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
 using RowMat = Eigen::SparseMatrix<double, Eigen::RowMajor, int>;
 
+// Sums body(begin, end) over fixed chunks of [0, n), in parallel when n is large. The chunks'
+// sums are added in chunk order, so a dot product comes out the same whatever the threads.
+template <typename Body>
+double chunkedSum(long long n, Body&& body) {
+  constexpr long long kChunk = 8192;
+  const long long chunks = (n + kChunk - 1) / kChunk;
+  std::vector<double> partial(static_cast<std::size_t>(chunks), 0.0);
+#pragma omp parallel for schedule(static) if (n > kParallelMin)
+  for (long long c = 0; c < chunks; ++c)
+    partial[static_cast<std::size_t>(c)] = body(c * kChunk, std::min(n, (c + 1) * kChunk));
+  double sum = 0;
+  for (const double v : partial) sum += v;
+  return sum;
+}
+
 // Calls f(r, (A x)_r) for every row r of a row-major sparse matrix, in parallel, and returns
 // the sum of what f returns (for the dot products that ride along). `unit`: the free block of
 // the graph Laplacian, whose off-diagonal entries are all -1, so only the column indices are
@@ -125,29 +140,28 @@ using RowMat = Eigen::SparseMatrix<double, Eigen::RowMajor, int>;
 // into these passes: at a million points it is bound by memory traffic, not arithmetic.
 template <typename F>
 double forRows(const RowMat& a, bool unit, const Eigen::VectorXd& diag, const Eigen::VectorXd& x, F&& f) {
-  const long long rows = a.rows();
   const int* outer = a.outerIndexPtr();
   const int* inner = a.innerIndexPtr();
   const double* val = a.valuePtr();
   const double* xp = x.data();
-  double sum = 0;
-  if (unit) {
-    const double* dp = diag.data();
-#pragma omp parallel for schedule(static) reduction(+ : sum) if (rows > kParallelMin)
-    for (long long r = 0; r < rows; ++r) {
-      double s = 0;
-      for (int m = outer[r]; m < outer[r + 1]; ++m) s += xp[inner[m]];
-      sum += f(r, (dp[r] + 1.0) * xp[r] - s);  // the diagonal's own column was summed with the rest
+  const double* dp = diag.data();
+  return chunkedSum(a.rows(), [&](long long begin, long long end) {
+    double sum = 0;
+    if (unit) {
+      for (long long r = begin; r < end; ++r) {
+        double s = 0;
+        for (int m = outer[r]; m < outer[r + 1]; ++m) s += xp[inner[m]];
+        sum += f(r, (dp[r] + 1.0) * xp[r] - s);  // the diagonal's own column was summed with the rest
+      }
+    } else {
+      for (long long r = begin; r < end; ++r) {
+        double s = 0;
+        for (int m = outer[r]; m < outer[r + 1]; ++m) s += val[m] * xp[inner[m]];
+        sum += f(r, s);
+      }
     }
-  } else {
-#pragma omp parallel for schedule(static) reduction(+ : sum) if (rows > kParallelMin)
-    for (long long r = 0; r < rows; ++r) {
-      double s = 0;
-      for (int m = outer[r]; m < outer[r + 1]; ++m) s += val[m] * xp[inner[m]];
-      sum += f(r, s);
-    }
-  }
-  return sum;
+    return sum;
+  });
 }
 
 // y = P x (or P^T x given as a row-major matrix).
@@ -184,23 +198,21 @@ std::vector<int> coarsen(const RowMat& a, std::vector<int>& coarse_of) {
   return coarse;
 }
 
-// Splits [0, n) into one contiguous block per thread and runs body(begin, end, thread), in
-// parallel when n is large; returns the number of blocks.
-template <typename Body>
-int forBlocks(long long n, Body&& body) {
+// One block per thread when n is large enough to share; forBlocks splits [0, n) into that
+// many contiguous blocks and runs body(begin, end, block) on each exactly once, in parallel
+// (even if the runtime grants fewer threads than asked).
+int blockCount(long long n) {
   int threads = 1;
 #ifdef _OPENMP
   if (n > kParallelMin) threads = omp_get_max_threads();
 #endif
-#pragma omp parallel num_threads(threads)
-  {
-    int t = 0;
-#ifdef _OPENMP
-    t = omp_get_thread_num();
-#endif
-    body(static_cast<int>(n * t / threads), static_cast<int>(n * (t + 1) / threads), t);
-  }
   return threads;
+}
+template <typename Body>
+void forBlocks(long long n, int blocks, Body&& body) {
+#pragma omp parallel for schedule(static, 1) num_threads(blocks) if (blocks > 1)
+  for (int t = 0; t < blocks; ++t)
+    body(static_cast<int>(n * t / blocks), static_cast<int>(n * (t + 1) / blocks), t);
 }
 
 // Assembles a row-major matrix from per-thread blocks of consecutive rows.
@@ -252,14 +264,11 @@ RowMat prolongation(const RowMat& a, const std::vector<int>& coarse_of, int n_co
       for (int m = ao[i]; m < ao[i + 1]; ++m)
         if (co[ai[m]] >= 0) near_cols[static_cast<std::size_t>(at++)] = co[ai[m]];
   }
-  int threads = 1;
-#ifdef _OPENMP
-  if (n > kParallelMin) threads = omp_get_max_threads();
-#endif
+  const int threads = blockCount(n);
   std::vector<std::vector<int>> inner(static_cast<std::size_t>(threads));
   std::vector<std::vector<double>> val(static_cast<std::size_t>(threads));
   std::vector<int> row_nnz(static_cast<std::size_t>(n) + 1, 0);
-  forBlocks(n, [&](int begin, int end, int t) {
+  forBlocks(n, threads, [&](int begin, int end, int t) {
     auto& my_inner = inner[static_cast<std::size_t>(t)];
     auto& my_val = val[static_cast<std::size_t>(t)];
     my_inner.reserve(static_cast<std::size_t>(end - begin) * 3 / 2);
@@ -292,21 +301,11 @@ RowMat prolongation(const RowMat& a, const std::vector<int>& coarse_of, int n_co
 // interpolates to, their neighbours j, and j's coarse points J. Rows run in parallel.
 RowMat galerkin(const RowMat& a, const RowMat& p, const RowMat& pt) {
   const int nc = static_cast<int>(p.cols());
-  int threads = 1;
-#ifdef _OPENMP
-  if (a.rows() > kParallelMin) threads = omp_get_max_threads();
-#endif
+  const int threads = blockCount(a.rows());
   std::vector<std::vector<int>> cols(static_cast<std::size_t>(threads));
   std::vector<std::vector<double>> vals(static_cast<std::size_t>(threads));
   std::vector<int> row_nnz(static_cast<std::size_t>(nc) + 1, 0);
-#pragma omp parallel num_threads(threads)
-  {
-    int t = 0;
-#ifdef _OPENMP
-    t = omp_get_thread_num();
-#endif
-    const int begin = static_cast<int>(static_cast<long long>(nc) * t / threads);
-    const int end = static_cast<int>(static_cast<long long>(nc) * (t + 1) / threads);
+  forBlocks(nc, threads, [&](int begin, int end, int t) {
     std::vector<double> acc(static_cast<std::size_t>(nc), 0.0);
     std::vector<int> slot(static_cast<std::size_t>(nc), -1), touched;
     auto& my_cols = cols[static_cast<std::size_t>(t)];
@@ -340,21 +339,27 @@ RowMat galerkin(const RowMat& a, const RowMat& p, const RowMat& pt) {
       }
       row_nnz[static_cast<std::size_t>(ci) + 1] = static_cast<int>(touched.size());
     }
-  }
+  });
   return fromBlocks(nc, nc, row_nnz, cols, vals);
 }
 
 // A multigrid hierarchy for the free block of the Laplacian: each level's coarse points are a
 // distance-2 independent set of its graph, prolongation averages, and the coarse operator is
-// Galerkin's P^T A P, down to a level small enough for a sparse Cholesky factor. One V-cycle
-// (damped Jacobi before and after the coarse correction, so the cycle is symmetric) is the
-// preconditioner of conjugate gradients.
+// Galerkin's P^T A P, down to a level small enough for a sparse Cholesky factor. One cycle
+// (damped Jacobi before and after the coarse correction, so the cycle is symmetric; a W-cycle
+// below the finest level) is the preconditioner of conjugate gradients.
 class Hierarchy {
  public:
   static constexpr int kDirect = 4000;  ///< coarsest level: at most this many unknowns
+  static constexpr int kMaxLevels = 8;
 
+  Hierarchy() = default;
+  Hierarchy(const Hierarchy&) = delete;  // levels point into each other
+  Hierarchy& operator=(const Hierarchy&) = delete;
+
+  /// False when the coarsest level's Cholesky factorisation fails.
   bool build(const RowMat& a0) {
-    levels_.reserve(8);  // Levels hold Eigen matrices, whose moves may copy: no reallocation
+    levels_.reserve(kMaxLevels);  // Levels hold Eigen matrices, whose moves may copy: no reallocation
     levels_.emplace_back();
     levels_.back().a = &a0;
     levels_.back().unit = true;
@@ -362,11 +367,12 @@ class Hierarchy {
       Level& l = levels_.back();
       l.diag = l.a->diagonal();
       l.inv_diag = l.diag.cwiseInverse();
-      if (l.a->rows() <= kDirect || levels_.size() >= 8) break;
+      if (l.a->rows() <= kDirect || levels_.size() >= static_cast<std::size_t>(kMaxLevels)) break;
       std::vector<int> coarse_of;
       const std::vector<int> coarse = coarsen(*l.a, coarse_of);
-      // Coarsening that stalls (a dense graph) gains nothing from another level.
-      if (coarse.size() * 10 > static_cast<std::size_t>(l.a->rows()) * 9) break;
+      // Coarsening that stalls (a dense graph) gains little from another level, and the W-cycle
+      // visits level l 2^(l-1) times: a level must at least halve the unknowns.
+      if (coarse.size() * 2 > static_cast<std::size_t>(l.a->rows())) break;
       l.p = prolongation(*l.a, coarse_of, static_cast<int>(coarse.size()));
       l.pt = l.p.transpose();
       levels_.emplace_back();
@@ -462,11 +468,13 @@ class Hierarchy {
 };
 
 // Multigrid-preconditioned conjugate gradients; converges in a few iterations independently
-// of the size.
+// of the size. False when it does not reach the tolerance; throws when the coarsest level
+// cannot be factorised.
 bool solveMultilevel(const RowMat& a, const Eigen::VectorXd& b, Eigen::VectorXd& x, const FieldOptions& opt,
                      int& iterations) {
   Hierarchy h;
-  if (!h.build(a)) return false;
+  if (!h.build(a))
+    throw std::runtime_error("harmonic field: the coarsest level's Cholesky factorisation failed");
   h.coarseGuess(b, x);
   const long long n = b.size();
   Eigen::VectorXd r(n), z, d, q(n);
@@ -496,17 +504,17 @@ bool solveMultilevel(const RowMat& a, const Eigen::VectorXd& b, Eigen::VectorXd&
       return dp[i] * ad;
     });
     const double alpha = rz / dq;
-    double rr = 0;
-    {
-      double* xp = x.data();
-      double* rp = r.data();
-#pragma omp parallel for schedule(static) reduction(+ : rr) if (n > kParallelMin)
-      for (long long i = 0; i < n; ++i) {
-        xp[i] += alpha * dp[i];
-        rp[i] -= alpha * qp[i];
-        rr += rp[i] * rp[i];
+    double* xw = x.data();
+    double* rw = r.data();
+    const double rr = chunkedSum(n, [&](long long begin, long long end) {
+      double part = 0;
+      for (long long i = begin; i < end; ++i) {
+        xw[i] += alpha * dp[i];
+        rw[i] -= alpha * qp[i];
+        part += rw[i] * rw[i];
       }
-    }
+      return part;
+    });
     rnorm = std::sqrt(rr);
     h.cycle(0, r, z);
     const double rz_new = r.dot(z);
@@ -552,7 +560,7 @@ void solveDirichlet(const NeighborGraph& graph, const std::vector<char>& constra
   for (long long i = 0; i < nn; ++i)
     for (const int* j = graph.begin(static_cast<std::size_t>(i)); j != graph.end(static_cast<std::size_t>(i));
          ++j) {
-      if (*j <= i) continue;
+      if (*j == i) continue;
       int a = find(static_cast<int>(i)), b = find(*j);
       while (a != b) {
         if (a < b) std::swap(a, b);  // link the larger root under the smaller

@@ -301,9 +301,11 @@ NeighborGraph knnGraph(const KnnTable& knn, int k, const pcl::PointCloud<pcl::No
   }
   // Reverse lists: per-thread counts, so that each thread writes its own rows' entries to
   // slots reserved for it, in row order.
+  // At most 8 blocks (each holds n + 1 counts); each block runs exactly once, whatever team
+  // the runtime grants.
   int threads = 1;
 #ifdef _OPENMP
-  if (nn > kParallelMin) threads = omp_get_max_threads();
+  if (nn > kParallelMin) threads = std::min(8, omp_get_max_threads());
 #endif
   std::vector<std::vector<int>> rcount(static_cast<std::size_t>(threads), std::vector<int>(n + 1, 0));
   auto block = [&](int t) {
@@ -311,12 +313,8 @@ NeighborGraph knnGraph(const KnnTable& knn, int k, const pcl::PointCloud<pcl::No
         n * static_cast<std::size_t>(t) / static_cast<std::size_t>(threads),
         n * static_cast<std::size_t>(t + 1) / static_cast<std::size_t>(threads));
   };
-#pragma omp parallel num_threads(threads)
-  {
-    int t = 0;
-#ifdef _OPENMP
-    t = omp_get_thread_num();
-#endif
+#pragma omp parallel for schedule(static, 1) num_threads(threads) if (threads > 1)
+  for (int t = 0; t < threads; ++t) {
     auto& cnt = rcount[static_cast<std::size_t>(t)];
     const auto [b, e] = block(t);
     for (std::size_t i = b; i < e; ++i)
@@ -328,18 +326,14 @@ NeighborGraph knnGraph(const KnnTable& knn, int k, const pcl::PointCloud<pcl::No
     int at = roff[j];
     for (int t = 0; t < threads; ++t) {
       const int c = rcount[static_cast<std::size_t>(t)][j];
-      rcount[static_cast<std::size_t>(t)][j] = at;  // this thread's first slot in row j
+      rcount[static_cast<std::size_t>(t)][j] = at;  // this block's first slot in row j
       at += c;
     }
     roff[j + 1] = at;
   }
   std::unique_ptr<int[]> rev(new int[static_cast<std::size_t>(roff[n])]);
-#pragma omp parallel num_threads(threads)
-  {
-    int t = 0;
-#ifdef _OPENMP
-    t = omp_get_thread_num();
-#endif
+#pragma omp parallel for schedule(static, 1) num_threads(threads) if (threads > 1)
+  for (int t = 0; t < threads; ++t) {
     auto& slot = rcount[static_cast<std::size_t>(t)];
     const auto [b, e] = block(t);
     for (std::size_t i = b; i < e; ++i)

@@ -284,11 +284,11 @@ void BlockCholesky::analyze(const Eigen::SparseMatrix<double>& pattern) {
 }
 
 bool BlockCholesky::factorize(const Eigen::SparseMatrix<double>& matrix) {
+  if (nb_ == 0 || static_cast<std::size_t>(matrix.nonZeros()) != value_to_.size()) return nb_ == 0;
   for (auto& b : l_) b.setZero();
-  double* out = l_.front().data();
   const double* v = matrix.valuePtr();
   for (std::size_t k = 0; k < value_to_.size(); ++k)
-    if (value_to_[k] >= 0) out[value_to_[k]] = v[k];
+    if (value_to_[k] >= 0) l_[static_cast<std::size_t>(value_to_[k] / 144)].data()[value_to_[k] % 144] = v[k];
   const auto nb = static_cast<std::size_t>(nb_);
   Eigen::LLT<Block> llt;
   for (std::size_t j = 0; j < nb; ++j) {
@@ -357,7 +357,7 @@ SolveStats ClusterSolver::solve(const GaussNewtonOptions& options) {
     std::vector<Eigen::Triplet<double>> trip;
     // Off-diagonal blocks keep only what can be nonzero there: E_Prop's kron(S) couples the
     // same row of the two 3x4 transforms, E_Length the two translations. A third of the dense
-    // block, so the factorisation fills in and costs less.
+    // block, so fewer values to refresh and scatter into the factor every iteration.
     auto addBlock = [&](int bi, int bj, const Mat12& m) {
       for (int r = 0; r < 12; ++r)
         for (int c = 0; c < 12; ++c)
@@ -479,7 +479,18 @@ SolveStats ClusterSolver::solve(const GaussNewtonOptions& options) {
       const Mat34 g = uOf(manipulated_) * manip_s_ - manip_b_.transpose();
       grad.segment<12>(v) += w_.manip * Eigen::Map<const Vec12>(g.data());
     }
-    if (!factor_.factorize(h_)) throw std::runtime_error("Gauss-Newton: singular normal equations");
+    // J^T J is only semi-definite and 1e-9 I can drown in rounding where the weights are large:
+    // on failure, retry with a shift relative to the largest diagonal entry (a damped step).
+    bool factored = factor_.factorize(h_);
+    if (!factored) {
+      double largest = 0;
+      for (int k = 0; k < nv; ++k) largest = std::max(largest, std::abs(h_.coeff(k, k)));
+      for (double shift = 1e-12 * largest; !factored && shift <= 1e-3 * largest; shift *= 100) {
+        for (int k = 0; k < nv; ++k) h_.coeffRef(k, k) += shift;
+        factored = factor_.factorize(h_);
+      }
+    }
+    if (!factored) throw std::runtime_error("Gauss-Newton: singular normal equations");
     factor_.solve(grad, step);
     step = -step;
     if (!step.allFinite()) throw std::runtime_error("Gauss-Newton: non-finite step");

@@ -220,6 +220,34 @@ TEST_P(CliField, WritesHarmonicFieldAndKeepsFields) {
 
 INSTANTIATE_TEST_SUITE_P(Cli, CliField, ::testing::Values("ply", "pcd"));
 
+// The parallel passes (kNN, graph, multigrid sums, clustering) give the same result whatever
+// the thread count: a 60k-point sphere (multilevel solve, parallel paths) deformed with one
+// thread and with two writes byte-identical files.
+TEST(CliDeform, SameResultOnOneAndTwoThreads) {
+  TempDir dir;
+  const std::string input = dir.file("sphere.ply"), scenario = dir.file("s.json");
+  hgd::writeShape(input, hgd::shapes::bumpySphere(60000));
+  writeText(scenario, R"({
+  "format": "hgdeform-scenario/1",
+  "fixed": [ { "box": { "min": [-2, -2, -2], "max": [2, 2, -0.85] } } ],
+  "manipulated": { "box": { "min": [0.9, -2, -2], "max": [2, 2, 2] } },
+  "move": { "drag": { "from": [1, 0, 0], "to": [1, 0, 0.25] } }
+})");
+  std::string first;
+  for (const int threads : {1, 2}) {
+    const std::string out = dir.file("out" + std::to_string(threads) + ".ply");
+    const Result r = shell("OMP_NUM_THREADS=" + std::to_string(threads) + " " + quote(HGD_TOOL) + " deform " +
+                           quote(input) + " -s " + quote(scenario) + " -q -o " + quote(out));
+    ASSERT_EQ(r.code, 0) << r.err;
+    const std::string bytes = slurp(out);
+    ASSERT_FALSE(bytes.empty());
+    if (threads == 1)
+      first = bytes;
+    else
+      EXPECT_TRUE(bytes == first) << "one and two threads gave different outputs";
+  }
+}
+
 // --- deform ----------------------------------------------------------------------------------
 
 TEST(CliDeform, BunnyMatchesLibraryAndReports) {

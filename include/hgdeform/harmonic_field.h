@@ -34,7 +34,7 @@ struct FieldOptions {
   bool normal_filter = true;  ///< drop neighbours whose normals point the other way
   FieldSolver solver = FieldSolver::Auto;
   std::size_t exact_limit = 30000;
-  double tolerance = 1e-3;   ///< multilevel: relative residual (tightened as 1/sqrt(n) above 1M points)
+  double tolerance = 1e-3;   ///< multilevel: relative residual (tightened as 1/sqrt(n) above 1M unknowns)
   int max_iterations = 500;  ///< multilevel: CG cap
   bool orient_to_viewpoint = false;  ///< orient estimated normals towards `viewpoint` (scans)
   Eigen::Vector3f viewpoint = Eigen::Vector3f::Zero();

@@ -61,7 +61,8 @@ class BlockCholesky {
   /// triangles): a minimum-degree order of the blocks, the filled structure, and where each
   /// of the pattern's values goes.
   void analyze(const Eigen::SparseMatrix<double>& pattern);
-  /// Factorises a matrix with the analysed pattern. False when it is not positive definite.
+  /// Factorises a matrix with the analysed pattern. False when it is not positive definite
+  /// (or its pattern is not the analysed one).
   bool factorize(const Eigen::SparseMatrix<double>& matrix);
   /// x = A^-1 b.
   void solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) const;
