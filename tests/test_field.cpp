@@ -232,7 +232,7 @@ TEST(Field, NormalFilterKeepsThinSheetsApart) {
 }
 
 TEST(Field, MultilevelMatchesExact) {
-  for (std::size_t n : {60000u, 120000u}) {
+  for (std::size_t n : {8000u, 20000u, 60000u, 120000u}) {
     const hgd::Geometry g = hgd::extractGeometry(hgd::shapes::bumpySphere(n));
     std::vector<int> fixed, manip;
     for (std::size_t i = 0; i < g.size(); ++i) {

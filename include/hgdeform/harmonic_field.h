@@ -22,7 +22,7 @@
 namespace hgd {
 
 enum class FieldSolver {
-  Auto,        ///< exact below FieldOptions::exact_limit free points, multilevel above
+  Auto,        ///< exact up to FieldOptions::exact_limit free points, multilevel above
   Exact,       ///< sparse Cholesky (CHOLMOD supernodal) of the free block: the reference
   Multilevel,  ///< multigrid-preconditioned CG (Galerkin levels down to a small Cholesky solve)
 };
@@ -33,7 +33,7 @@ struct FieldOptions {
   bool mesh_ring = false;     ///< on meshes, use the 1-ring from faces instead of kNN
   bool normal_filter = true;  ///< drop neighbours whose normals point the other way
   FieldSolver solver = FieldSolver::Auto;
-  std::size_t exact_limit = 30000;
+  std::size_t exact_limit = 4000;
   double tolerance = 1e-3;   ///< multilevel: relative residual (tightened as 1/sqrt(n) above 1M unknowns)
   int max_iterations = 500;  ///< multilevel: CG cap
   bool orient_to_viewpoint = false;  ///< orient estimated normals towards `viewpoint` (scans)
