@@ -652,9 +652,6 @@ void solveDirichlet(const NeighborGraph& graph, const std::vector<char>& constra
   timings.iterations = 0;
   if (exact) {
     Eigen::CholmodSupernodalLLT<SpMat, Eigen::Lower> solver;
-    // AMD alone: CHOLMOD's default also tries METIS, which took most of the time at 20k points.
-    solver.cholmod().nmethods = 1;
-    solver.cholmod().method[0].ordering = CHOLMOD_AMD;
     solver.compute(SpMat(a));
     if (solver.info() != Eigen::Success)
       throw std::runtime_error("harmonic field: Cholesky factorisation failed");
