@@ -3,9 +3,7 @@
 #include <Eigen/CholmodSupport>
 #include <Eigen/Sparse>
 #include <algorithm>
-#include <atomic>
 #include <cmath>
-#include <memory>
 #include <stdexcept>
 
 #include "timer.h"
@@ -538,45 +536,14 @@ void solveDirichlet(const NeighborGraph& graph, const std::vector<char>& constra
                     FieldTimings& timings) {
   Stopwatch sw;
   const std::size_t n = graph.size();
-  // Free points reachable from a constraint; the others cannot be given a harmonic value.
-  // Connected pieces by a concurrent union-find over the edges (lock-free: a root is linked
-  // to a smaller index by compare-and-swap), in parallel; then the pieces that hold a
-  // constraint.
-  std::vector<int> free_index(n, -1);
-  std::unique_ptr<std::atomic<int>[]> parent(new std::atomic<int>[n]);
-  const long long nn = static_cast<long long>(n);
-#pragma omp parallel for schedule(static) if (nn > kParallelMin)
-  for (long long i = 0; i < nn; ++i) parent[i].store(static_cast<int>(i), std::memory_order_relaxed);
-  auto find = [&](int x) {
-    for (;;) {
-      int p = parent[x].load(std::memory_order_relaxed);
-      if (p == x) return x;
-      const int gp = parent[p].load(std::memory_order_relaxed);
-      if (gp != p) parent[x].compare_exchange_weak(p, gp, std::memory_order_relaxed);  // halving
-      x = gp;
-    }
-  };
-#pragma omp parallel for schedule(dynamic, 4096) if (nn > kParallelMin)
-  for (long long i = 0; i < nn; ++i)
-    for (const int* j = graph.begin(static_cast<std::size_t>(i)); j != graph.end(static_cast<std::size_t>(i));
-         ++j) {
-      if (*j == i) continue;
-      int a = find(static_cast<int>(i)), b = find(*j);
-      while (a != b) {
-        if (a < b) std::swap(a, b);  // link the larger root under the smaller
-        int expected = a;
-        if (parent[a].compare_exchange_strong(expected, b)) break;
-        a = find(a);
-        b = find(b);
-      }
-    }
-  std::vector<char> root_reached(n, 0);
+  // Free points reachable from a constraint (in a connected piece that holds one); the others
+  // cannot be given a harmonic value.
+  std::vector<int> free_index(n, -1), piece;
+  std::vector<char> piece_reached(static_cast<std::size_t>(connectedComponents(graph, piece)), 0);
   for (std::size_t i = 0; i < n; ++i)
-    if (constrained[i]) root_reached[static_cast<std::size_t>(find(static_cast<int>(i)))] = 1;
+    if (constrained[i]) piece_reached[static_cast<std::size_t>(piece[i])] = 1;
   std::vector<char> reached(n);
-#pragma omp parallel for schedule(static) if (nn > kParallelMin)
-  for (long long i = 0; i < nn; ++i)
-    reached[static_cast<std::size_t>(i)] = root_reached[static_cast<std::size_t>(find(static_cast<int>(i)))];
+  for (std::size_t i = 0; i < n; ++i) reached[i] = piece_reached[static_cast<std::size_t>(piece[i])];
   unreachable.clear();
   std::vector<int> free_points;
   for (std::size_t i = 0; i < n; ++i) {

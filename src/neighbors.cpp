@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <flann/flann.hpp>
 #include <memory>
@@ -390,26 +391,43 @@ NeighborGraph ringGraph(std::size_t n, const std::vector<pcl::Vertices>& faces) 
 }
 
 int connectedComponents(const NeighborGraph& graph, std::vector<int>& label) {
+  // A concurrent union-find over the edges, in parallel (lock-free: a root is linked under a
+  // smaller index by compare-and-swap, so every root ends as its piece's smallest index);
+  // pieces are then numbered in the order of their smallest index.
   const std::size_t n = graph.size();
-  label.assign(n, -1);
-  int count = 0;
-  std::vector<int> stack;
-  for (std::size_t s = 0; s < n; ++s) {
-    if (label[s] >= 0) continue;
-    label[s] = count;
-    stack.assign(1, static_cast<int>(s));
-    while (!stack.empty()) {
-      const int v = stack.back();
-      stack.pop_back();
-      for (const int* j = graph.begin(static_cast<std::size_t>(v));
-           j != graph.end(static_cast<std::size_t>(v)); ++j)
-        if (label[static_cast<std::size_t>(*j)] < 0) {
-          label[static_cast<std::size_t>(*j)] = count;
-          stack.push_back(*j);
-        }
+  const long long nn = static_cast<long long>(n);
+  std::unique_ptr<std::atomic<int>[]> parent(new std::atomic<int>[n]);
+#pragma omp parallel for schedule(static) if (nn > kParallelMin)
+  for (long long i = 0; i < nn; ++i) parent[i].store(static_cast<int>(i), std::memory_order_relaxed);
+  auto find = [&](int x) {
+    for (;;) {
+      int p = parent[x].load(std::memory_order_relaxed);
+      if (p == x) return x;
+      const int gp = parent[p].load(std::memory_order_relaxed);
+      if (gp != p) parent[x].compare_exchange_weak(p, gp, std::memory_order_relaxed);  // halving
+      x = gp;
     }
-    ++count;
-  }
+  };
+#pragma omp parallel for schedule(dynamic, 4096) if (nn > kParallelMin)
+  for (long long i = 0; i < nn; ++i)
+    for (const int* j = graph.begin(static_cast<std::size_t>(i)); j != graph.end(static_cast<std::size_t>(i));
+         ++j) {
+      if (*j == i) continue;
+      int a = find(static_cast<int>(i)), b = find(*j);
+      while (a != b) {
+        if (a < b) std::swap(a, b);  // link the larger root under the smaller
+        int expected = a;
+        if (parent[a].compare_exchange_strong(expected, b)) break;
+        a = find(a);
+        b = find(b);
+      }
+    }
+  label.resize(n);
+#pragma omp parallel for schedule(static) if (nn > kParallelMin)
+  for (long long i = 0; i < nn; ++i) label[static_cast<std::size_t>(i)] = find(static_cast<int>(i));
+  int count = 0;
+  for (std::size_t i = 0; i < n; ++i)  // a root precedes the rest of its piece
+    label[i] = label[i] == static_cast<int>(i) ? count++ : label[static_cast<std::size_t>(label[i])];
   return count;
 }
 

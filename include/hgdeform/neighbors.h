@@ -54,7 +54,8 @@ NeighborGraph knnGraph(const KnnTable& knn, int k, const pcl::PointCloud<pcl::No
 /// The 1-ring graph of a mesh (polygon edges).
 NeighborGraph ringGraph(std::size_t n, const std::vector<pcl::Vertices>& faces);
 
-/// Connected-component label of every vertex (0..count-1); returns the count.
+/// Connected-component label of every vertex (0..count-1, numbered in the order of each
+/// piece's smallest vertex), found in parallel; returns the count.
 int connectedComponents(const NeighborGraph& graph, std::vector<int>& label);
 
 }  // namespace hgd
