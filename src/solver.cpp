@@ -206,6 +206,13 @@ Energies ClusterSolver::evaluate(const Eigen::VectorXd& x) const {
   return e;
 }
 
+int BlockCholesky::blockAt(int i, int j) const {
+  if (i == j) return diag_at_[static_cast<std::size_t>(j)];
+  const int* b = col_row_.data() + col_start_[static_cast<std::size_t>(j)];
+  const int* e = col_row_.data() + col_start_[static_cast<std::size_t>(j) + 1];
+  return diag_at_[static_cast<std::size_t>(j)] + 1 + static_cast<int>(std::lower_bound(b, e, i) - b);
+}
+
 void BlockCholesky::analyze(const Eigen::SparseMatrix<double>& pattern) {
   nb_ = static_cast<int>(pattern.cols() / 12);
   const auto nb = static_cast<std::size_t>(nb_);
@@ -221,8 +228,9 @@ void BlockCholesky::analyze(const Eigen::SparseMatrix<double>& pattern) {
     a.erase(std::unique(a.begin(), a.end()), a.end());
   }
   // Minimum degree on the block graph, with the fill it makes (clusters form chains and
-  // trees, so there is little).
-  std::vector<std::vector<int>> g = adj;
+  // trees, so there is little). A block's neighbours when it is eliminated are the rows of its
+  // column of L.
+  std::vector<std::vector<int>> g = adj, rows(nb);
   std::vector<char> done(nb, 0);
   order_.clear();
   rank_.assign(nb, -1);
@@ -235,6 +243,7 @@ void BlockCholesky::analyze(const Eigen::SparseMatrix<double>& pattern) {
     done[v] = 1;
     rank_[v] = static_cast<int>(order_.size());
     order_.push_back(best);
+    rows[step] = g[v];
     // Neighbours of v become a clique; v leaves the graph.
     for (int a : g[v]) {
       auto& ga = g[static_cast<std::size_t>(a)];
@@ -243,43 +252,25 @@ void BlockCholesky::analyze(const Eigen::SparseMatrix<double>& pattern) {
         if (b != a && std::find(ga.begin(), ga.end(), b) == ga.end()) ga.push_back(b);
     }
   }
-  // Structure of L by position: rows of column j are the positions of j's neighbours at the
-  // time it was eliminated (recomputed: symbolic elimination in the chosen order).
-  std::vector<std::vector<int>> rows(nb);
-  for (std::size_t j = 0; j < nb; ++j)
-    for (int a : adj[static_cast<std::size_t>(order_[j])])
-      if (rank_[static_cast<std::size_t>(a)] > static_cast<int>(j))
-        rows[j].push_back(rank_[static_cast<std::size_t>(a)]);
   col_start_.assign(nb + 1, 0);
   col_row_.clear();
   for (std::size_t j = 0; j < nb; ++j) {
-    auto& r = rows[j];
-    std::sort(r.begin(), r.end());
-    r.erase(std::unique(r.begin(), r.end()), r.end());
-    if (!r.empty()) {  // fill: the rest of the column joins the column of its first row
-      auto& parent = rows[static_cast<std::size_t>(r.front())];
-      parent.insert(parent.end(), r.begin() + 1, r.end());
-    }
-    col_row_.insert(col_row_.end(), r.begin(), r.end());
+    for (int& b : rows[j]) b = rank_[static_cast<std::size_t>(b)];  // blocks -> positions
+    std::sort(rows[j].begin(), rows[j].end());
+    col_row_.insert(col_row_.end(), rows[j].begin(), rows[j].end());
     col_start_[j + 1] = static_cast<int>(col_row_.size());
   }
   diag_at_.resize(nb);
   for (std::size_t j = 0; j < nb; ++j) diag_at_[j] = static_cast<int>(j) + col_start_[j];
   l_.assign(nb + col_row_.size(), Block::Zero());
   // Where each pattern value goes: the lower triangle by position (the diagonal block whole).
-  auto slot = [&](int j, int i) {  // l_ index of block (row position i, column position j)
-    if (i == j) return diag_at_[static_cast<std::size_t>(j)];
-    const int* b = col_row_.data() + col_start_[static_cast<std::size_t>(j)];
-    const int* e = col_row_.data() + col_start_[static_cast<std::size_t>(j) + 1];
-    return diag_at_[static_cast<std::size_t>(j)] + 1 + static_cast<int>(std::lower_bound(b, e, i) - b);
-  };
   value_to_.assign(static_cast<std::size_t>(pattern.nonZeros()), -1);
   for (int c = 0; c < pattern.outerSize(); ++c)
     for (int k = pattern.outerIndexPtr()[c]; k < pattern.outerIndexPtr()[c + 1]; ++k) {
       const int r = pattern.innerIndexPtr()[k];
       const int pi = rank_[static_cast<std::size_t>(r / 12)], pj = rank_[static_cast<std::size_t>(c / 12)];
       if (pi < pj) continue;
-      value_to_[static_cast<std::size_t>(k)] = 144 * slot(pj, pi) + 12 * (c % 12) + r % 12;
+      value_to_[static_cast<std::size_t>(k)] = 144 * blockAt(pi, pj) + 12 * (c % 12) + r % 12;
     }
 }
 
@@ -303,15 +294,12 @@ bool BlockCholesky::factorize(const Eigen::SparseMatrix<double>& matrix) {
       d.triangularView<Eigen::Lower>().transpose().solveInPlace<Eigen::OnTheRight>(col[s]);
     // Right-looking update of the later columns: A_ik -= L_ij L_kj^T for rows i >= k.
     for (int t = 0; t < e - b; ++t) {
-      const auto k = static_cast<std::size_t>(col_row_[static_cast<std::size_t>(b + t)]);
-      l_[static_cast<std::size_t>(diag_at_[k])].noalias() -= col[t] * col[t].transpose();
-      const int* kb = col_row_.data() + col_start_[k];
-      const int* ke = col_row_.data() + col_start_[k + 1];
-      for (int s = t + 1; s < e - b; ++s) {
-        const int i = col_row_[static_cast<std::size_t>(b + s)];
-        const auto at = static_cast<std::size_t>(std::lower_bound(kb, ke, i) - kb);
-        l_[static_cast<std::size_t>(diag_at_[k]) + 1 + at].noalias() -= col[s] * col[t].transpose();
-      }
+      const int k = col_row_[static_cast<std::size_t>(b + t)];
+      l_[static_cast<std::size_t>(diag_at_[static_cast<std::size_t>(k)])].noalias() -=
+          col[t] * col[t].transpose();
+      for (int s = t + 1; s < e - b; ++s)
+        l_[static_cast<std::size_t>(blockAt(col_row_[static_cast<std::size_t>(b + s)], k))].noalias() -=
+            col[s] * col[t].transpose();
     }
   }
   return true;

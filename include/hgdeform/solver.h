@@ -68,6 +68,9 @@ class BlockCholesky {
   void solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) const;
 
  private:
+  /// Index into l_ of block (row position i, column position j), i >= j, in L's structure.
+  int blockAt(int i, int j) const;
+
   int nb_ = 0;
   std::vector<int> order_, rank_;         ///< elimination position -> block, block -> position
   std::vector<int> col_start_, col_row_;  ///< per position j: rows (positions > j) of L's column j
