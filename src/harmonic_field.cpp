@@ -386,7 +386,6 @@ class Hierarchy {
     return direct_.info() == Eigen::Success;
   }
 
-  std::size_t levels() const { return levels_.size(); }
   /// Calls f(i, (A x)_i) over the finest level's rows; returns the sum of f.
   template <typename F>
   double forFineRows(const Eigen::VectorXd& x, F&& f) const {

@@ -51,8 +51,6 @@ struct InterpolationTable {
   std::vector<std::pair<int, int>> pairs;
   std::vector<Eigen::Vector3f> pair_centre;
   std::size_t size() const { return points.size(); }
-  int lo(std::size_t i) const { return pairs[static_cast<std::size_t>(points[i].pair)].first; }
-  int hi(std::size_t i) const { return pairs[static_cast<std::size_t>(points[i].pair)].second; }
 };
 
 /// The table for `points` (and their `normals`, which may be null) under a clustering.
