@@ -6,11 +6,8 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "parallel.h"
 #include "timer.h"
-
-#ifdef _OPENMP
-#include <omp.h>
-#endif
 
 namespace hgd {
 
@@ -194,23 +191,6 @@ std::vector<int> coarsen(const RowMat& a, std::vector<int>& coarse_of) {
     }
   }
   return coarse;
-}
-
-// One block per thread when n is large enough to share; forBlocks splits [0, n) into that
-// many contiguous blocks and runs body(begin, end, block) on each exactly once, in parallel
-// (even if the runtime grants fewer threads than asked).
-int blockCount(long long n) {
-  int threads = 1;
-#ifdef _OPENMP
-  if (n > kParallelMin) threads = omp_get_max_threads();
-#endif
-  return threads;
-}
-template <typename Body>
-void forBlocks(long long n, int blocks, Body&& body) {
-#pragma omp parallel for schedule(static, 1) num_threads(blocks) if (blocks > 1)
-  for (int t = 0; t < blocks; ++t)
-    body(static_cast<int>(n * t / blocks), static_cast<int>(n * (t + 1) / blocks), t);
 }
 
 // Assembles a row-major matrix from per-thread blocks of consecutive rows.

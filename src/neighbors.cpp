@@ -10,6 +10,7 @@
 #include <memory>
 
 #include "grid_knn.h"
+#include "parallel.h"
 #include "timer.h"
 
 namespace hgd {
@@ -302,26 +303,15 @@ NeighborGraph knnGraph(const KnnTable& knn, int k, const pcl::PointCloud<pcl::No
   }
   // Reverse lists: per-thread counts, so that each thread writes its own rows' entries to
   // slots reserved for it, in row order.
-  // At most 8 blocks (each holds n + 1 counts); each block runs exactly once, whatever team
-  // the runtime grants.
-  int threads = 1;
-#ifdef _OPENMP
-  if (nn > kParallelMin) threads = std::min(8, omp_get_max_threads());
-#endif
+  // At most 8 blocks (each holds n + 1 counts).
+  const int threads = std::min(8, blockCount(nn));
   std::vector<std::vector<int>> rcount(static_cast<std::size_t>(threads), std::vector<int>(n + 1, 0));
-  auto block = [&](int t) {
-    return std::pair<std::size_t, std::size_t>(
-        n * static_cast<std::size_t>(t) / static_cast<std::size_t>(threads),
-        n * static_cast<std::size_t>(t + 1) / static_cast<std::size_t>(threads));
-  };
-#pragma omp parallel for schedule(static, 1) num_threads(threads) if (threads > 1)
-  for (int t = 0; t < threads; ++t) {
+  forBlocks(nn, threads, [&](int b, int e, int t) {
     auto& cnt = rcount[static_cast<std::size_t>(t)];
-    const auto [b, e] = block(t);
-    for (std::size_t i = b; i < e; ++i)
+    for (auto i = static_cast<std::size_t>(b); i < static_cast<std::size_t>(e); ++i)
       for (int m = 0; m < fwd_count[i]; ++m)
         ++cnt[static_cast<std::size_t>(fwd[i * ukk + static_cast<std::size_t>(m)])];
-  }
+  });
   std::vector<int> roff(n + 1, 0);
   for (std::size_t j = 0; j < n; ++j) {
     int at = roff[j];
@@ -333,16 +323,14 @@ NeighborGraph knnGraph(const KnnTable& knn, int k, const pcl::PointCloud<pcl::No
     roff[j + 1] = at;
   }
   std::unique_ptr<int[]> rev(new int[static_cast<std::size_t>(roff[n])]);
-#pragma omp parallel for schedule(static, 1) num_threads(threads) if (threads > 1)
-  for (int t = 0; t < threads; ++t) {
+  forBlocks(nn, threads, [&](int b, int e, int t) {
     auto& slot = rcount[static_cast<std::size_t>(t)];
-    const auto [b, e] = block(t);
-    for (std::size_t i = b; i < e; ++i)
+    for (auto i = static_cast<std::size_t>(b); i < static_cast<std::size_t>(e); ++i)
       for (int m = 0; m < fwd_count[i]; ++m) {
         const auto j = static_cast<std::size_t>(fwd[i * ukk + static_cast<std::size_t>(m)]);
         rev[static_cast<std::size_t>(slot[j]++)] = static_cast<int>(i);
       }
-  }
+  });
   rcount.clear();
   rcount.shrink_to_fit();
   // Each row: the union of its sorted forward and reverse lists; counted, then written.

@@ -1,0 +1,30 @@
+// Splitting work into contiguous blocks, one per thread (internal).
+#pragma once
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+#include "timer.h"
+
+namespace hgd {
+
+/// One block per thread when n is large enough to share (kParallelMin), else one.
+inline int blockCount(long long n) {
+  int threads = 1;
+#ifdef _OPENMP
+  if (n > kParallelMin) threads = omp_get_max_threads();
+#endif
+  return threads;
+}
+
+/// Splits [0, n) into `blocks` contiguous blocks and runs body(begin, end, block) on each
+/// exactly once, in parallel (even if the runtime grants fewer threads than asked).
+template <typename Body>
+void forBlocks(long long n, int blocks, Body&& body) {
+#pragma omp parallel for schedule(static, 1) num_threads(blocks) if (blocks > 1)
+  for (int t = 0; t < blocks; ++t)
+    body(static_cast<int>(n * t / blocks), static_cast<int>(n * (t + 1) / blocks), t);
+}
+
+}  // namespace hgd
