@@ -69,11 +69,57 @@ void HarmonicField::buildGraph() {
     normals_ =
         estimateNormals(pts, knn_, options_.k_normals, options_.orient_to_viewpoint, options_.viewpoint);
   }
+  // Stored normals with inconsistent signs (merged scans, resampled meshes) would make the
+  // filter see thin gaps everywhere: re-oriented like estimated ones (a unit-length copy).
+  reoriented_ = false;
+  if (have_normals && options_.normal_filter && !ring && knn_.k > 0 &&
+      !consistentlyOriented(pts, *normals_, knn_, options_.k_neighbors)) {
+    pcl::PointCloud<pcl::Normal>::Ptr unit(new pcl::PointCloud<pcl::Normal>(*normals_));
+    for (auto& v : *unit) {
+      const float len = v.getNormalVector3fMap().norm();
+      v.getNormalVector3fMap() =
+          len > 0 ? Eigen::Vector3f(v.getNormalVector3fMap() / len) : Eigen::Vector3f::UnitZ();
+    }
+    orientNormals(pts, knn_, options_.k_normals, *unit);
+    normals_ = unit;
+    reoriented_ = true;
+  }
   timings_.normals_ms = sw.lap();
-  graph_ = ring ? ringGraph(pts.size(), polygons_)
-                : knnGraph(knn_, options_.k_neighbors, options_.normal_filter ? normals_.get() : nullptr);
+  dropped_.clear();
+  if (ring) {
+    graph_ = ringGraph(pts.size(), polygons_);
+  } else {
+    graph_ = knnGraph(knn_, options_.k_neighbors, options_.normal_filter ? normals_.get() : nullptr, &pts,
+                      &dropped_);
+    // Mesh edges are never dropped: the mesh says those vertices are adjacent.
+    if (mesh) graph_ = unionGraph(graph_, ringGraph(pts.size(), polygons_));
+  }
+  base_piece_.clear();
+  if (!dropped_.empty()) connectedComponents(graph_, base_piece_);
   timings_.graph_ms = sw.lap();
   graph_valid_ = true;
+}
+
+void HarmonicField::joinPieces(const std::vector<char>& constrained) {
+  // The normal filter never splits the surface: a piece of the filtered graph that holds no
+  // handle, and that the filter alone cut off, is joined back through every dropped pair that
+  // leads out of it. Pieces that each hold a handle stay apart (a handle on one layer of a
+  // sheet does not pull the other).
+  joined_.clear();
+  if (dropped_.empty()) return;
+  std::vector<char> has_handle(
+      base_piece_.empty()
+          ? 0
+          : static_cast<std::size_t>(*std::max_element(base_piece_.begin(), base_piece_.end())) + 1,
+      0);
+  for (std::size_t i = 0; i < constrained.size(); ++i)
+    if (constrained[i]) has_handle[static_cast<std::size_t>(base_piece_[i])] = 1;
+  for (const auto& [a, b] : dropped_) {
+    const int pa = base_piece_[static_cast<std::size_t>(a)], pb = base_piece_[static_cast<std::size_t>(b)];
+    if (pa != pb && (!has_handle[static_cast<std::size_t>(pa)] || !has_handle[static_cast<std::size_t>(pb)]))
+      joined_.emplace_back(a, b);
+  }
+  if (!joined_.empty()) graph_joined_ = addEdges(graph_, joined_);
 }
 
 void HarmonicField::compute(std::vector<float>& phi) {
@@ -99,10 +145,13 @@ void HarmonicField::compute(std::vector<float>& phi) {
   if (rebuilt) buildGraph();
   FieldTimings t = timings_;
   if (!rebuilt) t.knn_ms = t.normals_ms = t.graph_ms = 0;  // cached: this compute() did not pay for them
+  Stopwatch sw_join;
   (void)knn_ms;
   (void)normals_ms;
   (void)graph_ms;
-  solveDirichlet(graph_, constrained, value, options_, unreachable_, t);
+  joinPieces(constrained);
+  t.graph_ms += sw_join.ms();
+  solveDirichlet(graph(), constrained, value, options_, unreachable_, t, &piece_);
   timings_ = t;
   phi.resize(n);
   for (std::size_t i = 0; i < n; ++i) phi[i] = static_cast<float>(std::clamp(value[i], 0.0, 1.0));
@@ -512,12 +561,13 @@ bool solveMultilevel(const RowMat& a, const Eigen::VectorXd& b, Eigen::VectorXd&
 
 void solveDirichlet(const NeighborGraph& graph, const std::vector<char>& constrained,
                     std::vector<double>& value, const FieldOptions& options, std::vector<int>& unreachable,
-                    FieldTimings& timings) {
+                    FieldTimings& timings, std::vector<int>* piece_out) {
   Stopwatch sw;
   const std::size_t n = graph.size();
   // Free points reachable from a constraint (in a connected piece that holds one); the others
   // cannot be given a harmonic value.
-  std::vector<int> free_index(n, -1), piece;
+  std::vector<int> free_index(n, -1), own_piece;
+  std::vector<int>& piece = piece_out ? *piece_out : own_piece;
   std::vector<char> piece_reached(static_cast<std::size_t>(connectedComponents(graph, piece)), 0);
   for (std::size_t i = 0; i < n; ++i)
     if (constrained[i]) piece_reached[static_cast<std::size_t>(piece[i])] = 1;

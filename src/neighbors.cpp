@@ -8,6 +8,7 @@
 #include <cmath>
 #include <flann/flann.hpp>
 #include <memory>
+#include <stdexcept>
 
 #include "grid_knn.h"
 #include "parallel.h"
@@ -16,6 +17,17 @@
 namespace hgd {
 
 namespace {
+// The normal filter (docs/scans.md, "The neighbour graph and its normal filter"): a pair is across a thin gap
+// when its normals face each other or away from each other within about 26 degrees (cos 26 = 0.9) and one
+// point lies above the other along them by at least 0.15 of the offset (9 degrees out of the tangent plane:
+// two layers half a spacing apart have neighbours across the gap up to 3 spacings aside; a flipped normal on
+// a smooth surface has its neighbours within a few degrees of its tangent plane).
+constexpr float kThinGapCos = 0.9f;
+constexpr float kThinGapOffset = 0.15f;
+// Stored normals are re-oriented when more than this fraction of side-by-side neighbours
+// disagree (random signs: about half).
+constexpr double kInconsistentFraction = 0.02;
+
 KnnTable knnOfDistinct(const pcl::PointCloud<pcl::PointXYZ>& points, int k, bool* coincident = nullptr);
 }  // namespace
 
@@ -154,6 +166,14 @@ pcl::PointCloud<pcl::Normal>::Ptr estimateNormals(const pcl::PointCloud<pcl::Poi
     return normals;
   }
 
+  orientNormals(points, knn, kn, *normals);
+  return normals;
+}
+
+void orientNormals(const pcl::PointCloud<pcl::PointXYZ>& points, const KnnTable& knn, int k_normals,
+                   pcl::PointCloud<pcl::Normal>& normals) {
+  const std::size_t n = points.size();
+  const int kn = std::min(k_normals, knn.k);
   // Minimum-spanning-tree propagation (Prim) over the symmetric kNN graph with weights
   // 1 - |n_i . n_j|: flips follow the smoothest path, so creases are crossed last. Weights lie
   // in [0, 1], so a bucket queue (256 levels) stands in for the heap: same order up to 1/256,
@@ -179,7 +199,7 @@ pcl::PointCloud<pcl::Normal>::Ptr estimateNormals(const pcl::PointCloud<pcl::Poi
   };
   for (int seed : order) {
     if (done[static_cast<std::size_t>(seed)]) continue;
-    auto& sn = (*normals)[static_cast<std::size_t>(seed)];
+    auto& sn = normals[static_cast<std::size_t>(seed)];
     if (sn.normal_x < 0) sn.getNormalVector3fMap() *= -1.0f;
     push(0.0f, seed, seed);
     while (lowest < kBuckets) {
@@ -192,19 +212,17 @@ pcl::PointCloud<pcl::Normal>::Ptr estimateNormals(const pcl::PointCloud<pcl::Poi
       bk.pop_back();
       if (done[static_cast<std::size_t>(to)]) continue;
       done[static_cast<std::size_t>(to)] = 1;
-      auto nt = (*normals)[static_cast<std::size_t>(to)].getNormalVector3fMap();
-      if (to != from && nt.dot((*normals)[static_cast<std::size_t>(from)].getNormalVector3fMap()) < 0)
+      auto nt = normals[static_cast<std::size_t>(to)].getNormalVector3fMap();
+      if (to != from && nt.dot(normals[static_cast<std::size_t>(from)].getNormalVector3fMap()) < 0)
         nt *= -1.0f;
       for (const int* j = g.begin(static_cast<std::size_t>(to)); j != g.end(static_cast<std::size_t>(to));
            ++j) {
         if (done[static_cast<std::size_t>(*j)]) continue;
-        push(1.0f - std::abs(nt.dot((*normals)[static_cast<std::size_t>(*j)].getNormalVector3fMap())), *j,
-             to);
+        push(1.0f - std::abs(nt.dot(normals[static_cast<std::size_t>(*j)].getNormalVector3fMap())), *j, to);
       }
     }
     lowest = kBuckets;
   }
-  return normals;
 }
 
 pcl::PointCloud<pcl::Normal>::Ptr meshNormals(const pcl::PointCloud<pcl::PointXYZ>& points,
@@ -269,7 +287,27 @@ NeighborGraph symmetricGraph(std::size_t n, ForEachEdge&& for_each_edge) {
 }
 }  // namespace
 
-NeighborGraph knnGraph(const KnnTable& knn, int k, const pcl::PointCloud<pcl::Normal>* normals) {
+bool acrossThinGap(const Eigen::Vector3f& pi, const Eigen::Vector3f& ni, const Eigen::Vector3f& pj,
+                   const Eigen::Vector3f& nj) {
+  const float dot = ni.dot(nj);
+  if (!(dot < 0)) return false;  // most pairs: the normals agree
+  const float li2 = ni.squaredNorm(), lj2 = nj.squaredNorm();
+  // A ridge or a crease: the normals turn, they do not face each other.
+  if (!(li2 > 0) || !(lj2 > 0) || dot * dot < kThinGapCos * kThinGapCos * li2 * lj2) return false;
+  const Eigen::Vector3f a = ni / std::sqrt(li2), b = nj / std::sqrt(lj2);
+  const Eigen::Vector3f axis = a - b;  // the pair's common normal line, |axis| ~ 2
+  const Eigen::Vector3f d = pj - pi;
+  if (!(d.squaredNorm() > 0)) return false;  // copies of one point
+  // Offset along the normal line (one side above the other), not beside it in the tangent
+  // plane (a flipped normal on a smooth surface has its neighbours beside it).
+  return std::abs(d.dot(axis)) >= kThinGapOffset * d.norm() * axis.norm();
+}
+
+NeighborGraph knnGraph(const KnnTable& knn, int k, const pcl::PointCloud<pcl::Normal>* normals,
+                       const pcl::PointCloud<pcl::PointXYZ>* points,
+                       std::vector<std::pair<int, int>>* dropped) {
+  if (normals && (!points || points->size() != knn.size() || normals->size() != knn.size()))
+    throw std::invalid_argument("knnGraph: the normal filter needs the points and one normal per point");
   // In parallel passes rather than through a generic edge list (this runs once per cloud on
   // a million points): each row's kept entries sorted; the reverse lists, sorted by
   // construction (filled in row order); then each row is the merge of the two.
@@ -279,27 +317,43 @@ NeighborGraph knnGraph(const KnnTable& knn, int k, const pcl::PointCloud<pcl::No
   const auto ukk = static_cast<std::size_t>(kk);
   // Not zero-filled: every slot read is written first (the rows in parallel, first touch).
   std::unique_ptr<int[]> fwd(new int[n * ukk]), fwd_count(new int[n]);
-#pragma omp parallel for schedule(static) if (nn > kParallelMin)
-  for (long long ii = 0; ii < nn; ++ii) {
-    const auto i = static_cast<std::size_t>(ii);
-    const int* row = knn.row(i);
-    int* out = fwd.get() + i * ukk;
-    int c = 0;
-    for (int m = 0; m < kk; ++m) {
-      const int j = row[m];
-      if (j == static_cast<int>(i)) continue;
-      if (normals && (*normals)[i].getNormalVector3fMap().dot(
-                         (*normals)[static_cast<std::size_t>(j)].getNormalVector3fMap()) < 0)
-        continue;
-      // Insertion into the sorted prefix (k is small), skipping repeats.
-      int at = c;
-      while (at > 0 && out[at - 1] > j) --at;
-      if (at > 0 && out[at - 1] == j) continue;
-      for (int q = c; q > at; --q) out[q] = out[q - 1];
-      out[at] = j;
-      ++c;
+  if (dropped) dropped->clear();
+#pragma omp parallel if (nn > kParallelMin)
+  {
+    std::vector<std::pair<int, int>> mine;  // dropped pairs: few, listed by the thread that met them
+#pragma omp for schedule(static) nowait
+    for (long long ii = 0; ii < nn; ++ii) {
+      const auto i = static_cast<std::size_t>(ii);
+      const int* row = knn.row(i);
+      int* out = fwd.get() + i * ukk;
+      int c = 0;
+      for (int m = 0; m < kk; ++m) {
+        const int j = row[m];
+        if (j == static_cast<int>(i)) continue;
+        // (Most pairs' normals agree: that is decided here, without the call.)
+        if (normals &&
+            (*normals)[i].getNormalVector3fMap().dot(
+                (*normals)[static_cast<std::size_t>(j)].getNormalVector3fMap()) < 0 &&
+            acrossThinGap((*points)[i].getVector3fMap(), (*normals)[i].getNormalVector3fMap(),
+                          (*points)[static_cast<std::size_t>(j)].getVector3fMap(),
+                          (*normals)[static_cast<std::size_t>(j)].getNormalVector3fMap())) {
+          if (dropped) mine.emplace_back(std::min(static_cast<int>(i), j), std::max(static_cast<int>(i), j));
+          continue;
+        }
+        // Insertion into the sorted prefix (k is small), skipping repeats.
+        int at = c;
+        while (at > 0 && out[at - 1] > j) --at;
+        if (at > 0 && out[at - 1] == j) continue;
+        for (int q = c; q > at; --q) out[q] = out[q - 1];
+        out[at] = j;
+        ++c;
+      }
+      fwd_count[i] = c;
     }
-    fwd_count[i] = c;
+    if (dropped && !mine.empty()) {
+#pragma omp critical
+      dropped->insert(dropped->end(), mine.begin(), mine.end());
+    }
   }
   // Reverse lists: per-thread counts, so that each thread writes its own rows' entries to
   // slots reserved for it, in row order.
@@ -363,7 +417,74 @@ NeighborGraph knnGraph(const KnnTable& knn, int k, const pcl::PointCloud<pcl::No
 #pragma omp parallel for schedule(static) if (nn > kParallelMin)
   for (long long i = 0; i < nn; ++i)
     merge(static_cast<std::size_t>(i), g.adj.data() + g.offsets[static_cast<std::size_t>(i)]);
+  if (dropped) {  // the rule is symmetric: a pair dropped from one side is dropped from both
+    std::sort(dropped->begin(), dropped->end());
+    dropped->erase(std::unique(dropped->begin(), dropped->end()), dropped->end());
+  }
   return g;
+}
+
+bool consistentlyOriented(const pcl::PointCloud<pcl::PointXYZ>& points,
+                          const pcl::PointCloud<pcl::Normal>& normals, const KnnTable& knn, int k) {
+  // Neighbours beside each other on a smooth surface (offset in both tangent planes) have
+  // normals that agree when the orientation is consistent; with random signs half disagree.
+  // A statistic: every point of a small cloud, an even spread of 50,000 of a large one.
+  const std::size_t n = points.size();
+  const int kk = std::max(0, std::min(k, knn.k));
+  const std::size_t stride = std::max<std::size_t>(1, n / 50000);
+  const long long nn = static_cast<long long>(n / stride);
+  long long beside = 0, disagree = 0;
+#pragma omp parallel for schedule(static) reduction(+ : beside, disagree) if (nn > kParallelMin)
+  for (long long ii = 0; ii < nn; ++ii) {
+    const auto i = static_cast<std::size_t>(ii) * stride;
+    const Eigen::Vector3f ni = normals[i].getNormalVector3fMap();
+    const float li = ni.norm();
+    if (!(li > 0)) continue;
+    for (int m = 0; m < kk; ++m) {
+      const auto j = static_cast<std::size_t>(knn.row(i)[m]);
+      if (j == i) continue;
+      const Eigen::Vector3f nj = normals[j].getNormalVector3fMap();
+      const float lj = nj.norm();
+      const Eigen::Vector3f d = points[j].getVector3fMap() - points[i].getVector3fMap();
+      const float ld = d.norm();
+      if (!(lj > 0) || !(ld > 0)) continue;
+      if (std::abs(d.dot(ni)) > 0.3f * ld * li || std::abs(d.dot(nj)) > 0.3f * ld * lj) continue;
+      ++beside;
+      disagree += ni.dot(nj) < 0;
+    }
+  }
+  return static_cast<double>(disagree) <= kInconsistentFraction * static_cast<double>(beside);
+}
+
+NeighborGraph unionGraph(const NeighborGraph& a, const NeighborGraph& b) {
+  const std::size_t n = a.size();
+  NeighborGraph g;
+  g.offsets.assign(n + 1, 0);
+  g.adj.reserve(a.adj.size() + b.adj.size());
+  for (std::size_t i = 0; i < n; ++i) {
+    const int *x = a.begin(i), *xe = a.end(i), *y = b.begin(i), *ye = b.end(i);
+    while (x != xe || y != ye) {
+      int v;
+      if (y == ye || (x != xe && *x < *y))
+        v = *x++;
+      else if (x == xe || *y < *x)
+        v = *y++;
+      else {
+        v = *x++;
+        ++y;
+      }
+      g.adj.push_back(v);
+    }
+    g.offsets[i + 1] = static_cast<int>(g.adj.size());
+  }
+  return g;
+}
+
+NeighborGraph addEdges(const NeighborGraph& graph, const std::vector<std::pair<int, int>>& edges) {
+  return unionGraph(graph, symmetricGraph(graph.size(), [&](auto&& emit) {
+                      for (const auto& [a, b] : edges)
+                        if (a != b) emit(a, b);
+                    }));
 }
 
 NeighborGraph ringGraph(std::size_t n, const std::vector<pcl::Vertices>& faces) {

@@ -333,16 +333,26 @@ TEST(Knn, ExactOnSurfacesVolumesAndOutliers) {
 }
 
 // The neighbour graph is the symmetric closure of the kNN relation, without self-loops,
-// repeats or pairs whose normals disagree: checked against a set-based construction, on a
-// cloud large enough for the parallel passes, with some normals flipped and duplicate rows.
+// repeats or pairs across a thin gap: checked against a set-based construction, on a cloud
+// large enough for the parallel passes: a sphere inside a copy 1% larger whose normals face it
+// (a third of a spacing apart: pairs between the layers are across a thin gap), with some
+// normals flipped on both layers (pairs beside each other stay) and duplicate rows. The dropped pairs are
+// listed exactly.
 TEST(Knn, GraphIsTheSymmetricFilteredRelation) {
-  const hgd::Geometry g = hgd::extractGeometry(hgd::shapes::bumpySphere(30000));
-  hgd::KnnTable knn = hgd::computeKnn(*g.points, 12);
+  const hgd::Geometry inner = hgd::extractGeometry(hgd::shapes::bumpySphere(15000, 0.0f));
+  std::vector<Eigen::Vector3f> p, nv;
   std::mt19937 rng(3);
-  pcl::PointCloud<pcl::Normal> normals = *g.file_normals;
+  for (const float scale : {1.0f, 1.01f})
+    for (std::size_t i = 0; i < inner.size(); ++i) {
+      p.push_back(inner.world(i).cast<float>() * scale);
+      Eigen::Vector3f n = (*inner.file_normals)[i].getNormalVector3fMap() * (scale > 1 ? -1.0f : 1.0f);
+      if (rng() % 7 == 0) n *= -1.0f;
+      nv.push_back(n);
+    }
+  const hgd::Geometry g = hgd::extractGeometry(hgd::shapes::cloudShape(p, nv));
+  hgd::KnnTable knn = hgd::computeKnn(*g.points, 12);
+  const pcl::PointCloud<pcl::Normal>& normals = *g.file_normals;
   ASSERT_EQ(normals.size(), g.size());
-  for (auto& n : normals)
-    if (rng() % 7 == 0) n.getNormalVector3fMap() *= -1.0f;
   // Rows with a self entry and a repeated neighbour (as computeKnn leaves for coincident points).
   for (std::size_t i = 0; i < knn.size(); i += 101) {
     int* row = knn.index.data() + i * static_cast<std::size_t>(knn.k);
@@ -352,30 +362,72 @@ TEST(Knn, GraphIsTheSymmetricFilteredRelation) {
   for (const bool filter : {false, true}) {
     SCOPED_TRACE(filter ? "normal filter" : "no filter");
     const int k = 10;
-    const hgd::NeighborGraph graph = hgd::knnGraph(knn, k, filter ? &normals : nullptr);
+    std::vector<std::pair<int, int>> dropped;
+    const hgd::NeighborGraph graph =
+        hgd::knnGraph(knn, k, filter ? &normals : nullptr, g.points.get(), &dropped);
     std::vector<std::vector<int>> expected(knn.size());
+    std::vector<std::pair<int, int>> expected_dropped;
     for (std::size_t i = 0; i < knn.size(); ++i)
       for (int m = 0; m < k; ++m) {
         const int j = knn.row(i)[m];
         if (j == static_cast<int>(i)) continue;
-        if (filter && normals[i].getNormalVector3fMap().dot(
-                          normals[static_cast<std::size_t>(j)].getNormalVector3fMap()) < 0)
+        const auto uj = static_cast<std::size_t>(j);
+        // Independently of acrossThinGap: the pair is between the layers when the radii
+        // differ, and across the gap when its normals also oppose (a flip on one side makes
+        // them agree); beside each other on one layer, opposing normals do not matter.
+        const float ri = (*g.points)[i].getVector3fMap().norm(), rj = (*g.points)[uj].getVector3fMap().norm();
+        const bool oppose = normals[i].getNormalVector3fMap().dot(normals[uj].getNormalVector3fMap()) < 0;
+        if (filter && std::abs(ri - rj) > 0.005f && oppose) {
+          expected_dropped.emplace_back(std::min<int>(static_cast<int>(i), j),
+                                        std::max<int>(static_cast<int>(i), j));
           continue;
+        }
         expected[i].push_back(j);
-        expected[static_cast<std::size_t>(j)].push_back(static_cast<int>(i));
+        expected[uj].push_back(static_cast<int>(i));
       }
+    std::sort(expected_dropped.begin(), expected_dropped.end());
+    expected_dropped.erase(std::unique(expected_dropped.begin(), expected_dropped.end()),
+                           expected_dropped.end());
     ASSERT_EQ(graph.size(), knn.size());
-    std::size_t differ = 0;
+    std::size_t differ = 0, edges = 0;
     for (std::size_t i = 0; i < knn.size(); ++i) {
       auto& e = expected[i];
       std::sort(e.begin(), e.end());
       e.erase(std::unique(e.begin(), e.end()), e.end());
+      edges += e.size();
       if (!std::equal(e.begin(), e.end(), graph.begin(i), graph.end(i)) ||
           static_cast<std::size_t>(graph.degree(i)) != e.size())
         ++differ;
     }
+    std::printf("%s: %zu edges, %zu dropped\n", filter ? "filtered" : "unfiltered", edges / 2,
+                dropped.size());
     EXPECT_EQ(differ, 0u);
+    EXPECT_EQ(dropped, expected_dropped);
+    if (filter) {
+      EXPECT_GT(dropped.size(), g.size() / 4);  // the layers do meet in the kNN
+    }
   }
+}
+
+// The filter's rule on the cases it must tell apart.
+TEST(Knn, ThinGapIsNotARidge) {
+  using V = Eigen::Vector3f;
+  // Two sides of a sheet: one above the other, normals opposite (back to back, face to face),
+  // also with the neighbour beside by twice the gap.
+  EXPECT_TRUE(hgd::acrossThinGap(V(0, 0, 0), V(0, 0, -1), V(0, 0, 0.5f), V(0, 0, 1)));
+  EXPECT_TRUE(hgd::acrossThinGap(V(0, 0, 0), V(0, 0, 1), V(0, 0, 0.5f), V(0, 0, -1)));
+  EXPECT_TRUE(hgd::acrossThinGap(V(0, 0, 0), V(0, 0, 1), V(1.0f, 0, 0.5f), V(0, 0, -2)));
+  // A sawtooth crest: faces at +-55 degrees, normals turned 110 degrees: kept, whatever the
+  // offset.
+  const float a = 55.0f * static_cast<float>(M_PI) / 180.0f;
+  const V left(-std::cos(a), 0, -std::sin(a)), right(std::cos(a), 0, -std::sin(a));  // down the faces
+  const V nl(-std::sin(a), 0, std::cos(a)), nr(std::sin(a), 0, std::cos(a));
+  for (const float t : {0.3f, 1.0f, 2.0f}) EXPECT_FALSE(hgd::acrossThinGap(left * t, nl, right, nr)) << t;
+  // A flipped normal on a flat patch: the neighbour is beside it, not above it.
+  EXPECT_FALSE(hgd::acrossThinGap(V(0, 0, 0), V(0, 0, 1), V(1, 0, 0.05f), V(0, 0, -1)));
+  // Coincident points and zero normals: never across a gap.
+  EXPECT_FALSE(hgd::acrossThinGap(V(0, 0, 0), V(0, 0, 1), V(0, 0, 0), V(0, 0, -1)));
+  EXPECT_FALSE(hgd::acrossThinGap(V(0, 0, 0), V(0, 0, 0), V(0, 0, 1), V(0, 0, -1)));
 }
 
 // extractGeometry orders points in space whatever the file's order, and its index maps stay

@@ -60,16 +60,28 @@ class HarmonicField {
   /// handle indices and std::runtime_error when the solver fails.
   void compute(std::vector<float>& phi);
 
-  /// The neighbour graph and normals used (valid after compute()).
-  const NeighborGraph& graph() const { return graph_; }
+  /// The neighbour graph used (valid after compute()): the kNN graph less the pairs across a
+  /// thin gap (the normal filter), plus, on meshes, every mesh edge; then joined back through
+  /// the dropped pairs wherever the filter alone would cut a piece without a handle off.
+  const NeighborGraph& graph() const { return joined_.empty() ? graph_ : graph_joined_; }
+  /// The normals the filter used: the input's (re-oriented when their signs were not
+  /// consistent), the mesh's or estimated ones.
   const pcl::PointCloud<pcl::Normal>& normals() const { return *normals_; }
   const KnnTable& knn() const { return knn_; }
   /// Points in components that touch no handle (they get φ = 0).
   const std::vector<int>& unreachable() const { return unreachable_; }
+  /// Connected-piece label of every point in graph() (0..count-1).
+  const std::vector<int>& pieceLabels() const { return piece_; }
+  /// Pairs the normal filter dropped, and those of them put back to join pieces (i < j).
+  const std::vector<std::pair<int, int>>& droppedPairs() const { return dropped_; }
+  const std::vector<std::pair<int, int>>& rejoinedPairs() const { return joined_; }
+  /// True when the input normals' signs were inconsistent and were re-oriented.
+  bool normalsReoriented() const { return reoriented_; }
   const FieldTimings& timings() const { return timings_; }
 
  private:
   void buildGraph();
+  void joinPieces(const std::vector<char>& constrained);
 
   pcl::PointCloud<pcl::PointXYZ>::ConstPtr cloud_;
   pcl::PointCloud<pcl::Normal>::ConstPtr input_normals_;
@@ -80,16 +92,20 @@ class HarmonicField {
   FieldOptions options_;
   bool graph_valid_ = false;
   KnnTable knn_;
-  NeighborGraph graph_;
-  std::vector<int> unreachable_;
+  NeighborGraph graph_, graph_joined_;
+  std::vector<std::pair<int, int>> dropped_, joined_;
+  std::vector<int> base_piece_;  ///< pieces of graph_ (when the filter dropped pairs)
+  bool reoriented_ = false;
+  std::vector<int> unreachable_, piece_;
   FieldTimings timings_;
 };
 
 /// Solves the Dirichlet problem on a graph: value[i] given for constrained points (mask[i] =
 /// true), harmonic (uniform weights) elsewhere. Points in components without a constraint are
-/// set to 0 and listed in `unreachable`. Exposed for tests and the multilevel comparison.
+/// set to 0 and listed in `unreachable`. `piece`, when given, receives every point's connected
+/// piece label. Exposed for tests and the multilevel comparison.
 void solveDirichlet(const NeighborGraph& graph, const std::vector<char>& constrained,
                     std::vector<double>& value, const FieldOptions& options, std::vector<int>& unreachable,
-                    FieldTimings& timings);
+                    FieldTimings& timings, std::vector<int>* piece = nullptr);
 
 }  // namespace hgd

@@ -6,6 +6,7 @@
 #include <pcl/point_types.h>
 
 #include <cstddef>
+#include <utility>
 #include <vector>
 
 namespace hgd {
@@ -47,9 +48,36 @@ pcl::PointCloud<pcl::Normal>::Ptr estimateNormals(const pcl::PointCloud<pcl::Poi
 pcl::PointCloud<pcl::Normal>::Ptr meshNormals(const pcl::PointCloud<pcl::PointXYZ>& points,
                                               const std::vector<pcl::Vertices>& faces);
 
-/// The symmetric kNN relation (i~j if either lists the other among its first `k`), dropping
-/// pairs whose normals point opposite ways (n_i . n_j < 0). `normals` may be null (no filter).
-NeighborGraph knnGraph(const KnnTable& knn, int k, const pcl::PointCloud<pcl::Normal>* normals);
+/// Orients `normals` consistently in place, as estimateNormals() does (minimum spanning tree
+/// over the kNN graph, each piece seeded at its outermost point facing outwards). The normals
+/// must be of unit length.
+void orientNormals(const pcl::PointCloud<pcl::PointXYZ>& points, const KnnTable& knn, int k_normals,
+                   pcl::PointCloud<pcl::Normal>& normals);
+
+/// True when neighbours lying side by side (offsets within 17 degrees of both tangent planes)
+/// have agreeing normals, all but 2% of them: the normals are consistently oriented.
+bool consistentlyOriented(const pcl::PointCloud<pcl::PointXYZ>& points,
+                          const pcl::PointCloud<pcl::Normal>& normals, const KnnTable& knn, int k);
+
+/// The normal filter's rule: the pair (i, j) lies across a thin gap (the two sides of a sheet,
+/// lips, fingers touching): normals within 26 degrees of opposite, and the offset at least 9
+/// degrees out of the tangent plane, one point above the other. A ridge or a crease (normals
+/// turning, offset tangential) never is. Normals need not be of unit length.
+bool acrossThinGap(const Eigen::Vector3f& pi, const Eigen::Vector3f& ni, const Eigen::Vector3f& pj,
+                   const Eigen::Vector3f& nj);
+
+/// The symmetric kNN relation (i~j if either lists the other among its first `k`). With
+/// `normals` (and then `points`), pairs across a thin gap (acrossThinGap) are dropped and,
+/// when `dropped` is given, listed there (i < j, sorted).
+NeighborGraph knnGraph(const KnnTable& knn, int k, const pcl::PointCloud<pcl::Normal>* normals,
+                       const pcl::PointCloud<pcl::PointXYZ>* points = nullptr,
+                       std::vector<std::pair<int, int>>* dropped = nullptr);
+
+/// Every pair of either graph (same size; rows sorted, as every graph here has them).
+NeighborGraph unionGraph(const NeighborGraph& a, const NeighborGraph& b);
+
+/// `graph` with `edges` added (both directions; repeats and self-loops ignored).
+NeighborGraph addEdges(const NeighborGraph& graph, const std::vector<std::pair<int, int>>& edges);
 
 /// The 1-ring graph of a mesh (polygon edges).
 NeighborGraph ringGraph(std::size_t n, const std::vector<pcl::Vertices>& faces);
