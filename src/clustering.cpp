@@ -5,6 +5,7 @@
 #include <numeric>
 #include <unordered_map>
 
+#include "parallel.h"
 #include "timer.h"
 
 namespace hgd {
@@ -31,6 +32,7 @@ std::vector<int> voxelSample(const pcl::PointCloud<pcl::PointXYZ>& points, const
   std::unordered_map<CellKey, std::pair<float, int>, CellHash> best;
   best.reserve(points.size() / 4 + 16);
   for (std::size_t i = 0; i < points.size(); ++i) {
+    if (cls[i] < 0) continue;
     const Eigen::Vector3f q = (points[i].getVector3fMap() - lo) / h;
     const Eigen::Vector3f f = q.array().floor();
     const CellKey key{static_cast<int>(f.x()), static_cast<int>(f.y()), static_cast<int>(f.z()), cls[i]};
@@ -45,10 +47,118 @@ std::vector<int> voxelSample(const pcl::PointCloud<pcl::PointXYZ>& points, const
   return out;
 }
 
+// The surface sample's own graph: each site (a sample point that the field reached and that is
+// no outlier) owns the points nearest it along the neighbour graph (breadth first from all
+// sites at once), and two sites are adjacent when an edge joins their cells.
+struct SampleGraph {
+  std::vector<int> sites;                    ///< site -> point
+  NeighborGraph graph;                       ///< over sites
+  std::vector<int> cell_start, cell_points;  ///< site s owns cell_points[cell_start[s] .. [s+1])
+};
+
+SampleGraph sampleGraph(const NeighborGraph& graph, const std::vector<int>& sample,
+                        const std::vector<int>& role, const std::vector<char>& outlier) {
+  SampleGraph sg;
+  const std::size_t n = graph.size();
+  std::vector<int> cell(n, -1), queue;
+  queue.reserve(n);
+  for (int s : sample) {
+    const auto x = static_cast<std::size_t>(s);
+    if (role[x] == -3 || outlier[x] || cell[x] >= 0) continue;
+    cell[x] = static_cast<int>(sg.sites.size());
+    sg.sites.push_back(s);
+    queue.push_back(s);
+  }
+  for (std::size_t head = 0; head < queue.size(); ++head) {
+    const auto x = static_cast<std::size_t>(queue[head]);
+    for (const int* j = graph.begin(x); j != graph.end(x); ++j) {
+      const auto u = static_cast<std::size_t>(*j);
+      if (cell[u] >= 0 || outlier[u] || role[u] == -3) continue;
+      cell[u] = cell[x];
+      queue.push_back(*j);
+    }
+  }
+  const std::size_t ns = sg.sites.size();
+  // Cell pairs across edges, per thread, then sorted and made one graph.
+  std::vector<std::pair<int, int>> pairs;
+  const long long nn = static_cast<long long>(n);
+#pragma omp parallel if (nn > kParallelMin)
+  {
+    std::vector<std::pair<int, int>> mine;
+#pragma omp for schedule(static) nowait
+    for (long long ii = 0; ii < nn; ++ii) {
+      const auto i = static_cast<std::size_t>(ii);
+      const int a = cell[i];
+      if (a < 0) continue;
+      for (const int* j = graph.begin(i); j != graph.end(i); ++j) {
+        const int b = cell[static_cast<std::size_t>(*j)];
+        if (b > a && (mine.empty() || mine.back() != std::make_pair(a, b))) mine.emplace_back(a, b);
+      }
+    }
+#pragma omp critical
+    pairs.insert(pairs.end(), mine.begin(), mine.end());
+  }
+  std::sort(pairs.begin(), pairs.end());
+  pairs.erase(std::unique(pairs.begin(), pairs.end()), pairs.end());
+  NeighborGraph empty;
+  empty.offsets.assign(ns + 1, 0);
+  sg.graph = addEdges(empty, pairs);
+  // Cells as lists (counting sort by site, in point order).
+  sg.cell_start.assign(ns + 1, 0);
+  for (std::size_t i = 0; i < n; ++i)
+    if (cell[i] >= 0) ++sg.cell_start[static_cast<std::size_t>(cell[i]) + 1];
+  for (std::size_t s = 0; s < ns; ++s) sg.cell_start[s + 1] += sg.cell_start[s];
+  sg.cell_points.resize(static_cast<std::size_t>(sg.cell_start[ns]));
+  std::vector<int> fill(sg.cell_start.begin(), sg.cell_start.end() - 1);
+  for (std::size_t i = 0; i < n; ++i)
+    if (cell[i] >= 0)
+      sg.cell_points[static_cast<std::size_t>(fill[static_cast<std::size_t>(cell[i])]++)] =
+          static_cast<int>(i);
+  return sg;
+}
+
 }  // namespace
 
+std::vector<char> findOutliers(const pcl::PointCloud<pcl::PointXYZ>& points, const KnnTable& knn) {
+  // A point whose nearest neighbour is more than 4 times as far as the typical point's: stray
+  // returns of a scan, far from any surface (noise on the surface is not flagged).
+  const std::size_t n = points.size();
+  if (knn.k == 0 || knn.size() != n) return {};
+  std::vector<float> nearest(n, INFINITY);
+  const long long nn = static_cast<long long>(n);
+#pragma omp parallel for schedule(static) if (nn > kParallelMin)
+  for (long long ii = 0; ii < nn; ++ii) {
+    const auto i = static_cast<std::size_t>(ii);
+    for (int m = 0; m < knn.k; ++m) {  // rows are sorted by distance: the first other position
+      const float d =
+          (points[static_cast<std::size_t>(knn.row(i)[m])].getVector3fMap() - points[i].getVector3fMap())
+              .squaredNorm();
+      if (d > 0) {
+        nearest[i] = d;
+        break;
+      }
+    }
+  }
+  std::vector<char> out(n, 0);
+  if (n == 0) return out;
+  std::vector<float> sorted;
+  const std::size_t stride = std::max<std::size_t>(1, n / 65536);
+  for (std::size_t i = 0; i < n; i += stride)
+    if (std::isfinite(nearest[i])) sorted.push_back(nearest[i]);
+  if (sorted.empty()) return out;
+  // Squared distances: 4 times the median distance; but outliers are few by definition, so
+  // never more than the sparsest 3% (a scan whose density falls off with range is no outlier).
+  const auto at = [&](std::size_t k) {
+    std::nth_element(sorted.begin(), sorted.begin() + static_cast<long>(k), sorted.end());
+    return sorted[k];
+  };
+  const float limit = std::max(16.0f * at(sorted.size() / 2), at(sorted.size() * 97 / 100));
+  for (std::size_t i = 0; i < n; ++i) out[i] = std::isfinite(nearest[i]) && nearest[i] > limit;
+  return out;
+}
+
 std::vector<int> sampleSurface(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles& handles,
-                               int target) {
+                               int target, const std::vector<char>* exclude) {
   const std::size_t n = points.size();
   if (target <= 0 || static_cast<std::size_t>(target) >= n) {
     std::vector<int> all(n);
@@ -56,14 +166,19 @@ std::vector<int> sampleSurface(const pcl::PointCloud<pcl::PointXYZ>& points, con
     return all;
   }
   std::vector<int> cls(n, 0);
+  if (exclude && exclude->size() == n)
+    for (std::size_t i = 0; i < n; ++i)
+      if ((*exclude)[i]) cls[i] = -1;  // never picked
   for (std::size_t k = 0; k < handles.fixed.size(); ++k)
     for (int i : handles.fixed[k]) cls[static_cast<std::size_t>(i)] = 2 + static_cast<int>(k);
   for (int i : handles.manipulated) cls[static_cast<std::size_t>(i)] = 1;
   Eigen::Vector3f lo = Eigen::Vector3f::Constant(INFINITY), hi = -lo;
-  for (const auto& p : points) {
-    lo = lo.cwiseMin(p.getVector3fMap());
-    hi = hi.cwiseMax(p.getVector3fMap());
+  for (std::size_t i = 0; i < n; ++i) {
+    if (cls[i] < 0) continue;
+    lo = lo.cwiseMin(points[i].getVector3fMap());
+    hi = hi.cwiseMax(points[i].getVector3fMap());
   }
+  if (!(lo.array() <= hi.array()).all()) return {};
   const float diag = std::max((hi - lo).norm(), 1e-12f);
   // A surface sample grows as 1/h^2: start from the diagonal and correct a few times.
   float h = diag / std::sqrt(static_cast<float>(target));
@@ -142,10 +257,14 @@ std::vector<Band> Clustering::makeBands(const std::vector<float>& phi,
 Clustering buildClusters(const pcl::PointCloud<pcl::PointXYZ>& points, const NeighborGraph& graph,
                          const std::vector<float>& phi, const Handles& handles,
                          const std::vector<int>& unreachable, const std::vector<int>& sample,
-                         const ClusterOptions& options) {
+                         const ClusterOptions& options, const std::vector<int>& follow,
+                         const std::vector<char>& outliers) {
   Clustering c;
   c.sample = sample;
   const std::size_t n = points.size();
+  const long long nn = static_cast<long long>(n);
+  const std::vector<char> no_outliers(outliers.size() == n ? 0 : n, 0);
+  const std::vector<char>& outlier = outliers.size() == n ? outliers : no_outliers;
   c.bands = Clustering::makeBands(phi, handles.joints, options, &c.notes);
   const auto& bands = c.bands;
   const int nb = static_cast<int>(bands.size());
@@ -255,121 +374,69 @@ Clustering buildClusters(const pcl::PointCloud<pcl::PointXYZ>& points, const Nei
     up_queue.push_back(static_cast<int>(i));
   }
 
-  // Isolines: the points on either side of an edge that crosses an isovalue, per iso band.
-  std::vector<std::vector<int>> on_line(bands.size());
+  // Isolines, traced on the surface sample rather than on every point, so that the clusters
+  // do not depend on the density or the noise of the cloud: every sample point (a site) owns
+  // the points nearest it along the graph (its cell), two sites are adjacent when their cells
+  // touch, and an isoline is the sites at either end of a site pair that crosses the isovalue.
+  // Each connected piece of it (a contour) is one isocluster. Cells follow the graph, so two
+  // branches at the same harmonic value stay apart as they are on the surface.
+  const SampleGraph sg = sampleGraph(graph, sample, role, outlier);
   std::vector<int> iso_bands;
-  std::vector<double> iso_values;
   for (int b = 0; b < nb; ++b)
-    if (bands[static_cast<std::size_t>(b)].kind == Band::Kind::Iso) {
-      iso_bands.push_back(b);
-      iso_values.push_back(bands[static_cast<std::size_t>(b)].lo);
-    }
-  // An edge crosses the isovalues v with phi_i < v <= phi_u: those from the count of
-  // isovalues <= phi_i to the count <= phi_u, per point once (most edges cross none). Edges in
-  // parallel, each thread collecting its own lists.
-  std::vector<int> below(n);  // isovalues <= phi
-  const long long nn = static_cast<long long>(n);
-#pragma omp parallel for schedule(static) if (nn > kParallelMin)
-  for (long long i = 0; i < nn; ++i)
-    below[static_cast<std::size_t>(i)] =
-        static_cast<int>(std::upper_bound(iso_values.begin(), iso_values.end(),
-                                          static_cast<double>(phi[static_cast<std::size_t>(i)])) -
-                         iso_values.begin());
-#pragma omp parallel if (nn > kParallelMin)
-  {
-    std::vector<std::vector<int>> mine(iso_bands.size());
-#pragma omp for schedule(static) nowait
-    for (long long ii = 0; ii < nn; ++ii) {
-      const auto i = static_cast<std::size_t>(ii);
-      if (role[i] == -3) continue;
-      for (const int* j = graph.begin(i); j != graph.end(i); ++j) {
-        const auto u = static_cast<std::size_t>(*j);
-        if (!(phi[i] < phi[u])) continue;
-        for (int l = below[i]; l < below[u]; ++l) {
-          mine[static_cast<std::size_t>(l)].push_back(static_cast<int>(i));
-          mine[static_cast<std::size_t>(l)].push_back(static_cast<int>(u));
-        }
-      }
-    }
-#pragma omp critical
-    for (std::size_t l = 0; l < iso_bands.size(); ++l) {
-      auto& line = on_line[static_cast<std::size_t>(iso_bands[l])];
-      line.insert(line.end(), mine[l].begin(), mine[l].end());
-    }
-  }
-  // Contours: connected pieces of each isoline; every piece of enough points is an isocluster.
-  // Traced for all isovalues in parallel (each thread with its own marks), then made clusters
-  // in band order, so that cluster ids and the spreads' seeds do not depend on the threads.
-  std::vector<std::vector<std::vector<int>>> contours(bands.size());
-  const long long n_iso = static_cast<long long>(iso_bands.size());
-#pragma omp parallel if (nn > kParallelMin && n_iso > 1)
-  {
-    std::vector<int> mark(n, -1), seen(n, -1), trace;
-#pragma omp for schedule(dynamic, 1)
-    for (long long k = 0; k < n_iso; ++k) {
-      const int b = iso_bands[static_cast<std::size_t>(k)];
-      auto& line = on_line[static_cast<std::size_t>(b)];
-      std::sort(line.begin(), line.end());
-      line.erase(std::unique(line.begin(), line.end()), line.end());
-      for (int i : line) mark[static_cast<std::size_t>(i)] = b;
-      for (int seed : line) {
-        if (seen[static_cast<std::size_t>(seed)] == b) continue;
-        std::vector<int> piece;
-        seen[static_cast<std::size_t>(seed)] = b;
-        trace.assign(1, seed);
-        while (!trace.empty()) {
-          const auto x = static_cast<std::size_t>(trace.back());
-          trace.pop_back();
-          piece.push_back(static_cast<int>(x));
-          // Two hops: on an unevenly sampled surface consecutive crossing edges need not
-          // share a point or an edge, and one-hop pieces of a single isoline would become
-          // separate clusters (at 1M points of the Armadillo, 12 instead of 5 above the feet).
-          for (const int* j = graph.begin(x); j != graph.end(x); ++j) {
-            const auto u = static_cast<std::size_t>(*j);
-            if (mark[u] == b && seen[u] != b) {
-              seen[u] = b;
-              trace.push_back(static_cast<int>(u));
-            }
-            for (const int* w = graph.begin(u); w != graph.end(u); ++w) {
-              const auto v2 = static_cast<std::size_t>(*w);
-              if (mark[v2] == b && seen[v2] != b) {
-                seen[v2] = b;
-                trace.push_back(static_cast<int>(v2));
-              }
-            }
-          }
-        }
-        contours[static_cast<std::size_t>(b)].push_back(std::move(piece));
-      }
-    }
-  }
+    if (bands[static_cast<std::size_t>(b)].kind == Band::Kind::Iso) iso_bands.push_back(b);
+  const std::size_t ns = sg.sites.size();
+  std::vector<int> on_line(ns, -1), seen(ns, -1), trace, piece;
   for (int b : iso_bands) {
     const double v = bands[static_cast<std::size_t>(b)].lo;
-    for (auto& piece : contours[static_cast<std::size_t>(b)]) {
+    auto sitePhi = [&](std::size_t s) {
+      return static_cast<double>(phi[static_cast<std::size_t>(sg.sites[s])]);
+    };
+    for (std::size_t s = 0; s < ns; ++s)
+      for (const int* t = sg.graph.begin(s); t != sg.graph.end(s); ++t) {
+        const double a = sitePhi(s), e = sitePhi(static_cast<std::size_t>(*t));
+        if ((a < v && v <= e) || (e < v && v <= a)) {
+          on_line[s] = b;
+          break;
+        }
+      }
+    for (std::size_t seed = 0; seed < ns; ++seed) {
+      if (on_line[seed] != b || seen[seed] == b) continue;
+      piece.clear();
+      seen[seed] = b;
+      trace.assign(1, static_cast<int>(seed));
+      while (!trace.empty()) {
+        const auto x = static_cast<std::size_t>(trace.back());
+        trace.pop_back();
+        piece.push_back(static_cast<int>(x));
+        for (const int* t = sg.graph.begin(x); t != sg.graph.end(x); ++t) {
+          const auto u = static_cast<std::size_t>(*t);
+          if (on_line[u] == b && seen[u] != b) {
+            seen[u] = b;
+            trace.push_back(static_cast<int>(u));
+          }
+        }
+      }
+      // Fewer sites than an affine fit needs: a tip just crossing the isovalue, left to its
+      // neighbours' clusters.
       if (static_cast<int>(piece.size()) < options.min_contour) continue;
       const int id = newCluster(ClusterKind::Iso, b, -1, v);
       Cluster& cl = c.clusters.back();
-      for (int m : piece)
-        if (in_sample[static_cast<std::size_t>(m)]) cl.members.push_back(m);
-      if (cl.members.size() < 3) {  // a short contour: its points nearest the isovalue
-        std::sort(piece.begin(), piece.end(), [&](int x, int y) {
-          return std::abs(phi[static_cast<std::size_t>(x)] - v) <
-                 std::abs(phi[static_cast<std::size_t>(y)] - v);
-        });
-        for (std::size_t k = 0; k < piece.size() && cl.members.size() < 3; ++k)
-          if (!in_sample[static_cast<std::size_t>(piece[k])]) cl.members.push_back(piece[k]);
-      }
-      // The contour seeds the gaps on either side of it.
-      for (int m : piece) {
-        const auto x = static_cast<std::size_t>(m);
-        if (gap[x] == b && down[x] < 0) {
-          down[x] = id;
-          down_queue.push_back(m);
-        } else if (gap[x] == b - 1 && up[x] < 0) {
-          up[x] = id;
-          up_queue.push_back(m);
+      std::sort(piece.begin(), piece.end());
+      for (int site : piece) cl.members.push_back(sg.sites[static_cast<std::size_t>(site)]);
+      // The contour's cells seed the gaps on either side of it.
+      for (int site : piece)
+        for (int m = sg.cell_start[static_cast<std::size_t>(site)];
+             m < sg.cell_start[static_cast<std::size_t>(site) + 1]; ++m) {
+          const int pt = sg.cell_points[static_cast<std::size_t>(m)];
+          const auto x = static_cast<std::size_t>(pt);
+          if (gap[x] == b && down[x] < 0) {
+            down[x] = id;
+            down_queue.push_back(pt);
+          } else if (gap[x] == b - 1 && up[x] < 0) {
+            up[x] = id;
+            up_queue.push_back(pt);
+          }
         }
-      }
     }
   }
   // Nearest cluster along the surface within each gap: a down label from band b spreads into
@@ -379,6 +446,7 @@ Clustering buildClusters(const pcl::PointCloud<pcl::PointXYZ>& points, const Nei
     std::vector<int> q(seeds);
     for (std::size_t head = 0; head < q.size(); ++head) {
       const auto x = static_cast<std::size_t>(q[head]);
+      if (outlier[x]) continue;  // an outlier takes a label but passes it on to nobody
       const int g = c.clusters[static_cast<std::size_t>(label[x])].level - offset;
       for (const int* j = graph.begin(x); j != graph.end(x); ++j) {
         const auto u = static_cast<std::size_t>(*j);
@@ -397,13 +465,52 @@ Clustering buildClusters(const pcl::PointCloud<pcl::PointXYZ>& points, const Nei
     spread(up_queue, up, 1);
   }
   // A gap region that meets only one side (a part touching one kind of handle only) takes
-  // that side for both; parts touching no handle become static clusters.
+  // that side for both.
   for (std::size_t i = 0; i < n; ++i) {
     if (down[i] < 0) down[i] = up[i];
     if (up[i] < 0) up[i] = down[i];
   }
+  // Reached points still without clusters (a region whose only contour was too short, cut
+  // off from its gap by it) take those of the nearest labelled point along the graph: first
+  // through inliers, then through outliers too.
+  std::vector<int> copy_from(n, -1);
+  bool unlabelled = false;
+  for (std::size_t i = 0; i < n && !unlabelled; ++i) unlabelled = down[i] < 0 && role[i] != -3;
+  for (const bool through_outliers : {false, true}) {
+    if (!unlabelled) break;
+    std::vector<int> q;  // labelled points next to unlabelled ones
+    for (std::size_t i = 0; i < n; ++i) {
+      if (down[i] < 0 || (!through_outliers && outlier[i])) continue;
+      for (const int* j = graph.begin(i); j != graph.end(i); ++j)
+        if (down[static_cast<std::size_t>(*j)] < 0 && role[static_cast<std::size_t>(*j)] != -3) {
+          q.push_back(static_cast<int>(i));
+          break;
+        }
+    }
+    for (std::size_t head = 0; head < q.size(); ++head) {
+      const auto x = static_cast<std::size_t>(q[head]);
+      if (!through_outliers && outlier[x]) continue;
+      for (const int* j = graph.begin(x); j != graph.end(x); ++j) {
+        const auto u = static_cast<std::size_t>(*j);
+        if (down[u] >= 0 || role[u] == -3) continue;
+        down[u] = down[x];
+        up[u] = up[x];
+        copy_from[u] = copy_from[x] >= 0 ? copy_from[x] : static_cast<int>(x);
+        q.push_back(static_cast<int>(u));
+      }
+    }
+  }
+  // Points that touch no handle: those that follow a reached point take its clusters (set
+  // below, with its blend factor); the others become static clusters, one per piece.
   for (std::size_t s = 0; s < n; ++s) {
     if (down[s] >= 0) continue;
+    if (follow.size() == n && follow[s] >= 0) {
+      const auto t = static_cast<std::size_t>(follow[s]);
+      down[s] = down[t];
+      up[s] = up[t];
+      copy_from[s] = copy_from[t] >= 0 ? copy_from[t] : static_cast<int>(t);
+      continue;
+    }
     const int id = newCluster(ClusterKind::Static, 0, -1, 0.0);
     down[s] = up[s] = id;
     stack.assign(1, static_cast<int>(s));
@@ -435,6 +542,9 @@ Clustering buildClusters(const pcl::PointCloud<pcl::PointXYZ>& points, const Nei
                    b = bands[static_cast<std::size_t>(gap[i]) + 1].lo;
       c.alpha[i] = b > a ? static_cast<float>(std::clamp((phi[i] - a) / (b - a), 0.0, 1.0)) : 0.0f;
     }
+  }
+  for (std::size_t i = 0; i < n; ++i) {
+    if (copy_from[i] >= 0) c.alpha[i] = c.alpha[static_cast<std::size_t>(copy_from[i])];
     c.piece[i] = c.alpha[i] < 0.5f ? down[i] : up[i];
   }
   // Adjacent clusters: the two sides of a gap region, and interval pieces that touch.

@@ -36,7 +36,7 @@ struct Cluster {
 struct ClusterOptions {
   int isoclusters = 16;       ///< n isovalues, evenly spaced in (0, 1) (without joints)
   int samples = 4000;         ///< target sample size
-  int min_contour = 8;        ///< contours with fewer points (sampling noise) are not clusters
+  int min_contour = 3;        ///< contours with fewer sample points (a tip just crossing) are not clusters
   int joint_isoclusters = 3;  ///< skeletal mode: isovalues inside each joint's phi range
 };
 
@@ -53,13 +53,15 @@ struct Band {
 /// The clusters and, for every point of the shape, the two clusters that bracket its harmonic
 /// value on its own branch: what interpolation needs.
 ///
-/// An isoline at an isovalue v is traced on the neighbour graph as the points incident to an
-/// edge that crosses v; each connected piece of it (a contour) is one isocluster, whose members
-/// are the sample points on it. So two branches at the same harmonic value (two legs) get
-/// separate clusters. Interval bands (handles, bones) give a cluster per connected piece. A
-/// point in a gap between two bands takes, as `down`, the cluster of the lower band nearest to
-/// it within the gap along the surface, and as `up` the nearest of the upper band; a point in
-/// an interval band takes its own piece for both.
+/// Isolines are traced on the surface sample, not on every point, so that the clusters do not
+/// depend on the density or the noise of the cloud (docs/scans.md): every sample point owns the
+/// points nearest it along the neighbour graph, two sample points are adjacent when those cells
+/// touch, and an isoline at v is the sample points at either end of an adjacent pair that
+/// straddles v. Each connected piece of it (a contour) is one isocluster, so two branches at
+/// the same harmonic value (two legs) get separate clusters. Interval bands (handles, bones)
+/// give a cluster per connected piece. A point in a gap between two bands takes, as `down`, the
+/// cluster of the lower band nearest to it within the gap along the surface, and as `up` the
+/// nearest of the upper band; a point in an interval band takes its own piece for both.
 struct Clustering {
   std::vector<int> sample;  ///< sample point -> shape point index
   std::vector<Cluster> clusters;
@@ -82,15 +84,24 @@ struct Clustering {
 
 /// Picks a roughly uniform sample of the points: a voxel grid whose cell size is tuned to the
 /// target count, one point per cell, taken separately inside each handle and outside them so
-/// that every handle is represented.
+/// that every handle is represented. Points marked in `exclude` (outliers) are never picked.
 std::vector<int> sampleSurface(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles& handles,
-                               int target);
+                               int target, const std::vector<char>* exclude = nullptr);
+
+/// Stray points: those whose nearest neighbour (`knn`, sorted rows) is more than 4 times as far
+/// as the median point's, the sparsest 3% at most. They are left out of the sample and pass no
+/// cluster on to their neighbours. Empty when `knn` is (meshes on their 1-ring).
+std::vector<char> findOutliers(const pcl::PointCloud<pcl::PointXYZ>& points, const KnnTable& knn);
 
 /// Builds the clusters. `graph` is the shape's neighbour graph (the harmonic field's), `phi`
 /// the field, `unreachable` the points in parts that touch no handle, `sample` a surface sample.
+/// `follow` (per point, may be empty): the reached point whose clusters and blend factor an
+/// unreachable point takes (see pieces.h), or -1 for a static cluster. `outliers` (per point,
+/// may be empty): points that pass no cluster on.
 Clustering buildClusters(const pcl::PointCloud<pcl::PointXYZ>& points, const NeighborGraph& graph,
                          const std::vector<float>& phi, const Handles& handles,
                          const std::vector<int>& unreachable, const std::vector<int>& sample,
-                         const ClusterOptions& options);
+                         const ClusterOptions& options, const std::vector<int>& follow = {},
+                         const std::vector<char>& outliers = {});
 
 }  // namespace hgd
