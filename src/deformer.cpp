@@ -50,11 +50,20 @@ void Deformer::rebuild() {
   build_.field_ms = sw.lap();
 
   const auto& pts = *geometry_.points;
-  const std::vector<int> sample = sampleSurface(pts, handles_, options_.clusters.samples);
+  const NeighborGraph& graph = field_.graph();
+  // Stray points of a scan stay out of the sample (meshes have none).
+  const std::vector<char> outliers =
+      geometry_.faces.empty() ? findOutliers(pts, field_.knn()) : std::vector<char>{};
+  const std::vector<int> sample =
+      sampleSurface(pts, handles_, options_.clusters.samples, outliers.empty() ? nullptr : &outliers);
   build_.sampling_ms = sw.lap();
-  clustering_ =
-      buildClusters(pts, field_.graph(), phi_, handles_, field_.unreachable(), sample, options_.clusters);
-  table_ = buildInterpolation(phi_, handles_, clustering_, pts, &field_.normals());
+  pieces_ = analysePieces(pts, graph, field_.pieceLabels(), handles_, sample);
+  clustering_ = buildClusters(pts, graph, phi_, handles_, field_.unreachable(), sample, options_.clusters,
+                              pieces_.follow, outliers);
+  // Normals rotate with the shape as the file gave them (the filter may have re-oriented its
+  // own copy).
+  table_ = buildInterpolation(phi_, handles_, clustering_, pts,
+                              geometry_.hasFileNormals() ? geometry_.file_normals.get() : &field_.normals());
   build_.clusters_ms = sw.lap();
 
   setupSolver(false, /*keep_transforms=*/false);
@@ -321,6 +330,19 @@ void Deformer::updateShape() {
   interp_ms_ = sw.ms();
 }
 
+SurfaceStretch Deformer::surfaceStretch() const {
+  double moved = 0;
+  for (int i : handles_.manipulated) {
+    const auto u = static_cast<std::size_t>(i);
+    moved = std::max(moved,
+                     static_cast<double>((positions_[u] - (*geometry_.points)[u].getVector3fMap()).norm()));
+  }
+  // Mesh edges where there are faces (what the user sees joined), else the neighbour graph.
+  if (!geometry_.faces.empty())
+    return measureStretch(*geometry_.points, positions_, ringGraph(geometry_.size(), geometry_.faces), moved);
+  return measureStretch(*geometry_.points, positions_, field_.graph(), moved);
+}
+
 void Deformer::writeDeformed(Shape& shape) const {
   storePositions(shape, geometry_, positions_, &out_normals_);
 }
@@ -350,6 +372,16 @@ DeformReport deformShape(Shape& shape, const Scenario& scenario, const DeformOpt
   rep.isoclusters = opt.clusters.isoclusters;
   rep.unreachable = d.harmonicField().unreachable().size();
   rep.notes = d.clustering().notes;
+  if (d.harmonicField().normalsReoriented())
+    rep.notes.emplace_back(
+        "the file's normals are not consistently oriented: the neighbour filter used re-oriented copies "
+        "(the output keeps the file's signs)");
+  if (!d.harmonicField().rejoinedPairs().empty())
+    rep.notes.push_back("the normal filter would have cut pieces without a handle off the surface: " +
+                        std::to_string(d.harmonicField().rejoinedPairs().size()) +
+                        " neighbour pairs across thin gaps were kept to join them back");
+  rep.pieces = d.pieces().report;
+  rep.warnings = rep.pieces.warnings();
 
   const double diagonal = d.diagonal();
   int move_number = 0;
@@ -401,6 +433,8 @@ DeformReport deformShape(Shape& shape, const Scenario& scenario, const DeformOpt
   }
   rep.energy = d.energies();
   rep.solve_per_iteration_ms = rep.iterations > 0 ? rep.solve_ms / rep.iterations : 0;
+  rep.surface = d.surfaceStretch();
+  if (const std::string w = stretchWarning(rep.surface); !w.empty()) rep.warnings.push_back(w);
   d.writeDeformed(shape);
   rep.total_ms = total.ms();
   return rep;

@@ -74,6 +74,16 @@ std::string reportJson(const DeformReport& r) {
   j["reached"] = r.reached;
   j["notes"] = r.notes;
   j["warnings"] = r.warnings;
+  j["pieces"] = {{"followed_points", r.pieces.followed_points},
+                 {"followed_pieces", r.pieces.followed_pieces},
+                 {"stayed_points", r.pieces.stayed_points},
+                 {"stayed_pieces", r.pieces.stayed_pieces},
+                 {"rigid_points", r.pieces.rigid_points},
+                 {"rigid_pieces", r.pieces.rigid_pieces},
+                 {"reach", r.pieces.reach}};
+  j["surface"] = {{"split_points", r.surface.split_points},
+                  {"max_stretch", r.surface.max_stretch},
+                  {"pairs", r.surface.pairs}};
   j["energy"] = {{"detail", r.energy.detail},
                  {"prop", r.energy.prop},
                  {"manip", r.energy.manip},

@@ -500,6 +500,31 @@ class Viewer {
       deformer_->setHandles(handles_);  // normals and kNN are kept
     else
       deformer_ = std::make_unique<hgd::Deformer>(geometry_, handles_, opt);
+    updateAlerts();
+  }
+
+  // What the deformation cannot do for this shape, on the status line and stderr: pieces that
+  // no handle reaches (followed or left), a piece moved rigidly, a surface pulled apart.
+  void updateAlerts() {
+    alert_.clear();
+    if (!deformer_) return;
+    const hgd::PieceReport& p = deformer_->pieces().report;
+    std::vector<std::string> full = p.warnings();
+    std::ostringstream s;
+    if (p.followed_points) s << " | " << p.followed_points << " points without a handle follow";
+    if (p.stayed_points) s << " | " << p.stayed_points << " points without a handle stay";
+    if (p.rigid_points) s << " | " << p.rigid_points << " points move rigidly with the handle";
+    if (!moves_.empty()) {
+      const hgd::SurfaceStretch st = deformer_->surfaceStretch();
+      if (st.split_points) s << " | SURFACE PULLED APART at " << st.split_points << " points";
+      if (const std::string w = hgd::stretchWarning(st); !w.empty()) full.push_back(w);
+    }
+    alert_ = s.str();
+    for (const auto& w : full)
+      if (std::find(reported_.begin(), reported_.end(), w) == reported_.end()) {
+        std::fprintf(stderr, "hgdeform-view: warning: %s\n", w.c_str());
+        reported_.push_back(w);
+      }
   }
 
   // Applies a move exactly as deformShape() does, and records it for undo and the scenario.
@@ -520,6 +545,7 @@ class Viewer {
     moves_.push_back(m);
     undone_.clear();
     redo_states_.clear();
+    updateAlerts();
   }
 
   void frameMove(const Eigen::Vector3d& translate, const Eigen::Vector3d& axis, double degrees) {
@@ -546,6 +572,7 @@ class Viewer {
     moves_.pop_back();
     deformer_->restore(history_.back());
     history_.pop_back();
+    updateAlerts();
     message("undone");
     refresh();
   }
@@ -557,6 +584,7 @@ class Viewer {
     undone_.pop_back();
     deformer_->restore(redo_states_.back());
     redo_states_.pop_back();
+    updateAlerts();
     message("redone");
     refresh();
   }
@@ -568,6 +596,7 @@ class Viewer {
     history_.clear();
     undone_.clear();
     redo_states_.clear();
+    updateAlerts();
     message("rest shape");
     refresh();
   }
@@ -726,6 +755,7 @@ class Viewer {
     if (!stats_.solve.empty())
       s << " | solve " << num(stats_.solve.back()) << " ms, interpolate " << num(stats_.interpolate.back())
         << " ms, render " << (stats_.render.empty() ? std::string("-") : num(stats_.render.back())) << " ms";
+    s << alert_;
     if (!message_.empty()) s << " | " << message_;
     vis_->updateText(s.str(), 10, 10, 13, 0.1, 0.1, 0.1, "status");
   }
@@ -954,6 +984,8 @@ class Viewer {
   Eigen::Vector3d drag_from_, drag_last_;
   double drag_depth_ = 0;
   std::string message_;
+  std::string alert_;                  // see updateAlerts()
+  std::vector<std::string> reported_;  // warnings already printed on stderr
   FrameStats stats_;
 };
 

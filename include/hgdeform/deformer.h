@@ -17,9 +17,11 @@
 #include "hgdeform/geometry.h"
 #include "hgdeform/harmonic_field.h"
 #include "hgdeform/interpolation.h"
+#include "hgdeform/pieces.h"
 #include "hgdeform/regions.h"
 #include "hgdeform/scenario.h"
 #include "hgdeform/solver.h"
+#include "hgdeform/stretch.h"
 
 namespace hgd {
 
@@ -111,6 +113,11 @@ class Deformer {
   const HarmonicField& harmonicField() const { return field_; }
   const Clustering& clustering() const { return clustering_; }
   const InterpolationTable& interpolationTable() const { return table_; }
+  /// The pieces the field did not reach, and what became of them (see pieces.h).
+  const PieceAnalysis& pieces() const { return pieces_; }
+  /// Surface neighbour pairs (mesh edges, else the neighbour graph) measured on the current
+  /// deformed shape, against the manipulated handle's largest point displacement.
+  SurfaceStretch surfaceStretch() const;
   /// Cluster transforms in the solver's normalised frame (about each rest barycentre).
   const std::vector<Transform>& clusterTransforms() const { return solver_.transforms(); }
   Energies energies() const { return solver_.energies(); }
@@ -135,6 +142,7 @@ class Deformer {
   DeformOptions options_;
   HarmonicField field_;
   std::vector<float> phi_;
+  PieceAnalysis pieces_;
   Clustering clustering_;
   InterpolationTable table_;
   ClusterSolver solver_;
@@ -166,7 +174,9 @@ struct DeformReport {
   bool reached = true;
   double handle_error = 0;            ///< world units; drags only
   std::vector<std::string> notes;     ///< what clustering merged or adjusted (overlapping joints)
-  std::vector<std::string> warnings;  ///< a move that ended short of its target, and why
+  std::vector<std::string> warnings;  ///< a move that ended short, pieces no handle reached, splits
+  PieceReport pieces;                 ///< parts that touch no fixed handle (see pieces.h)
+  SurfaceStretch surface;             ///< after the moves (see stretch.h)
   Energies energy;
   double read_ms = 0, build_ms = 0, field_ms = 0, sampling_ms = 0, clusters_ms = 0, solve_ms = 0,
          solve_per_iteration_ms = 0, interpolation_ms = 0, total_ms = 0;

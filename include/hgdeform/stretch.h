@@ -1,0 +1,36 @@
+// Is the deformed surface still in one piece? Surface neighbour pairs (mesh edges; on clouds,
+// the neighbour graph) measured before and after a deformation.
+#pragma once
+
+#include <pcl/point_cloud.h>
+#include <pcl/point_types.h>
+
+#include <Eigen/Core>
+#include <cstddef>
+#include <string>
+#include <vector>
+
+#include "hgdeform/neighbors.h"
+
+namespace hgd {
+
+struct SurfaceStretch {
+  /// Points with a surface neighbour whose distance more than tripled and grew by more than
+  /// 2% of the move distance: where the surface creases or opens.
+  std::size_t split_points = 0;
+  /// The largest ratio deformed / rest length over all pairs (1 for a rigid motion).
+  double max_stretch = 1;
+  std::size_t pairs = 0;  ///< pairs measured
+};
+
+/// Measures every pair (i, j) of `pairs` (a symmetric graph; pairs of coincident rest points
+/// are skipped). `move_distance`: how far the manipulated handle travelled (its largest point
+/// displacement), the scale of "grew by more than 2%".
+SurfaceStretch measureStretch(const pcl::PointCloud<pcl::PointXYZ>& rest,
+                              const std::vector<Eigen::Vector3f>& deformed, const NeighborGraph& pairs,
+                              double move_distance);
+
+/// The warning a front end prints when points are split ("" when none is).
+std::string stretchWarning(const SurfaceStretch& stretch);
+
+}  // namespace hgd
