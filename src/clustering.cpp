@@ -1,7 +1,10 @@
 #include "hgdeform/clustering.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <limits>
+#include <memory>
 #include <numeric>
 #include <unordered_map>
 
@@ -60,28 +63,63 @@ SampleGraph sampleGraph(const NeighborGraph& graph, const std::vector<int>& samp
                         const std::vector<int>& role, const std::vector<char>& outlier) {
   SampleGraph sg;
   const std::size_t n = graph.size();
-  std::vector<int> cell(n, -1), queue;
-  queue.reserve(n);
+  // Breadth first, a level at a time in parallel: a point first met at level d takes the
+  // smallest site among its neighbours at level d - 1 (an atomic minimum), so the cells do not
+  // depend on the threads.
+  std::unique_ptr<std::atomic<int>[]> cell_of(new std::atomic<int>[n]), level(new std::atomic<int>[n]);
+  const long long nn = static_cast<long long>(n);
+#pragma omp parallel for schedule(static) if (nn > kParallelMin)
+  for (long long i = 0; i < nn; ++i) {
+    cell_of[i].store(std::numeric_limits<int>::max(), std::memory_order_relaxed);
+    level[i].store(-1, std::memory_order_relaxed);
+  }
+  std::vector<int> frontier;
   for (int s : sample) {
     const auto x = static_cast<std::size_t>(s);
-    if (role[x] == -3 || outlier[x] || cell[x] >= 0) continue;
-    cell[x] = static_cast<int>(sg.sites.size());
+    if (role[x] == -3 || outlier[x] || level[x].load(std::memory_order_relaxed) >= 0) continue;
+    cell_of[x].store(static_cast<int>(sg.sites.size()), std::memory_order_relaxed);
+    level[x].store(0, std::memory_order_relaxed);
     sg.sites.push_back(s);
-    queue.push_back(s);
+    frontier.push_back(s);
   }
-  for (std::size_t head = 0; head < queue.size(); ++head) {
-    const auto x = static_cast<std::size_t>(queue[head]);
-    for (const int* j = graph.begin(x); j != graph.end(x); ++j) {
-      const auto u = static_cast<std::size_t>(*j);
-      if (cell[u] >= 0 || outlier[u] || role[u] == -3) continue;
-      cell[u] = cell[x];
-      queue.push_back(*j);
+  for (int d = 0; !frontier.empty(); ++d) {
+    std::vector<int> next;
+    const long long nf = static_cast<long long>(frontier.size());
+#pragma omp parallel if (nf > 4096)
+    {
+      std::vector<int> mine;
+#pragma omp for schedule(static) nowait
+      for (long long f = 0; f < nf; ++f) {
+        const auto x = static_cast<std::size_t>(frontier[static_cast<std::size_t>(f)]);
+        const int cx = cell_of[x].load(std::memory_order_relaxed);
+        for (const int* j = graph.begin(x); j != graph.end(x); ++j) {
+          const auto u = static_cast<std::size_t>(*j);
+          if (outlier[u] || role[u] == -3) continue;
+          int lv = level[u].load(std::memory_order_relaxed);
+          if (lv < 0 && level[u].compare_exchange_strong(lv, d + 1, std::memory_order_relaxed)) {
+            mine.push_back(*j);
+            lv = d + 1;
+          }
+          if (lv != d + 1) continue;
+          int cur = cell_of[u].load(std::memory_order_relaxed);
+          while (cx < cur && !cell_of[u].compare_exchange_weak(cur, cx, std::memory_order_relaxed)) {
+          }
+        }
+      }
+#pragma omp critical
+      next.insert(next.end(), mine.begin(), mine.end());
     }
+    frontier.swap(next);
+  }
+  std::vector<int> cell(n);
+#pragma omp parallel for schedule(static) if (nn > kParallelMin)
+  for (long long i = 0; i < nn; ++i) {
+    const int c = cell_of[i].load(std::memory_order_relaxed);
+    cell[static_cast<std::size_t>(i)] = c == std::numeric_limits<int>::max() ? -1 : c;
   }
   const std::size_t ns = sg.sites.size();
   // Cell pairs across edges, per thread, then sorted and made one graph.
   std::vector<std::pair<int, int>> pairs;
-  const long long nn = static_cast<long long>(n);
 #pragma omp parallel if (nn > kParallelMin)
   {
     std::vector<std::pair<int, int>> mine;
@@ -499,6 +537,27 @@ Clustering buildClusters(const pcl::PointCloud<pcl::PointXYZ>& points, const Nei
         q.push_back(static_cast<int>(u));
       }
     }
+  }
+  // An outlier moves as the surface point it hangs from (its nearest graph neighbour that is
+  // no outlier) does: a space deformation, not whatever label reached it first.
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!outlier[i] || role[i] == -3) continue;
+    int best = -1;
+    float best_d = INFINITY;
+    for (const int* j = graph.begin(i); j != graph.end(i); ++j) {
+      const auto u = static_cast<std::size_t>(*j);
+      if (outlier[u] || down[u] < 0) continue;
+      const float d = (points[u].getVector3fMap() - points[i].getVector3fMap()).squaredNorm();
+      if (d < best_d) {
+        best_d = d;
+        best = *j;
+      }
+    }
+    if (best < 0) continue;
+    const auto b = static_cast<std::size_t>(best);
+    down[i] = down[b];
+    up[i] = up[b];
+    copy_from[i] = copy_from[b] >= 0 ? copy_from[b] : best;
   }
   // Points that touch no handle: those that follow a reached point take its clusters (set
   // below, with its blend factor); the others become static clusters, one per piece.
