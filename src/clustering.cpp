@@ -157,44 +157,6 @@ SampleGraph sampleGraph(const NeighborGraph& graph, const std::vector<int>& samp
 
 }  // namespace
 
-std::vector<char> findOutliers(const pcl::PointCloud<pcl::PointXYZ>& points, const KnnTable& knn) {
-  // A point whose nearest neighbour is more than 4 times as far as the typical point's: stray
-  // returns of a scan, far from any surface (noise on the surface is not flagged).
-  const std::size_t n = points.size();
-  if (knn.k == 0 || knn.size() != n) return {};
-  std::vector<float> nearest(n, INFINITY);
-  const long long nn = static_cast<long long>(n);
-#pragma omp parallel for schedule(static) if (nn > kParallelMin)
-  for (long long ii = 0; ii < nn; ++ii) {
-    const auto i = static_cast<std::size_t>(ii);
-    for (int m = 0; m < knn.k; ++m) {  // rows are sorted by distance: the first other position
-      const float d =
-          (points[static_cast<std::size_t>(knn.row(i)[m])].getVector3fMap() - points[i].getVector3fMap())
-              .squaredNorm();
-      if (d > 0) {
-        nearest[i] = d;
-        break;
-      }
-    }
-  }
-  std::vector<char> out(n, 0);
-  if (n == 0) return out;
-  std::vector<float> sorted;
-  const std::size_t stride = std::max<std::size_t>(1, n / 65536);
-  for (std::size_t i = 0; i < n; i += stride)
-    if (std::isfinite(nearest[i])) sorted.push_back(nearest[i]);
-  if (sorted.empty()) return out;
-  // Squared distances: 4 times the median distance; but outliers are few by definition, so
-  // never more than the sparsest 3% (a scan whose density falls off with range is no outlier).
-  const auto at = [&](std::size_t k) {
-    std::nth_element(sorted.begin(), sorted.begin() + static_cast<long>(k), sorted.end());
-    return sorted[k];
-  };
-  const float limit = std::max(16.0f * at(sorted.size() / 2), at(sorted.size() * 97 / 100));
-  for (std::size_t i = 0; i < n; ++i) out[i] = std::isfinite(nearest[i]) && nearest[i] > limit;
-  return out;
-}
-
 std::vector<int> sampleSurface(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles& handles,
                                int target, const std::vector<char>* exclude) {
   const std::size_t n = points.size();

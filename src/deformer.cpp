@@ -52,8 +52,7 @@ void Deformer::rebuild() {
   const auto& pts = *geometry_.points;
   const NeighborGraph& graph = field_.graph();
   // Stray points of a scan stay out of the sample (meshes have none).
-  const std::vector<char> outliers =
-      geometry_.faces.empty() ? findOutliers(pts, field_.knn()) : std::vector<char>{};
+  const std::vector<char>& outliers = field_.outliers();
   const std::vector<int> sample =
       sampleSurface(pts, handles_, options_.clusters.samples, outliers.empty() ? nullptr : &outliers);
   build_.sampling_ms = sw.lap();

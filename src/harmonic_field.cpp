@@ -94,6 +94,20 @@ void HarmonicField::buildGraph() {
     // Mesh edges are never dropped: the mesh says those vertices are adjacent.
     if (mesh) graph_ = unionGraph(graph_, ringGraph(pts.size(), polygons_));
   }
+  // Stray points of a cloud hang from the surface as leaves, so that they cannot carry the
+  // field across a gap (meshes have none).
+  outliers_ = mesh ? std::vector<char>{} : findOutliers(pts, knn_);
+  if (std::find(outliers_.begin(), outliers_.end(), 1) != outliers_.end()) {
+    graph_ = attachOutliers(pts, graph_, knn_, outliers_);
+    dropped_.erase(std::remove_if(dropped_.begin(), dropped_.end(),
+                                  [&](const std::pair<int, int>& e) {
+                                    return outliers_[static_cast<std::size_t>(e.first)] ||
+                                           outliers_[static_cast<std::size_t>(e.second)];
+                                  }),
+                   dropped_.end());
+  } else {
+    outliers_.clear();
+  }
   base_piece_.clear();
   if (!dropped_.empty()) connectedComponents(graph_, base_piece_);
   timings_.graph_ms = sw.lap();

@@ -88,11 +88,6 @@ struct Clustering {
 std::vector<int> sampleSurface(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles& handles,
                                int target, const std::vector<char>* exclude = nullptr);
 
-/// Stray points: those whose nearest neighbour (`knn`, sorted rows) is more than 4 times as far
-/// as the median point's, the sparsest 3% at most. They are left out of the sample and pass no
-/// cluster on to their neighbours. Empty when `knn` is (meshes on their 1-ring).
-std::vector<char> findOutliers(const pcl::PointCloud<pcl::PointXYZ>& points, const KnnTable& knn);
-
 /// Builds the clusters. `graph` is the shape's neighbour graph (the harmonic field's), `phi`
 /// the field, `unreachable` the points in parts that touch no handle, `sample` a surface sample.
 /// `follow` (per point, may be empty): the reached point whose clusters and blend factor an

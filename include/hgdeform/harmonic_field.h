@@ -75,6 +75,9 @@ class HarmonicField {
   /// Pairs the normal filter dropped, and those of them put back to join pieces (i < j).
   const std::vector<std::pair<int, int>>& droppedPairs() const { return dropped_; }
   const std::vector<std::pair<int, int>>& rejoinedPairs() const { return joined_; }
+  /// Per point: a stray point of a cloud (findOutliers), a leaf of graph(); empty when there is
+  /// none.
+  const std::vector<char>& outliers() const { return outliers_; }
   /// True when the input normals' signs were inconsistent and were re-oriented.
   bool normalsReoriented() const { return reoriented_; }
   const FieldTimings& timings() const { return timings_; }
@@ -95,6 +98,7 @@ class HarmonicField {
   NeighborGraph graph_, graph_joined_;
   std::vector<std::pair<int, int>> dropped_, joined_;
   std::vector<int> base_piece_;  ///< pieces of graph_ (when the filter dropped pairs)
+  std::vector<char> outliers_;
   bool reoriented_ = false;
   std::vector<int> unreachable_, piece_;
   FieldTimings timings_;

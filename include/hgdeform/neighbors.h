@@ -73,6 +73,19 @@ NeighborGraph knnGraph(const KnnTable& knn, int k, const pcl::PointCloud<pcl::No
                        const pcl::PointCloud<pcl::PointXYZ>* points = nullptr,
                        std::vector<std::pair<int, int>>* dropped = nullptr);
 
+/// Stray points of a scan: those whose nearest neighbour (`knn`, sorted rows) is more than 4
+/// times as far as the median point's, the sparsest 3% at most (noise on the surface is not
+/// flagged). Empty when `knn` is (meshes on their 1-ring).
+std::vector<char> findOutliers(const pcl::PointCloud<pcl::PointXYZ>& points, const KnnTable& knn);
+
+/// `graph` with every stray point made a leaf: its pairs are dropped and it is joined to its
+/// nearest neighbour that is no outlier (about the nearest, when its kNN are all strays). An
+/// outlier between two parts of a surface (the prongs of a fork) lists points of both among its
+/// kNN; as a leaf it cannot carry the field from one to the other, yet it is reached and moves
+/// with the surface it hangs from.
+NeighborGraph attachOutliers(const pcl::PointCloud<pcl::PointXYZ>& points, const NeighborGraph& graph,
+                             const KnnTable& knn, const std::vector<char>& outlier);
+
 /// Every pair of either graph (same size; rows sorted, as every graph here has them).
 NeighborGraph unionGraph(const NeighborGraph& a, const NeighborGraph& b);
 
