@@ -449,6 +449,10 @@ bool consistentlyOriented(const pcl::PointCloud<pcl::PointXYZ>& points,
       const float ld = d.norm();
       if (!(lj > 0) || !(ld > 0)) continue;
       if (std::abs(d.dot(ni)) > 0.3f * ld * li || std::abs(d.dot(nj)) > 0.3f * ld * lj) continue;
+      // A pair the filter sees across a thin gap (layers a third of a spacing apart have such
+      // pairs within 17 degrees of the tangent plane) is no disagreement: correct normals there
+      // face apart.
+      if (acrossThinGap(points[i].getVector3fMap(), ni, points[j].getVector3fMap(), nj)) continue;
       ++beside;
       disagree += ni.dot(nj) < 0;
     }

@@ -630,24 +630,21 @@ namespace {
 
 // A strip x in [0, 1], y in [0, 0.3] folded into a sawtooth: teeth 0.1 wide whose faces rise at
 // 55 degrees, so that the normal turns by 110 degrees over each crest and valley. Sampled
-// along the profile's arc length (9 samples a face) and across at 0.01; crest and valley
-// samples take the mean of their faces' normals.
+// along the profile's arc length (9 samples a face, none on a crest or in a valley, each with
+// its face's normal: a resampled mesh's face normals) and across at 0.01.
 Surface sawtooth() {
   const int teeth = 10, per_face = 9, faces = 2 * teeth;
   const float a = 55.0f * static_cast<float>(M_PI) / 180.0f, half = 0.05f;
-  const int nu = faces * per_face + 1, nv = 31;
+  const int nu = faces * per_face, nv = 31;
   auto profile = [=](float u, V3* normal) {
-    const float f = u * static_cast<float>(faces);  // face coordinate
+    // Sample i of the profile lies at (i + 0.5) / per_face faces along it: none on a crest.
+    const float f = (std::round(u * static_cast<float>(nu - 1)) + 0.5f) / static_cast<float>(per_face);
     const int k = std::min(faces - 1, static_cast<int>(f));
     const float t = f - static_cast<float>(k);
     const float sign = k % 2 == 0 ? 1.0f : -1.0f;  // rising, falling
     const float x = (static_cast<float>(k) + t) * half;
     const float z = (k % 2 == 0 ? t : 1 - t) * half * std::tan(a);
-    if (normal) {
-      *normal = V3(-sign * std::sin(a), 0, std::cos(a));
-      const bool vertex = std::abs(t) < 1e-4f || std::abs(t - 1) < 1e-4f;
-      if (vertex && u > 1e-4f && u < 1 - 1e-4f) *normal = V3(0, 0, 1);  // crest or valley
-    }
+    if (normal) *normal = V3(-sign * std::sin(a), 0, std::cos(a));
     return V3(x, 0, z);
   };
   return grid(
@@ -695,8 +692,11 @@ CreaseRun creaseCase(const char* name, const Surface& s, const std::vector<long 
   if (mesh) {
     EXPECT_EQ(r.report.surface.split_points, out.split);
   }
-  EXPECT_EQ(out.split == 0, r.report.surface.split_points == 0) << r.report.surface.split_points;
-  EXPECT_EQ(mentions(r.report.warnings, "split"), r.report.surface.split_points > 0);
+  // On clouds it measures the neighbour graph, which may keep a few pairs across a gap of a
+  // third of a spacing (at the sheet's rim): those do come apart, and it says so.
+  std::printf("  the report: %zu split points, largest stretch %.2f\n", r.report.surface.split_points,
+              r.report.surface.max_stretch);
+  EXPECT_EQ(mentions(r.report.warnings, "the surface is pulled apart at"), r.report.surface.split_points > 0);
 #endif
   return out;
 }
@@ -766,14 +766,15 @@ TEST(Creases, CubeDraggedAtACornerStaysWhole) {
   EXPECT_LE(c.jump, 3.0);
 }
 
-// A thin sheet folded back on itself: two layers half a sample spacing apart (0.005, spacing
+// A thin sheet folded back on itself: two layers under a sample spacing apart (spacing
 // 0.01), joined along the fold at x = 1. A handle on each layer at the open end: the top one
 // lifted, the bottom one fixed. kNN joins the layers everywhere; the filter must cut every
 // such pair (else the field leaks across and the top drags the bottom) and keep the fold (else
 // the sheet tears there). The field is checked against the harmonic function of the unfolded
 // strip, linear in the distance along the surface from the top handle to the bottom one.
-TEST(Creases, FoldedSheetNeitherLeaksNorTears) {
-  const float h = 0.01f, gap = 0.005f;
+void foldedSheet(float gap) {
+  SCOPED_TRACE("gap " + std::to_string(gap));
+  const float h = 0.01f;
   const int nx = 101, ny = 41;
   Surface s;
   std::vector<int> top(static_cast<std::size_t>(nx * ny)), bottom(top.size()),
@@ -824,10 +825,19 @@ TEST(Creases, FoldedSheetNeitherLeaksNorTears) {
   }
   const CreaseRun c =
       creaseCase("folded sheet", s, fixed, manipulated, {0.0, 0.2, gap / 2}, {-0.1, 0.2, 0.3}, false, h);
-  std::printf("folded sheet: the field differs from the unfolded strip's by %.3f at most\n", worst);
+  std::printf("folded sheet, gap %.3f: the field differs from the unfolded strip's by %.3f at most\n", gap,
+              worst);
   EXPECT_LE(worst, 0.03);
   EXPECT_EQ(c.split, 0u);
   EXPECT_LE(c.jump, 3.0);
+}
+
+// Half a spacing apart, and a third (the pairs across the gap then lie within 17 degrees of
+// the tangent plane: correct normals must not be taken for inconsistent ones and re-oriented
+// across the gap, which would switch the filter off).
+TEST(Creases, FoldedSheetNeitherLeaksNorTears) {
+  foldedSheet(0.005f);
+  foldedSheet(0.003f);
 }
 
 }  // namespace
