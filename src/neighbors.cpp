@@ -461,7 +461,7 @@ bool consistentlyOriented(const pcl::PointCloud<pcl::PointXYZ>& points,
 }
 
 std::vector<char> findOutliers(const pcl::PointCloud<pcl::PointXYZ>& points, const KnnTable& knn) {
-  // A point whose k-th neighbour is more than 4 times as far as the typical point's: stray
+  // A point whose k-th neighbour is more than 3 times as far as the typical point's: stray
   // returns of a scan, far from any surface, alone or in clumps of fewer than k (noise on the
   // surface is not flagged). The k-th, not the nearest: two strays side by side are each
   // other's nearest neighbour.
@@ -484,7 +484,7 @@ std::vector<char> findOutliers(const pcl::PointCloud<pcl::PointXYZ>& points, con
   for (std::size_t i = 0; i < n; i += stride)
     if (std::isfinite(nearest[i])) sorted.push_back(nearest[i]);
   if (sorted.empty()) return out;
-  // Squared distances: 4 times the median distance; but outliers are few by definition, so
+  // Squared distances: 3 times the median distance; but outliers are few by definition, so
   // never more than the sparsest 3% (a scan whose density falls off with range is no outlier).
   const auto at = [&](std::size_t k) {
     std::nth_element(sorted.begin(), sorted.begin() + static_cast<long>(k), sorted.end());

@@ -73,9 +73,9 @@ NeighborGraph knnGraph(const KnnTable& knn, int k, const pcl::PointCloud<pcl::No
                        const pcl::PointCloud<pcl::PointXYZ>* points = nullptr,
                        std::vector<std::pair<int, int>>* dropped = nullptr);
 
-/// Stray points of a scan: those whose nearest neighbour (`knn`, sorted rows) is more than 4
+/// Stray points of a scan: those whose k-th neighbour (`knn`, sorted rows) is more than 3
 /// times as far as the median point's, the sparsest 3% at most (noise on the surface is not
-/// flagged). Empty when `knn` is (meshes on their 1-ring).
+/// flagged; strays in clumps of fewer than k are). Empty when `knn` is (meshes on their 1-ring).
 std::vector<char> findOutliers(const pcl::PointCloud<pcl::PointXYZ>& points, const KnnTable& knn);
 
 /// `graph` with every stray point made a leaf: its pairs are dropped and it is joined to its
