@@ -330,12 +330,14 @@ void Deformer::updateShape() {
 }
 
 SurfaceStretch Deformer::surfaceStretch() const {
-  double moved = 0;
-  for (int i : handles_.manipulated) {
-    const auto u = static_cast<std::size_t>(i);
+  // The scale of "grew by more than 2% of the move": the largest displacement of any point
+  // (the handle's own can be near zero when it turns about its centre while the limb beyond it
+  // swings), never under 1e-4 of the diagonal (a move and back: float noise on near-duplicate
+  // points must not count as a split).
+  double moved = 1e-4 / scale_;
+  for (std::size_t u = 0; u < positions_.size(); ++u)
     moved = std::max(moved,
                      static_cast<double>((positions_[u] - (*geometry_.points)[u].getVector3fMap()).norm()));
-  }
   // Mesh edges where there are faces (what the user sees joined), else the neighbour graph.
   if (!geometry_.faces.empty())
     return measureStretch(*geometry_.points, positions_, ringGraph(geometry_.size(), geometry_.faces), moved);

@@ -116,7 +116,7 @@ class Deformer {
   /// The pieces the field did not reach, and what became of them (see pieces.h).
   const PieceAnalysis& pieces() const { return pieces_; }
   /// Surface neighbour pairs (mesh edges, else the neighbour graph) measured on the current
-  /// deformed shape, against the manipulated handle's largest point displacement.
+  /// deformed shape, against the largest point displacement (at least 1e-4 of the diagonal).
   SurfaceStretch surfaceStretch() const;
   /// Cluster transforms in the solver's normalised frame (about each rest barycentre).
   const std::vector<Transform>& clusterTransforms() const { return solver_.transforms(); }
