@@ -1153,12 +1153,40 @@ void unregisterTemp(int slot) {
   if (slot >= 0) g_temp_slots[slot].state.store(0);
 }
 
-/// Writes to a temporary file next to the target and renames it over the target on commit();
-/// the temporary file is removed if commit() is not reached.
+// Writes a file so that no reader ever sees it half written, and no path is replaced by
+// something else: a regular file (or a new one) is written to a temporary file beside it and
+// renamed over it; a symbolic link is followed (the temporary file goes beside its target, and
+// the link stays); a FIFO, a character or block device or a socket (/dev/stdout, a pipe) is
+// written to directly, as no rename could replace it.
 class AtomicWriter {
  public:
   explicit AtomicWriter(const std::string& target) : target_(target) {
-    const fs::path t(target);
+    struct stat st {};
+    if (::stat(target.c_str(), &st) == 0 && !S_ISREG(st.st_mode) && !S_ISDIR(st.st_mode)) {
+      const int fd = ::open(target.c_str(), O_WRONLY | O_CLOEXEC);
+      if (fd < 0) fail(target_, "cannot write: " + errnoText(errno));
+      file_ = ::fdopen(fd, "wb");
+      if (!file_) {
+        const int e = errno;
+        ::close(fd);
+        fail(target_, "cannot write: " + errnoText(e));
+      }
+      return;  // direct: commit only flushes
+    }
+    if (struct stat lst{}; ::lstat(target.c_str(), &lst) == 0 && S_ISLNK(lst.st_mode)) {
+      // Follow the link (and links to links) to the file it names, existing or not.
+      fs::path t(target);
+      for (int hops = 0; hops < 40 && fs::is_symlink(t); ++hops) {
+        std::error_code ec;
+        const fs::path to = fs::read_symlink(t, ec);
+        if (ec) fail(target_, "cannot write: cannot read the symbolic link: " + ec.message());
+        t = to.is_absolute() ? to : t.parent_path() / to;
+      }
+      rename_to_ = t.string();
+    } else {
+      rename_to_ = target;
+    }
+    const fs::path t(rename_to_);
     fs::path dir = t.parent_path();
     if (dir.empty()) dir = ".";
     std::random_device rd;
@@ -1204,7 +1232,8 @@ class AtomicWriter {
     std::FILE* f = file_;
     file_ = nullptr;
     if (std::fclose(f) != 0) failWrite(errno);
-    if (std::rename(tmp_.c_str(), target_.c_str()) != 0) failWrite(errno);
+    if (tmp_.empty()) return;  // written directly
+    if (std::rename(tmp_.c_str(), rename_to_.c_str()) != 0) failWrite(errno);
     tmp_.clear();
     unregisterTemp(slot_);
     slot_ = -1;
@@ -1212,7 +1241,8 @@ class AtomicWriter {
 
  private:
   [[noreturn]] void failWrite(int e) { fail(target_, "cannot write: " + errnoText(e)); }
-  std::string target_;
+  std::string target_;     ///< as given (for messages)
+  std::string rename_to_;  ///< the file the temporary one replaces (a link's target)
   std::string tmp_;
   std::FILE* file_ = nullptr;
   int slot_ = -1;
@@ -1517,13 +1547,37 @@ Shape readShape(const std::string& path) {
   return shape;
 }
 
+bool samePath(const std::string& a, const std::string& b) {
+  std::error_code ea, eb, ee;
+  if (fs::exists(a, ea) && fs::exists(b, eb)) return fs::equivalent(a, b, ee) && !ee;
+  // Not both there: the same when they resolve to the same place (links followed as far as
+  // they exist, "." and ".." folded).
+  const fs::path ca = fs::weakly_canonical(fs::absolute(a, ea), ea),
+                 cb = fs::weakly_canonical(fs::absolute(b, eb), eb);
+  return !ea && !eb && ca == cb;
+}
+
+void refuseInputs(const std::string& output, const std::vector<std::string>& inputs) {
+  for (const std::string& in : inputs)
+    if (!in.empty() && in != "-" && samePath(output, in))
+      fail(output, "refusing to overwrite the input " + in);
+}
+
+void removeOutput(const std::string& path) noexcept {
+  struct stat st {};
+  if (::lstat(path.c_str(), &st) != 0) return;
+  if (S_ISLNK(st.st_mode)) {  // what the writer wrote is the link's target
+    std::error_code ec;
+    const fs::path target = fs::canonical(path, ec);
+    if (!ec && fs::is_regular_file(target, ec)) fs::remove(target, ec);
+    return;
+  }
+  if (S_ISREG(st.st_mode)) ::unlink(path.c_str());
+}
+
 void writeShape(const std::string& path, const Shape& shape, const WriteOptions& options) {
   const FileFormat format = formatFromPath(path);
-  if (!shape.path.empty()) {
-    std::error_code e1, e2, e3;
-    if (fs::exists(path, e1) && fs::exists(shape.path, e2) && fs::equivalent(path, shape.path, e3) && !e3)
-      fail(path, "refusing to overwrite the input " + shape.path);
-  }
+  refuseInputs(path, {shape.path});
   const bool ascii = options.encoding == Encoding::Ascii;
   switch (format) {
     case FileFormat::Ply: writePly(path, shape, ascii); break;

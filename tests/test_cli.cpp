@@ -2,6 +2,7 @@
 // on files written into fresh temporary directories, and its outputs are read back with the
 // library.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 
 #include <Eigen/Geometry>
@@ -535,11 +536,73 @@ TEST_F(CliErrors, OutputDirectoryMissing) {
 }
 
 TEST_F(CliErrors, ReportIntoMissingDirectory) {
-  // The shape is written, but the report cannot be: a failure that names the report.
+  // The report cannot be written: a failure that names the report, and no output at all (the
+  // shape was written first; a failed run takes it back).
   const Result r = cli("deform " + quote(bar_) + " -s " + quote(scenario_) + " -o " +
                        quote(out_.file("o.ply")) + " --report " + quote(out_.file("nodir/r.json")));
   EXPECT_NE(r.code, 0);
   EXPECT_TRUE(contains(r.err, "nodir/r.json")) << r.err;
+  EXPECT_TRUE(listing(out_).empty()) << "left " << *listing(out_).begin();
+}
+
+// No output replaces an input, however it is spelt: through a symbolic link, a hard link or
+// "./"; the input stays byte for byte.
+TEST_F(CliErrors, NoOutputReplacesAnInput) {
+  const std::string before = slurp(bar_), scenario_before = slurp(scenario_);
+  fs::create_symlink(bar_, in_.file("link.ply"));
+  fs::create_hard_link(bar_, in_.file("hard.ply"));
+  const std::string dot = (fs::path(in_.path()) / "." / "bar.ply").string();
+  for (const char* cmd : {"field", "deform"})
+    for (const std::string& out : {in_.file("link.ply"), in_.file("hard.ply"), dot}) {
+      const Result r =
+          cli(std::string(cmd) + " " + quote(bar_) + " -s " + quote(scenario_) + " -o " + quote(out));
+      EXPECT_NE(r.code, 0) << cmd << " -o " << out;
+      EXPECT_TRUE(contains(r.err, "refusing to overwrite the input")) << r.err;
+    }
+  // The report may not replace the input or the scenario either.
+  for (const std::string& report : {in_.file("link.ply"), scenario_}) {
+    const Result r = cli("deform " + quote(bar_) + " -s " + quote(scenario_) + " -o " +
+                         quote(out_.file("o.ply")) + " --report " + quote(report));
+    EXPECT_NE(r.code, 0) << report;
+    EXPECT_TRUE(listing(out_).empty());
+  }
+  EXPECT_EQ(slurp(bar_), before);
+  EXPECT_EQ(slurp(scenario_), scenario_before);
+  EXPECT_TRUE(fs::is_symlink(in_.file("link.ply")));
+}
+
+// --report at paths that are not plain files: "-" is stdout (the summary then goes to stderr);
+// a symbolic link is followed and stays a link; a FIFO (and so /dev/stdout, a pipe here) is
+// written to, not replaced.
+TEST_F(CliErrors, ReportToStdoutLinksAndFifos) {
+  const std::string base = "deform " + quote(bar_) + " -s " + quote(scenario_) + " -o ";
+  Result r = cli(base + quote(out_.file("a.ply")) + " --report -");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const nlohmann::json j = nlohmann::json::parse(r.out);  // stdout is the report alone
+  EXPECT_GT(j.at("points").get<int>(), 0);
+  EXPECT_TRUE(contains(r.err, "clusters")) << r.err;  // the summary line
+
+  fs::create_directories(out_.path() / "reports");
+  fs::create_symlink("reports/real.json", out_.file("link.json"));
+  r = cli(base + quote(out_.file("b.ply")) + " --report " + quote(out_.file("link.json")));
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(fs::is_symlink(out_.file("link.json")));
+  EXPECT_GT(nlohmann::json::parse(slurp(out_.file("reports/real.json"))).at("points").get<int>(), 0);
+
+  const std::string fifo = out_.file("r.fifo"), got = out_.file("got.json");
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  r = shell("timeout 60 cat " + quote(fifo) + " > " + quote(got) + " & " + quote(HGD_TOOL) + " " + base +
+            quote(out_.file("c.ply")) + " --report " + quote(fifo) + "; s=$?; wait; exit $s");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(fs::is_fifo(fifo));
+  EXPECT_GT(nlohmann::json::parse(slurp(got)).at("points").get<int>(), 0);
+
+  // /dev/stdout through a link (never the real /dev/stdout: a regression would replace it).
+  fs::create_symlink("/dev/stdout", out_.file("stdout.json"));
+  r = cli(base + quote(out_.file("d.ply")) + " -q --report " + quote(out_.file("stdout.json")));
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_GT(nlohmann::json::parse(r.out).at("points").get<int>(), 0);
+  EXPECT_TRUE(fs::is_symlink(out_.file("stdout.json")));
 }
 
 }  // namespace

@@ -65,7 +65,8 @@ const char* kDeformHelp =
     "options:\n"
     "  -s, --scenario FILE   handles and moves (SCENARIO.md); required\n"
     "  -o, --output FILE     output file; required; never the input\n"
-    "  -r, --report FILE     write a JSON report (points, clusters, iterations, energy, ms)\n"
+    "  -r, --report FILE     write a JSON report (points, clusters, iterations, energy, ms);\n"
+    "                        - for stdout; a link is followed, a FIFO or device written to\n"
     "  -c, --clusters N      isoclusters (default: the scenario's, else 16)\n"
     "  -k, --k N             neighbours per point for the Laplacian (default 10)\n"
     "      --samples N       surface sample size for clustering (default 4000)\n"
@@ -127,14 +128,6 @@ Args parseArgs(int argc, char** argv, const std::vector<std::string>& with_value
   return a;
 }
 
-// Whether two paths name the same file (existing or not): compared after normalisation.
-bool samePath(const std::string& a, const std::string& b) {
-  std::error_code ea, eb;
-  if (std::filesystem::exists(a) && std::filesystem::exists(b)) return std::filesystem::equivalent(a, b, ea);
-  const auto ca = std::filesystem::weakly_canonical(a, ea), cb = std::filesystem::weakly_canonical(b, eb);
-  return !ea && !eb && ca == cb;
-}
-
 int intOption(const Args& a, const std::string& name, int fallback, int lo, int hi) {
   auto it = a.values.find(name);
   if (it == a.values.end()) return fallback;
@@ -180,6 +173,7 @@ int runField(int argc, char** argv) {
   const std::string& scenario_path = required(a, "scenario");
   const std::string& output = required(a, "output");
   hgd::formatFromPath(output);  // fail on a bad extension before any work
+  hgd::refuseInputs(output, {input, scenario_path});
 
   hgd::FieldOptions opt;
   opt.k_neighbors = intOption(a, "k", opt.k_neighbors, 2, 100);
@@ -251,11 +245,15 @@ int runDeform(int argc, char** argv) {
   const std::string& scenario_path = required(a, "scenario");
   const std::string& output = required(a, "output");
   hgd::formatFromPath(output);
-  // The report must not replace the input, the scenario or the output, however spelt.
-  if (auto it = a.values.find("report"); it != a.values.end())
-    for (const std::string* other : {&input, &scenario_path, &output})
-      if (samePath(it->second, *other))
-        throw UsageError("--report " + it->second + " would replace " + *other);
+  // No output replaces an input, nor the report the output, however spelt; "-" is stdout.
+  hgd::refuseInputs(output, {input, scenario_path});
+  const auto report_it = a.values.find("report");
+  const std::string report_path = report_it == a.values.end() ? "" : report_it->second;
+  if (!report_path.empty() && report_path != "-") {
+    hgd::refuseInputs(report_path, {input, scenario_path});
+    if (hgd::samePath(report_path, output))
+      throw UsageError("--report " + report_path + " would replace the output " + output);
+  }
 
   hgd::DeformOptions opt;
   opt.field.k_neighbors = intOption(a, "k", opt.field.k_neighbors, 2, 100);
@@ -282,11 +280,27 @@ int runDeform(int argc, char** argv) {
   report.build_ms += read_ms;
   report.total_ms += read_ms;
   hgd::writeShape(output, shape, wo);
-  if (auto it = a.values.find("report"); it != a.values.end()) hgd::writeReportJson(it->second, report);
+  // A failed run leaves no output: when the report cannot be written, the shape goes too.
+  if (!report_path.empty()) {
+    try {
+      if (report_path == "-") {
+        const std::string json = hgd::reportJson(report);
+        if (std::fwrite(json.data(), 1, json.size(), stdout) != json.size() || std::fflush(stdout) != 0)
+          throw hgd::IoError("-: cannot write the report to standard output");
+      } else {
+        hgd::writeReportJson(report_path, report);
+      }
+    } catch (...) {
+      hgd::removeOutput(output);
+      throw;
+    }
+  }
   for (const auto& note : report.notes) std::fprintf(stderr, "hgdeform: note: %s\n", note.c_str());
   for (const auto& w : report.warnings) std::fprintf(stderr, "hgdeform: warning: %s\n", w.c_str());
+  // With the report on stdout, the summary goes to stderr so that stdout stays JSON.
   if (!a.flags.count("quiet"))
-    std::printf("%s -> %s: %s\n", input.c_str(), output.c_str(), hgd::summaryLine(report).c_str());
+    std::fprintf(report_path == "-" ? stderr : stdout, "%s -> %s: %s\n", input.c_str(), output.c_str(),
+                 hgd::summaryLine(report).c_str());
   return 0;
 }
 

@@ -5,6 +5,7 @@
 #include <stdexcept>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "hgdeform/shape.h"
 
@@ -38,8 +39,22 @@ struct WriteOptions {
 void writeShape(const std::string& path, const Shape& shape, const WriteOptions& options = {});
 
 /// Writes bytes to `path` the same way: temporary file in the same directory, then rename.
-/// Throws IoError naming the path.
+/// Throws IoError naming the path. Every writer here treats special paths alike: a symbolic
+/// link is followed (the file it names is replaced atomically, the link stays); a FIFO or a
+/// device (/dev/stdout) is written to directly.
 void writeFileAtomically(const std::string& path, std::string_view bytes);
+
+/// Whether two paths name the same file, however spelt (links, hard links, "..", relative);
+/// for paths that do not exist yet, whether they resolve to the same place.
+bool samePath(const std::string& a, const std::string& b);
+
+/// The one check every tool makes before it writes an output: throws IoError
+/// "<output>: refusing to overwrite the input <input>" when `output` names one of `inputs`.
+void refuseInputs(const std::string& output, const std::vector<std::string>& inputs);
+
+/// Removes an output a failed run wrote (a regular file, or the file a link names; never a
+/// FIFO or a device). For "a failed run leaves no output".
+void removeOutput(const std::string& path) noexcept;
 
 /// Removes the temporary files of writes in progress (in any thread). Async-signal-safe: a
 /// SIGINT/SIGTERM handler calls it before exiting so that an interrupted run leaves no
