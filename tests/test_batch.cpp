@@ -309,6 +309,24 @@ TEST(BatchUsage, BadOptions) {
 
 // --- a whole folder --------------------------------------------------------------------------
 
+// DISPLAY names an X server that is not there (VTK would abort the process): every scan is
+// still deformed and summarised; the thumbnails are skipped with a note that says why.
+TEST(Batch, AbsentXServerSkipsThumbnailsOnly) {
+  const Reference& ref = reference();
+  TempDir dir;
+  const fs::path out = dir.path() / "out", rep = dir.path() / "report";
+  const Result r =
+      shell("DISPLAY=:4711 " + quote(HGD_TOOL) + " " + batch(ref.in, out, "--recursive --report " + q(rep)));
+  EXPECT_EQ(r.code, 1) << r.out << r.err;  // the folder's two bad scans
+  for (const auto& rel : ref.folder.good) EXPECT_TRUE(fs::exists(out / rel)) << rel;
+  const auto j = nlohmann::json::parse(slurp(rep / "summary.json"));
+  EXPECT_EQ(j.at("scans").size(), ref.folder.good.size() + ref.folder.bad.size());
+  EXPECT_TRUE(fs::exists(rep / "summary.csv"));
+  const std::string html = slurp(rep / "index.html");
+  EXPECT_TRUE(contains(html, "cannot open the X display")) << html;
+  EXPECT_FALSE(contains(html, "<img")) << html;
+}
+
 TEST(Batch, DeformsLikeDeformAndReportsFailures) {
   const Reference& ref = reference();
   TempDir dir;

@@ -175,4 +175,50 @@ TEST(Viewer, BadInputGivesAClearError) {
   EXPECT_NE(out.find("display"), std::string::npos) << out;
 }
 
+// No output of the viewer or the renderer replaces an input: --screenshot, and the replay
+// events screenshot, save and save_scenario, named as the shape, the scenario or the replay.
+TEST(Viewer, NoOutputReplacesAnInput) {
+  hgdtest::TempDir dir;
+  const std::string bar = dir.file("bar.ply"), sc = dir.file("s.json"), ev = dir.file("events.json");
+  hgd::writeShape(bar, hgd::shapes::bar(1.0f, 0.1f, 0.05f));
+  hgdtest::writeText(sc, R"({"format": "hgdeform-scenario/1",
+    "fixed": [{"box": {"min": [-1, -1, -1], "max": [0.1, 1, 1]}}],
+    "manipulated": {"box": {"min": [0.9, -1, -1], "max": [2, 1, 1]}}})");
+  const std::string bar_before = hgdtest::slurp(bar), sc_before = hgdtest::slurp(sc);
+  std::string out;
+  // The renderer refuses before it needs a display.
+  EXPECT_EQ(hgdtest::run(std::string(HGD_RENDER) + " " + bar + " -o " + bar, out), 1);
+  EXPECT_NE(out.find("refusing to overwrite the input"), std::string::npos) << out;
+  if (haveXvfb()) {
+    hgdtest::writeText(ev, R"({"events": []})");
+    EXPECT_EQ(hgdtest::run(viewer(bar + " -s " + sc + " --replay " + ev + " --screenshot " + bar), out), 1);
+    EXPECT_NE(out.find("refusing to overwrite the input"), std::string::npos) << out;
+    for (const std::string& event :
+         {R"({"screenshot": ")" + bar + "\"}", R"({"save": ")" + bar + "\"}",
+          R"({"save_scenario": ")" + sc + "\"}", R"({"screenshot": ")" + ev + "\"}"}) {
+      const std::string events = R"({"events": [)" + event + "]}";
+      hgdtest::writeText(ev, events);
+      EXPECT_NE(hgdtest::run(viewer(bar + " -s " + sc + " --replay " + ev + " --quiet"), out), 0) << event;
+      EXPECT_NE(out.find("refusing to overwrite the input"), std::string::npos) << event << ": " << out;
+      EXPECT_EQ(hgdtest::slurp(ev), events) << event;
+    }
+  }
+  EXPECT_EQ(hgdtest::slurp(bar), bar_before);
+  EXPECT_EQ(hgdtest::slurp(sc), sc_before);
+}
+
+// DISPLAY names an X server that is not there: a clear error and exit 1, not VTK's abort.
+TEST(Viewer, AbsentXServerIsAClearError) {
+  hgdtest::TempDir dir;
+  hgd::writeShape(dir.file("bar.ply"), hgd::shapes::bar(1.0f, 0.1f, 0.05f));
+  std::string out;
+  for (const std::string& tool :
+       {std::string(HGD_VIEW) + " " + dir.file("bar.ply"),
+        std::string(HGD_RENDER) + " " + dir.file("bar.ply") + " -o " + dir.file("p.png")}) {
+    EXPECT_EQ(hgdtest::run("DISPLAY=:4711 " + tool, out), 1) << tool;
+    EXPECT_NE(out.find("cannot open the X display ':4711'"), std::string::npos) << out;
+  }
+  EXPECT_FALSE(hgdtest::exists(dir.file("p.png")));
+}
+
 }  // namespace

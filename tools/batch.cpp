@@ -878,12 +878,12 @@ int run(const Config& cfg, MpiSession& mpi) {
   std::string note;
   if (!cfg.report_dir.empty()) {
 #ifdef HGD_HAVE_RENDER
-    const char* display = std::getenv("DISPLAY");
-    ctx.thumbnails = display && *display;
+    const std::string problem = hgd::displayProblem();
+    ctx.thumbnails = problem.empty();
     if (!ctx.thumbnails)
-      note =
-          "No thumbnails: rendering them needs an X display and DISPLAY is not set. Run the batch under "
-          "xvfb-run -a (or with a display) to get before/after pictures.";
+      note = "No thumbnails (they need an X display): " + problem +
+             ". Run the batch under xvfb-run -a (or with a display) to get "
+             "before/after pictures.";
 #else
     note = "No thumbnails: this hgdeform was built without PCL visualization (the hgdeform_render target).";
 #endif

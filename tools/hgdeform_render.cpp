@@ -55,6 +55,9 @@ int main(int argc, char** argv) {
       }
     }
     if (inputs.empty() || output.empty()) throw std::runtime_error("need at least one input and -o OUT.png");
+    hgd::refuseInputs(output, inputs);
+    if (const std::string problem = hgd::displayProblem(); !problem.empty())
+      throw std::runtime_error(problem);
     std::vector<hgd::Shape> shapes;
     for (const auto& in : inputs) shapes.push_back(hgd::readShape(in));
     std::vector<const hgd::Shape*> ptrs;

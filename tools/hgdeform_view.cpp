@@ -63,6 +63,7 @@
 #include "hgdeform/fields.h"
 #include "hgdeform/io.h"
 #include "hgdeform/regions.h"
+#include "hgdeform/render.h"
 #include "hgdeform/scenario.h"
 
 namespace {
@@ -378,6 +379,7 @@ class Viewer {
   }
 
   void screenshot(const std::string& path) {
+    hgd::refuseInputs(path, inputs_);
     render();
     auto grab = vtkSmartPointer<vtkWindowToImageFilter>::New();
     grab->SetInput(vis_->getRenderWindow());
@@ -602,6 +604,7 @@ class Viewer {
   }
 
   void saveShape(const std::string& path) {
+    hgd::refuseInputs(path, inputs_);
     hgd::Shape out = shape_;
     if (deformer_) deformer_->writeDeformed(out);
     hgd::writeShape(path, out);
@@ -609,6 +612,7 @@ class Viewer {
   }
 
   void saveScenario(const std::string& path) {
+    hgd::refuseInputs(path, inputs_);
     if (handles_.fixed.empty() || handles_.manipulated.empty())
       return message("a scenario needs a fixed and a manipulated handle");
     hgd::Scenario s;
@@ -956,6 +960,7 @@ class Viewer {
 
  public:
   bool verbose_ = true;
+  std::vector<std::string> inputs_;  // files no output may replace
   bool drag_mode_ = false;
 
  private:
@@ -1080,10 +1085,14 @@ int main(int argc, char** argv) {
     return 2;
   }
   try {
-    if (!std::getenv("DISPLAY"))
-      throw std::runtime_error("no X display (DISPLAY is unset); run under xvfb-run for scripts");
+    if (const std::string problem = hgd::displayProblem(); !problem.empty())
+      throw std::runtime_error(problem);
+    // No output of the viewer (screenshots, saved shapes and scenarios, from keys or replay
+    // events) may replace one of its inputs.
+    if (!shot.empty()) hgd::refuseInputs(shot, {input, scenario, replay});
     Viewer viewer(input, width, height);
     viewer.verbose_ = !quiet;
+    viewer.inputs_ = {input, scenario, replay};
     if (!scenario.empty()) viewer.loadScenario(scenario);
     viewer.open();
     viewer.vis().setSize(width, height);  // the first render may shrink the window (TOOLCHAIN.md)

@@ -20,6 +20,11 @@ struct RenderOptions {
   int point_size = 3;
 };
 
+/// Empty when an X display can be opened; else what is wrong ("DISPLAY is not set", "cannot
+/// open the X display ':99'"). VTK aborts the process when its window finds no display, so
+/// every front end asks first.
+std::string displayProblem();
+
 /// Renders the shapes side by side (one viewport each, one shared camera framing them all) and
 /// writes a PNG atomically. Throws std::runtime_error on failure.
 void renderPng(const std::vector<const Shape*>& shapes, const std::string& png_path,
