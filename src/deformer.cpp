@@ -346,6 +346,24 @@ SurfaceStretch Deformer::surfaceStretch() const {
 
 void Deformer::writeDeformed(Shape& shape) const {
   storePositions(shape, geometry_, positions_, &out_normals_);
+  // An OBJ's own normals ('vn', indexed apart from the vertices) turn as the normal of the
+  // vertex a face pairs them with turns.
+  FileExtras& x = shape.extras;
+  x.obj_normals_out = x.obj_normals;
+  const pcl::PointCloud<pcl::Normal>& rest =
+      geometry_.hasFileNormals() ? *geometry_.file_normals : field_.normals();
+  for (std::size_t j = 0; j < x.obj_normals.size() && j < x.obj_normal_vertex.size(); ++j) {
+    const int v = x.obj_normal_vertex[j];
+    if (v < 0 || static_cast<std::size_t>(v) >= geometry_.finite_index.size()) continue;
+    const int i = geometry_.finite_index[static_cast<std::size_t>(v)];
+    if (i < 0 || static_cast<std::size_t>(i) >= out_normals_.size() ||
+        static_cast<std::size_t>(i) >= rest.size())
+      continue;
+    const Eigen::Vector3f n0 = rest[static_cast<std::size_t>(i)].getNormalVector3fMap();
+    const Eigen::Vector3f n1 = out_normals_[static_cast<std::size_t>(i)];
+    if (!(n0.squaredNorm() > 0) || !(n1.squaredNorm() > 0) || !n0.allFinite() || !n1.allFinite()) continue;
+    x.obj_normals_out[j] = Eigen::Quaternionf::FromTwoVectors(n0, n1) * x.obj_normals[j];
+  }
 }
 
 DeformReport deformShape(Shape& shape, const Scenario& scenario, const DeformOptions& options) {

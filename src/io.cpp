@@ -389,6 +389,7 @@ class Lexer {
       p_ = nl ? nl + 1 : end_;
       ++line_;
       while (cur_ < lend_ && isSpace(*cur_)) ++cur_;
+      lbeg_ = cur_;
       if (cur_ < lend_) return true;
     }
     cur_ = lend_ = end_;
@@ -421,12 +422,19 @@ class Lexer {
 
   char peek() const { return cur_ < lend_ ? *cur_ : '\0'; }
   std::size_t line() const { return line_; }
+  /// The current line from its first non-blank character, without the line end.
+  std::string_view lineText() const {
+    const char* e = lend_;
+    if (e > lbeg_ && e[-1] == '\r') --e;
+    return {lbeg_, static_cast<std::size_t>(e - lbeg_)};
+  }
 
  private:
   const char* p_;
   const char* end_;
   const char* cur_ = nullptr;
   const char* lend_ = nullptr;
+  const char* lbeg_ = nullptr;
   std::size_t line_;
 };
 
@@ -494,6 +502,7 @@ Shape readPly(const std::string& path) {
   PlyFormat format = PlyFormat::Ascii;
   bool have_format = false, ended = false;
   std::vector<PlyElement> elements;
+  std::vector<std::string> comments;
   while (in.readLine(&line, kMaxHeaderLine)) {
     const auto bad = [&](const std::string& why) {
       fail(path, "malformed header: line " + num(in.linesRead()) + ": " + why + " (" + excerpt(line) + ")");
@@ -501,7 +510,10 @@ Shape readPly(const std::string& path) {
     const auto words = splitWords(line);
     if (words.empty()) continue;
     const std::string_view kw = words[0];
-    if (kw == "comment" || kw == "obj_info") continue;
+    if (kw == "comment" || kw == "obj_info") {
+      if (line.rfind("comment written by hgdeform", 0) != 0) comments.push_back(line);
+      continue;
+    }
     if (kw == "end_header") {
       ended = true;
       break;
@@ -597,6 +609,23 @@ Shape readPly(const std::string& path) {
 
   Shape shape;
   pcl::PCLPointCloud2& cloud = shape.cloud;
+  // Everything not held in the cloud's fields or the polygons is kept aside (FileExtras).
+  std::vector<FileExtras::Element> extra(elements.size());
+  bool any_extra = false;
+  for (std::size_t e = 0; e < elements.size(); ++e) {
+    FileExtras::Element& x = extra[e];
+    x.name = elements[e].name;
+    x.count = elements[e].count;
+    for (std::size_t k = 0; k < elements[e].props.size(); ++k) {
+      const PlyProperty& p = elements[e].props[k];
+      x.props.push_back({p.name, p.type, p.list, p.count_type});
+      const bool held = (static_cast<int>(e) == vertex_el && !p.list) ||
+                        (static_cast<int>(e) == face_el && static_cast<int>(k) == face_prop);
+      x.kept.push_back(held ? 0 : 1);
+      any_extra = any_extra || !held;
+    }
+    any_extra = any_extra || (static_cast<int>(e) != vertex_el && static_cast<int>(e) != face_el);
+  }
   std::vector<std::uint32_t> offsets(vel.props.size(), 0);
   std::uint32_t step = 0;
   for (std::size_t k = 0; k < vel.props.size(); ++k) {
@@ -625,11 +654,19 @@ Shape readPly(const std::string& path) {
       const PlyElement& el = elements[e];
       if (el.props.empty() || el.count == 0) continue;
       const bool is_vertex = static_cast<int>(e) == vertex_el;
+      std::vector<double>& kept_values = extra[e].values;
       if (el.allScalar()) {
-        if (is_vertex)
+        if (is_vertex) {
           in.read(cloud.data.data(), cloud.data.size(), "vertex data");
-        else
-          in.skip(el.count * el.minBytes(), "element data");
+        } else {
+          const std::uint8_t* d = in.take(el.count * el.minBytes(), "element data");
+          kept_values.reserve(el.count * el.props.size());
+          for (std::uint64_t r = 0; r < el.count; ++r)
+            for (const PlyProperty& p : el.props) {
+              kept_values.push_back(loadDouble(d, p.type, swap));
+              d += datatypeSize(p.type);
+            }
+        }
         continue;
       }
       // Each face takes at least a count and three indices: reserve no more than the data can hold.
@@ -642,14 +679,20 @@ Shape readPly(const std::string& path) {
           const std::size_t isz = datatypeSize(p.type);
           if (!p.list) {
             const std::uint8_t* src = in.take(isz, "element data");
-            if (out) std::memcpy(out + offsets[k], src, isz);
+            if (out)
+              std::memcpy(out + offsets[k], src, isz);
+            else if (extra[e].kept[k])
+              kept_values.push_back(loadDouble(src, p.type, swap));
             continue;
           }
           const double n = loadDouble(in.take(datatypeSize(p.count_type), "list length"), p.count_type, swap);
           if (n < 0) fail(path, "malformed data: negative list length in '" + el.name + "' record " + num(r));
           const auto len = static_cast<std::uint64_t>(n);
           if (static_cast<int>(e) != face_el || static_cast<int>(k) != face_prop) {
-            in.skip(len * isz, "list data");
+            const std::uint8_t* items = in.take(len * isz, "list data");
+            kept_values.push_back(n);
+            for (std::uint64_t j = 0; j < len; ++j)
+              kept_values.push_back(loadDouble(items + j * isz, p.type, swap));
             continue;
           }
           if (len < 3)
@@ -707,6 +750,7 @@ Shape readPly(const std::string& path) {
             if (st == Parse::Range)
               fail(path, "value out of range " + excerpt(tok) + " at line " + num(lex.line()) +
                              " for property '" + p.name + "' of type " + plyTypeName(p.type));
+            if (!out && extra[e].kept[k]) extra[e].values.push_back(loadDouble(scratch, p.type, false));
             continue;
           }
           const std::string_view ctok = next(p);
@@ -720,11 +764,16 @@ Shape readPly(const std::string& path) {
             fail(path, "bad face: face " + num(r) + " at line " + num(lex.line()) + " has " +
                            std::to_string(len) + " vertices, at least 3 needed");
           pcl::Vertices poly;
+          if (!is_face) extra[e].values.push_back(static_cast<double>(len));
           for (long long j = 0; j < len; ++j) {
             const std::string_view tok = next(p);
             double v = 0;
             if (!parseFloating(tok, &v)) nonNumeric(tok, p);
-            if (!is_face) continue;
+            if (!is_face) {  // as the declared type holds it (text may carry more digits)
+              extra[e].values.push_back(p.type == Field::FLOAT32 ? static_cast<double>(static_cast<float>(v))
+                                                                 : v);
+              continue;
+            }
             if (!(v >= 0 && v < nverts && v == std::floor(v)))
               fail(path, "bad face index " + excerpt(tok) + " at line " + num(lex.line()) + " (" +
                              num(nverts) + " vertices)");
@@ -743,6 +792,8 @@ Shape readPly(const std::string& path) {
   }
 
   cloud.is_dense = computeDense(cloud);
+  shape.extras.ply_comments = std::move(comments);
+  if (any_extra) shape.extras.ply_elements = std::move(extra);
   return shape;
 }
 
@@ -957,6 +1008,7 @@ Shape readPcd(const std::string& path) {
       fail(path, "malformed data: " + num(in.remaining()) + " bytes after the last point: more data than " +
                      declared);
   } else if (data_kind == "binary_compressed") {
+    shape.extras.pcd_compressed = true;
     const std::uint64_t need_nopad = points * (step - pad_bytes);
     if (uncomp != need && uncomp != need_nopad)
       fail(path, "malformed data: the compressed block declares " + num(uncomp) +
@@ -1033,10 +1085,17 @@ Shape readObj(const std::string& path) {
     std::size_t line;
     long long value;
   };
-  PendingIndex worst{0, 0};  // the largest positive index, checked once all vertices are known
-  std::vector<std::string_view> toks;
+  PendingIndex worst{0, 0};             // the largest positive index, checked once all vertices are known
+  std::vector<std::string_view> lines;  // every line, kept when the file has more than v and f
+  bool extras = false;
+  std::vector<Eigen::Vector3f> normals;
+  std::vector<int> normal_vertex;
   while (lex.nextLine()) {
-    if (lex.peek() == '#') continue;
+    lines.push_back(lex.lineText());
+    if (lex.peek() == '#') {
+      extras = true;
+      continue;
+    }
     const std::string_view kw = lex.token();
     if (kw == "v") {
       double vals[7];
@@ -1060,6 +1119,7 @@ Shape readObj(const std::string& path) {
       pcl::Vertices poly;
       for (std::string_view tok = lex.token(); !tok.empty(); tok = lex.token()) {
         const std::string_view head = tok.substr(0, tok.find('/'));
+        if (head.size() != tok.size()) extras = true;  // v/vt/vn corners: kept as written
         long long v = 0;
         const auto r = std::from_chars(head.data(), head.data() + head.size(), v);
         const std::size_t nv = xyz.size() / 3;
@@ -1070,13 +1130,41 @@ Shape readObj(const std::string& path) {
         const long long idx = v > 0 ? v - 1 : static_cast<long long>(nv) + v;
         if (v > 0 && v > worst.value) worst = {lex.line(), v};
         poly.vertices.push_back(static_cast<pcl::index_t>(idx));
+        // The corner's normal (v/vt/vn or v//vn): the first vertex it is paired with turns it.
+        const auto s2 = head.size() < tok.size() ? tok.find('/', head.size() + 1) : std::string_view::npos;
+        if (s2 != std::string_view::npos) {
+          const std::string_view vn = tok.substr(s2 + 1);
+          long long k = 0;
+          const auto rk = std::from_chars(vn.data(), vn.data() + vn.size(), k);
+          const long long nn = static_cast<long long>(normals.size());
+          const long long j = k > 0 ? k - 1 : nn + k;
+          if (rk.ec == std::errc() && k != 0 && j >= 0 && j < nn &&
+              normal_vertex[static_cast<std::size_t>(j)] < 0)
+            normal_vertex[static_cast<std::size_t>(j)] = static_cast<int>(idx);
+        }
       }
       if (poly.vertices.size() < 3)
         fail(path, "bad face: line " + num(lex.line()) + " has " + num(poly.vertices.size()) +
                        " vertices, at least 3 needed");
       shape.polygons.push_back(std::move(poly));
+    } else {
+      // vn, vt, vp, o, g, s, l, usemtl, mtllib and anything else: kept as lines (FileExtras);
+      // normals are also read, to be turned with the shape.
+      extras = true;
+      if (kw == "vn") {
+        float vals[3] = {0, 0, 0};
+        for (float& v : vals) {
+          double d = 0;
+          const std::string_view tok = lex.token();
+          if (!parseFloating(tok, &d))
+            fail(path,
+                 "non-numeric value " + excerpt(tok) + " at line " + num(lex.line()) + " (a 'vn' line)");
+          v = static_cast<float>(d);
+        }
+        normals.emplace_back(vals[0], vals[1], vals[2]);
+        normal_vertex.push_back(-1);
+      }
     }
-    // vn, vt, vp, o, g, s, l, usemtl, mtllib and anything else: ignored.
   }
   const std::size_t nverts = xyz.size() / 3;
   if (nverts == 0) fail(path, "no points: the file has no 'v' lines");
@@ -1122,6 +1210,11 @@ Shape readObj(const std::string& path) {
     }
   }
   cloud.is_dense = computeDense(cloud);
+  if (extras) {
+    shape.extras.obj_lines.assign(lines.begin(), lines.end());
+    shape.extras.obj_normals = std::move(normals);
+    shape.extras.obj_normal_vertex = std::move(normal_vertex);
+  }
   return shape;
 }
 
@@ -1366,8 +1459,184 @@ void writeAsciiPoints(AtomicWriter& w, const pcl::PCLPointCloud2& c, std::size_t
   w.write(buf);
 }
 
+/// Appends `v` as a value of `type`: binary (host order) to `bin`, or text to `txt`.
+void putValue(double v, std::uint8_t type, std::vector<std::uint8_t>* bin, std::string* txt) {
+  if (txt) {
+    if (type == Field::FLOAT32)
+      appendFloat(*txt, static_cast<float>(v));
+    else if (type == Field::FLOAT64)
+      appendFloat(*txt, v);
+    else
+      appendInt(*txt, static_cast<long long>(v));
+    return;
+  }
+  const auto put = [&](auto x) {
+    const auto* b = reinterpret_cast<const std::uint8_t*>(&x);
+    bin->insert(bin->end(), b, b + sizeof x);
+  };
+  switch (type) {
+    case Field::INT8: put(static_cast<std::int8_t>(v)); break;
+    case Field::UINT8: put(static_cast<std::uint8_t>(v)); break;
+    case Field::INT16: put(static_cast<std::int16_t>(v)); break;
+    case Field::UINT16: put(static_cast<std::uint16_t>(v)); break;
+    case Field::INT32: put(static_cast<std::int32_t>(v)); break;
+    case Field::UINT32: put(static_cast<std::uint32_t>(v)); break;
+    case Field::FLOAT32: put(static_cast<float>(v)); break;
+    default: put(v); break;
+  }
+}
+
+/// Whether a shape's kept PLY elements still fit it (the same vertex and face counts).
+bool plyExtrasFit(const Shape& shape) {
+  const auto& els = shape.extras.ply_elements;
+  if (els.empty()) return false;
+  bool vertex = false;
+  for (const auto& el : els) {
+    if (el.name == "vertex") {
+      vertex = true;
+      if (el.count != shape.size()) return false;
+    }
+    const bool indices = std::any_of(el.kept.begin(), el.kept.end(), [](char k) { return !k; });
+    if (el.name == "face" && indices && el.count != shape.polygons.size()) return false;
+  }
+  return vertex;
+}
+
+/// A PLY written with every element, property and comment the file it was read from had, in
+/// their order: the vertex element's scalars from the cloud (fields added since go last), the
+/// faces' vertex lists from the polygons, the rest from FileExtras.
+void writePlyWithExtras(const std::string& path, const Shape& shape, bool ascii,
+                        const std::vector<const Field*>& fields) {
+  const pcl::PCLPointCloud2& c = shape.cloud;
+  const std::size_t n = shape.size();
+  std::string h = "ply\nformat ";
+  h += ascii ? "ascii" : (kHostBigEndian ? "binary_big_endian" : "binary_little_endian");
+  h += " 1.0\n";
+  for (const auto& line : shape.extras.ply_comments) h += line + "\n";
+  h += "comment written by hgdeform\n";
+  // What each property of each element is written from.
+  struct Source {
+    const FileExtras::Property* prop = nullptr;
+    const Field* field = nullptr;  // a cloud field (vertex scalars)
+    bool indices = false;          // the face's vertex list
+    bool kept = false;             // FileExtras values
+    std::uint8_t count_type = 0;   // the face lists' length type (widened if a face needs it)
+  };
+  std::size_t max_face = 0;
+  for (const auto& poly : shape.polygons) max_face = std::max(max_face, poly.vertices.size());
+  std::vector<std::vector<Source>> sources;
+  std::vector<char> used(fields.size(), 0);
+  for (const auto& el : shape.extras.ply_elements) {
+    const bool is_vertex = el.name == "vertex";
+    h += "element " + el.name + " " + num(is_vertex ? n : el.count) + "\n";
+    std::vector<Source> src;
+    for (std::size_t k = 0; k < el.props.size(); ++k) {
+      const FileExtras::Property& p = el.props[k];
+      Source so;
+      so.prop = &p;
+      if (el.kept[k]) {
+        so.kept = true;
+      } else if (is_vertex) {
+        for (std::size_t f = 0; f < fields.size() && !so.field; ++f)
+          if (!used[f] && fields[f]->name == p.name && fieldCount(*fields[f]) == 1) {
+            so.field = fields[f];
+            used[f] = 1;
+          }
+        if (!so.field) continue;  // the field is gone from the cloud
+      } else {
+        so.indices = true;
+        so.count_type = max_face > 127 ? static_cast<std::uint8_t>(Field::UINT32) : p.count_type;
+      }
+      if (so.field)
+        h += std::string("property ") + plyTypeName(so.field->datatype) + " " + p.name + "\n";
+      else if (p.list)
+        h += std::string("property list ") + plyTypeName(so.indices ? so.count_type : p.count_type) + " " +
+             plyTypeName(p.type) + " " + p.name + "\n";
+      else
+        h += std::string("property ") + plyTypeName(p.type) + " " + p.name + "\n";
+      src.push_back(so);
+    }
+    if (is_vertex)  // fields the file did not have (a computed field), after its own
+      for (std::size_t f = 0; f < fields.size(); ++f) {
+        if (used[f]) continue;
+        Source so;
+        so.field = fields[f];
+        src.push_back(so);
+        const std::size_t cnt = fieldCount(*fields[f]);
+        for (std::size_t k = 0; k < cnt; ++k)
+          h += std::string("property ") + plyTypeName(fields[f]->datatype) + " " + fields[f]->name +
+               (cnt > 1 ? "_" + num(k) : std::string()) + "\n";
+      }
+    sources.push_back(std::move(src));
+  }
+  h += "end_header\n";
+
+  AtomicWriter w(path);
+  w.write(h);
+  std::vector<std::uint8_t> bin;
+  std::string txt;
+  std::vector<std::uint8_t>* b = ascii ? nullptr : &bin;
+  std::string* t = ascii ? &txt : nullptr;
+  for (std::size_t e = 0; e < shape.extras.ply_elements.size(); ++e) {
+    const auto& el = shape.extras.ply_elements[e];
+    const bool is_vertex = el.name == "vertex";
+    const std::uint64_t records = is_vertex ? n : el.count;
+    std::size_t at = 0;  // into el.values
+    for (std::uint64_t r = 0; r < records; ++r) {
+      bool first = true;
+      const auto sep = [&] {
+        if (t && !first) *t += ' ';
+        first = false;
+      };
+      for (const Source& so : sources[e]) {
+        if (so.field) {
+          const std::uint8_t* pt = c.data.data() + r * c.point_step + so.field->offset;
+          const std::size_t sz = datatypeSize(so.field->datatype);
+          for (std::size_t k = 0; k < fieldCount(*so.field); ++k) {
+            sep();
+            if (t)
+              appendValue(*t, pt + k * sz, so.field->datatype);
+            else
+              b->insert(b->end(), pt + k * sz, pt + (k + 1) * sz);
+          }
+        } else if (so.indices) {
+          const auto& poly = shape.polygons[r];
+          sep();
+          putValue(static_cast<double>(poly.vertices.size()), so.count_type, b, t);
+          for (const auto idx : poly.vertices) {
+            sep();
+            putValue(static_cast<double>(idx), so.prop->type, b, t);
+          }
+        } else if (so.prop->list) {
+          const auto len = static_cast<std::size_t>(el.values.at(at++));
+          sep();
+          putValue(static_cast<double>(len), so.prop->count_type, b, t);
+          for (std::size_t j = 0; j < len; ++j) {
+            sep();
+            putValue(el.values.at(at++), so.prop->type, b, t);
+          }
+        } else {
+          sep();
+          putValue(el.values.at(at++), so.prop->type, b, t);
+        }
+      }
+      if (t) *t += '\n';
+      if (bin.size() >= kFlushBytes || txt.size() >= kFlushBytes) {
+        w.write(bin.data(), bin.size());
+        w.write(txt);
+        bin.clear();
+        txt.clear();
+      }
+    }
+  }
+  w.write(bin.data(), bin.size());
+  w.write(txt);
+  w.commit();
+}
+
 void writePly(const std::string& path, const Shape& shape, bool ascii) {
   const auto fields = checkShape(path, shape, false);
+  if (plyExtrasFit(shape)) return writePlyWithExtras(path, shape, ascii, fields);
   const pcl::PCLPointCloud2& c = shape.cloud;
   const std::size_t n = shape.size();
   if (n > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max()) && !shape.polygons.empty())
@@ -1463,15 +1732,91 @@ void writePcd(const std::string& path, const Shape& shape, bool ascii) {
     h += ' ';
     appendFloat(h, v);
   }
-  h += "\nPOINTS " + num(n) + "\nDATA " + (ascii ? "ascii" : "binary") + "\n";
+  // Compressed as it was read (binary_compressed: each field's values together, then LZF).
+  const bool compressed = !ascii && shape.extras.pcd_compressed;
+  h += "\nPOINTS " + num(n) + "\nDATA " +
+       (ascii        ? "ascii"
+        : compressed ? "binary_compressed"
+                     : "binary") +
+       "\n";
 
   AtomicWriter w(path);
   w.write(h);
-  if (ascii)
+  if (ascii) {
     writeAsciiPoints(w, c, n, fields);
-  else
+  } else if (compressed) {
+    std::vector<std::uint8_t> soa;
+    for (const Field* f : fields) {
+      const std::size_t fb = datatypeSize(f->datatype) * fieldCount(*f);
+      for (std::size_t i = 0; i < n; ++i) {
+        const std::uint8_t* src = c.data.data() + i * c.point_step + f->offset;
+        soa.insert(soa.end(), src, src + fb);
+      }
+    }
+    if (soa.size() > std::numeric_limits<std::uint32_t>::max() / 2)
+      fail(path, "cannot write: too much data for one compressed PCD block");
+    std::vector<std::uint8_t> packed(soa.size() + soa.size() / 2 + 64);
+    const unsigned got = soa.empty() ? 0
+                                     : pcl::lzfCompress(soa.data(), static_cast<unsigned>(soa.size()),
+                                                        packed.data(), static_cast<unsigned>(packed.size()));
+    if (!soa.empty() && got == 0) fail(path, "cannot write: LZF compression failed");
+    const std::uint32_t sizes[2] = {got, static_cast<std::uint32_t>(soa.size())};
+    w.write(sizes, sizeof sizes);
+    w.write(packed.data(), got);
+  } else {
     writePackedBinary(w, c, n, fields);
+  }
   w.commit();
+}
+
+/// An OBJ written line by line as it was read: 'v' lines with the cloud's x/y/z (the rest of
+/// the line, colours or a weight, as it was), 'vn' lines with the turned normals, every other
+/// line (vt, g, o, usemtl, mtllib, s, l, comments, faces with their v/vt/vn corners) unchanged.
+bool writeObjLines(const std::string& path, const Shape& shape, const XyzFields& xyz) {
+  const FileExtras& x = shape.extras;
+  const std::vector<Eigen::Vector3f>& vn = x.obj_normals_out.empty() ? x.obj_normals : x.obj_normals_out;
+  std::size_t nv = 0, nn = 0;
+  for (const auto& line : x.obj_lines) {
+    nv += line.rfind("v ", 0) == 0 || line.rfind("v\t", 0) == 0;
+    nn += line.rfind("vn ", 0) == 0 || line.rfind("vn\t", 0) == 0;
+  }
+  if (nv != shape.size() || nn != vn.size()) return false;  // the shape no longer fits its lines
+  const pcl::PCLPointCloud2& c = shape.cloud;
+  AtomicWriter w(path);
+  std::string buf;
+  std::size_t i = 0, j = 0;
+  for (const auto& line : x.obj_lines) {
+    const std::vector<std::string_view> words = splitWords(line);
+    if (!words.empty() && words[0] == "v") {
+      const std::uint8_t* pt = c.data.data() + i++ * c.point_step;
+      buf += 'v';
+      for (const int idx : {xyz.x, xyz.y, xyz.z}) {
+        buf += ' ';
+        appendValue(buf, pt + c.fields[idx].offset, c.fields[idx].datatype);
+      }
+      for (std::size_t k = 4; k < words.size(); ++k) {
+        buf += ' ';
+        buf += words[k];
+      }
+    } else if (!words.empty() && words[0] == "vn") {
+      buf += "vn";
+      for (int a = 0; a < 3; ++a) {
+        buf += ' ';
+        appendFloat(buf, vn[j][a]);
+      }
+      ++j;
+    } else {
+      buf += line;
+    }
+    buf += '\n';
+    if (buf.size() >= kFlushBytes) {
+      w.write(buf);
+      buf.clear();
+    }
+  }
+  w.write(buf);
+  w.commit();
+  return true;
 }
 
 void writeObj(const std::string& path, const Shape& shape) {
@@ -1479,6 +1824,7 @@ void writeObj(const std::string& path, const Shape& shape) {
   const pcl::PCLPointCloud2& c = shape.cloud;
   const XyzFields xyz = findXyzFields(c);
   if (!xyz.hasXyz()) fail(path, "cannot write: no x/y/z fields");
+  if (!shape.extras.obj_lines.empty() && writeObjLines(path, shape, xyz)) return;
   const int r = findField(c, "red"), g = findField(c, "green"), b = findField(c, "blue");
   const bool colour = r >= 0 && g >= 0 && b >= 0;
   const std::size_t n = shape.size();
@@ -1573,6 +1919,16 @@ void removeOutput(const std::string& path) noexcept {
     return;
   }
   if (S_ISREG(st.st_mode)) ::unlink(path.c_str());
+}
+
+std::string extrasLost(const Shape& shape, FileFormat format) {
+  const FileExtras& x = shape.extras;
+  if (!x.obj_lines.empty() && format != FileFormat::Obj)
+    return "the OBJ's texture coordinates, normals, groups, materials and face corners are kept only when "
+           "writing OBJ";
+  if (!x.ply_elements.empty() && format != FileFormat::Ply)
+    return "the PLY's other elements, face properties and list properties are kept only when writing PLY";
+  return "";
 }
 
 void writeShape(const std::string& path, const Shape& shape, const WriteOptions& options) {

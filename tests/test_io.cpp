@@ -555,8 +555,17 @@ TEST_F(IoTest, PcdAsciiBinaryAndCompressedLoadIdenticalValues) {
 
 TEST_F(IoTest, PcdRoundTrips) {
   const Shape s = hgd::readShape(write("c.pcd", pcdCompressed(true)));
+  // Compressed as it was read, and every byte of the data back, padding included.
+  hgd::writeShape(path("z.pcd"), s);
+  EXPECT_NE(slurp(path("z.pcd")).find("DATA binary_compressed\n"), std::string::npos);
+  const Shape z = hgd::readShape(path("z.pcd"));
+  checkPcd(z);
+  EXPECT_EQ(s.cloud.data, z.cloud.data);
+  EXPECT_TRUE(z.extras.pcd_compressed);
   // Binary keeps everything, padding included, byte for byte.
-  hgd::writeShape(path("b.pcd"), s);
+  Shape plain = s;
+  plain.extras.pcd_compressed = false;
+  hgd::writeShape(path("b.pcd"), plain);
   const Shape b = hgd::readShape(path("b.pcd"));
   checkPcd(b);
   expectSameCloud(s, b);

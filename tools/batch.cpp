@@ -440,6 +440,9 @@ ScanResult processScan(const Scan& s, const Context& ctx) {
     std::optional<hgd::Shape> before;
     if (ctx.thumbnails) before = shape;
     hgd::DeformReport rep = hgd::deformShape(shape, scenario, hgd::DeformOptions{});
+    if (const std::string lost = hgd::extrasLost(shape, hgd::formatFromPath(s.output.string()));
+        !lost.empty())
+      rep.warnings.push_back(lost);
     rep.read_ms = read_ms;  // as `hgdeform deform` counts it
     rep.build_ms += read_ms;
     rep.total_ms += read_ms;

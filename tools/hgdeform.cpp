@@ -200,6 +200,8 @@ int runField(int argc, char** argv) {
   field.compute(phi);
 
   hgd::storeField(shape, geometry, phi, "harmonic", a.flags.count("color") > 0);
+  if (const std::string lost = hgd::extrasLost(shape, hgd::formatFromPath(output)); !lost.empty())
+    std::fprintf(stderr, "hgdeform: warning: %s: %s\n", output.c_str(), lost.c_str());
   hgd::WriteOptions wo;
   if (a.flags.count("ascii")) wo.encoding = hgd::Encoding::Ascii;
   hgd::writeShape(output, shape, wo);
@@ -276,6 +278,8 @@ int runDeform(int argc, char** argv) {
   hgd::WriteOptions wo;
   if (a.flags.count("ascii")) wo.encoding = hgd::Encoding::Ascii;
   hgd::DeformReport report = hgd::deformShape(shape, scenario, opt);
+  if (const std::string lost = hgd::extrasLost(shape, hgd::formatFromPath(output)); !lost.empty())
+    report.warnings.push_back(output + ": " + lost);
   report.read_ms = read_ms;  // reading is part of everything before the first solve
   report.build_ms += read_ms;
   report.total_ms += read_ms;

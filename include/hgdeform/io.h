@@ -38,6 +38,11 @@ struct WriteOptions {
 /// Refuses (IoError) to write over `shape.path`, the file the shape was read from.
 void writeShape(const std::string& path, const Shape& shape, const WriteOptions& options = {});
 
+/// What writing `shape` in `format` would lose of what its file held beyond points and faces
+/// (FileExtras: an OBJ's texture coordinates and groups, a PLY's other elements), as a warning
+/// to print; "" when nothing is lost. A shape is written back whole in its own format.
+std::string extrasLost(const Shape& shape, FileFormat format);
+
 /// Writes bytes to `path` the same way: temporary file in the same directory, then rename.
 /// Throws IoError naming the path. Every writer here treats special paths alike: a symbolic
 /// link is followed (the file it names is replaced atomically, the link stays); a FIFO or a

@@ -18,6 +18,41 @@ enum class FileFormat { Ply, Pcd, Obj };
 /// Encoding of a written file. Binary is the default, as in PCL.
 enum class Encoding { Binary, Ascii };
 
+/// What a file holds beyond per-point scalar fields and faces' vertex lists, kept so that a
+/// shape written back in its own format loses nothing: PLY elements other than vertex and face
+/// (a camera, edges), face properties (per-face colours), vertex list properties, comments;
+/// an OBJ's texture coordinates, normals, groups, objects, materials and face corners; a PCD's
+/// compression.
+struct FileExtras {
+  struct Property {
+    std::string name;
+    std::uint8_t type = 0;  ///< a pcl::PCLPointField datatype
+    bool list = false;
+    std::uint8_t count_type = 0;  ///< lists: the type of the length
+  };
+  /// A PLY element with every property in file order. `kept[k]` says whether property k's
+  /// values are in `values` (else they are in the cloud's fields or, for the face element's
+  /// vertex_indices, in `polygons`). `values` runs record by record, kept property by kept
+  /// property; a list is its length followed by its items.
+  struct Element {
+    std::string name;
+    std::uint64_t count = 0;
+    std::vector<Property> props;
+    std::vector<char> kept;
+    std::vector<double> values;
+  };
+  std::vector<Element> ply_elements;  ///< every element of a PLY, in file order
+  std::vector<std::string> ply_comments;
+  /// OBJ: every line of the file, in order. 'v' lines are rewritten from the cloud's x/y/z,
+  /// 'vn' lines from `obj_normals`; the rest is written back as it was.
+  std::vector<std::string> obj_lines;
+  std::vector<Eigen::Vector3f> obj_normals;      ///< the 'vn' values as read, in order
+  std::vector<Eigen::Vector3f> obj_normals_out;  ///< turned with the shape (else written as read)
+  std::vector<int> obj_normal_vertex;            ///< per 'vn': the first vertex a face pairs it with, or -1
+  bool pcd_compressed = false;                   ///< PCD read as binary_compressed
+  bool empty() const { return ply_elements.empty() && obj_lines.empty() && !pcd_compressed; }
+};
+
 /// A point cloud or mesh with all its per-point fields.
 ///
 /// `cloud` holds every point of the file in file order, NaN points included, with every field
@@ -33,6 +68,8 @@ struct Shape {
   /// Where the shape came from (for messages), and its format.
   std::string path;
   FileFormat format = FileFormat::Ply;
+  /// Everything else the file held (see FileExtras).
+  FileExtras extras;
 
   std::size_t size() const { return static_cast<std::size_t>(cloud.width) * cloud.height; }
   bool isMesh() const { return !polygons.empty(); }
