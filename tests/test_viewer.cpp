@@ -207,6 +207,105 @@ TEST(Viewer, NoOutputReplacesAnInput) {
   EXPECT_EQ(hgdtest::slurp(sc), sc_before);
 }
 
+// A malformed replay (docs/replay.md) is refused as a whole before any event runs: exit 1 (no
+// crash: run() gives -1 for a signal), the JSON path of the problem on stderr, and no output of
+// the valid events before the bad one.
+TEST(Viewer, MalformedReplayIsRefusedBeforeAnyEventRuns) {
+  if (!haveXvfb()) GTEST_SKIP() << "xvfb-run not installed";
+  hgdtest::TempDir dir;
+  const std::string bar = dir.file("bar.ply"), ev = dir.file("events.json");
+  hgd::writeShape(bar, hgd::shapes::bar(1.0f, 0.1f, 0.05f));
+  struct Case {
+    std::string event, message;  // the bad event (third in the file), what stderr says of it
+  };
+  const std::vector<Case> cases = {
+      {R"({"drag": {"from": {"world": [1, 0, 0.05]}}})", "/events/2/drag/to: missing"},
+      {R"({"drag": {"to": {"world": [1, 0, 0.05]}}})", "/events/2/drag/from: missing"},
+      {R"({"pick": {"world": [1, 0]}})", "/events/2/pick/world: must be an array of 3 numbers"},
+      {R"({"pick": {"screen": [10]}})", "/events/2/pick/screen: must be an array of 2 numbers"},
+      {R"({"area": {"screen": [0, 0, 10]}})", "/events/2/area/screen: must be an array of 4 numbers"},
+      {R"({"area": {"from": [0, 0, 0]}})", "/events/2/area/to: missing"},
+      {R"({"drag": {"from": {"world": [1, 0, 0.05]}, "to": {"screen": [5]}}})",
+       "/events/2/drag/to/screen: must be an array of 2 numbers"},
+      {R"({"pick": {"world": [1, "0", 0.05]}})", "/events/2/pick/world/1: must be a number"},
+      {R"({"pick": {"world": [1, null, 0.05]}})", "/events/2/pick/world/1: must be a number"},
+      {R"({"drag": {"from": {"world": [1, 0, 0.05]}, "to": {"world": [0.8, 1e999, 0.05]}}})",
+       "/events/2/drag/to/world/1: must be a finite number"},
+      {R"({"radius": -1e999})", "/events/2/radius: must be a finite number"},
+      {R"({"radius": 0})", "/events/2/radius: must be a positive number"},
+      {R"({"zoom": 2})", "/events/2/zoom: unknown key (expected one of: key, radius, pick"},
+      {R"({"pick": {"world": [1, 0, 0.05], "size": 3}})", "/events/2/pick/size: unknown key"},
+      {R"({"pick": {"world": [1, 0, 0.05], "screen": [1, 2]}})",
+       "/events/2/pick: must have exactly one of: world, screen"},
+      {R"({"key": "f", "radius": 0.1})", "/events/2: an event must have exactly one of: key, radius"},
+      {R"({})", "/events/2: an event must have exactly one of: key, radius"},
+      {R"("f")", "/events/2: must be an object"},
+      {R"([{"key": "f"}])", "/events/2: must be an object"},
+      {R"({"key": ""})", "/events/2/key: must be a non-empty string"},
+      {R"({"save": 3})", "/events/2/save: must be a non-empty string"},
+      {R"({"view": "depth"})", R"(/events/2/view: must be "colours", "field" or "clusters")"},
+      {R"({"drag": {"from": {"world": [1, 0, 0.05]}, "to": {"world": [0.8, 0.4, 0.05]}, "steps": 0}})",
+       "/events/2/drag/steps: must be an integer from 1 to 10000"},
+      {R"({"drag": {"from": {"world": [1, 0, 0.05]}, "to": {"world": [0.8, 0.4, 0.05]}, "steps": 2.5}})",
+       "/events/2/drag/steps: must be an integer from 1 to 10000"},
+      {R"({"pick": {"world": [1e16, 0, 0]}})", "/events/2/pick/world/0: must be a coordinate between"},
+      {R"({"key": "f", "key": "m"})", "/events/2/key: duplicate key"},
+      // An output naming an input is refused with the rest, before the events ahead of it.
+      {R"({"save": ")" + bar + R"("})", "/events/2/save: " + bar + ": refusing to overwrite the input"},
+  };
+  const std::string bar_before = hgdtest::slurp(bar);
+  for (std::size_t i = 0; i < cases.size(); ++i) {
+    const std::string early = dir.file("early" + std::to_string(i));
+    const std::string events = R"({"events": [{"save": ")" + early + R"(.ply"}, {"screenshot": ")" + early +
+                               R"(.png"}, )" + cases[i].event + R"(, {"save": ")" + early +
+                               R"(-late.ply"}]})";
+    hgdtest::writeText(ev, events);
+    const hgdtest::CommandResult r = hgdtest::shell(viewer(bar + " --replay " + ev + " --quiet"));
+    EXPECT_EQ(r.code, 1) << cases[i].event << "\n" << r.err;
+    EXPECT_TRUE(hgdtest::contains(r.err, "hgdeform-view: " + ev + ": " + cases[i].message))
+        << cases[i].event << "\n"
+        << r.err;
+    for (const char* suffix : {".ply", ".png", ".png.tmp.png", "-late.ply"})
+      EXPECT_FALSE(hgdtest::exists(early + suffix)) << cases[i].event << ": wrote " << early << suffix;
+  }
+  // The bare array form: the JSON paths are those of the file.
+  hgdtest::writeText(ev, R"([{"save": ")" + dir.file("early.ply") + R"("}, {"pick": {"world": [0, 0]}}])");
+  const hgdtest::CommandResult r = hgdtest::shell(viewer(bar + " --replay " + ev + " --quiet"));
+  EXPECT_EQ(r.code, 1) << r.err;
+  EXPECT_TRUE(hgdtest::contains(r.err, ev + ": /1/pick/world: must be an array of 3 numbers")) << r.err;
+  EXPECT_FALSE(hgdtest::exists(dir.file("early.ply")));
+  // Not a replay at all, and not JSON.
+  for (const auto& [text, message] : std::vector<std::pair<std::string, std::string>>{
+           {R"({"events": {}})", ": /events: must be an array of events"},
+           {R"({"events": [], "format": 1})", ": /format: unknown key (expected one of: events)"},
+           {"5", ": /: must be an object {\"events\": [...]} (or an array of events)"},
+           {R"({"events": [)", ": invalid JSON: "}}) {
+    hgdtest::writeText(ev, text);
+    const hgdtest::CommandResult bad = hgdtest::shell(viewer(bar + " --replay " + ev + " --quiet"));
+    EXPECT_EQ(bad.code, 1) << text << "\n" << bad.err;
+    EXPECT_TRUE(hgdtest::contains(bad.err, ev + message)) << text << "\n" << bad.err;
+  }
+  EXPECT_EQ(hgdtest::slurp(bar), bar_before);
+}
+
+// The example of README.md and docs/replay.md replays, with --screenshot, --size and --stats
+// (its one drag of 20 steps: 20 frames while moving and one at the release).
+TEST(Viewer, DocumentedBunnyReplayRuns) {
+  if (!haveXvfb()) GTEST_SKIP() << "xvfb-run not installed";
+  hgdtest::TempDir dir;
+  const std::string shot = dir.file("viewer.png");
+  const std::string events = hgdtest::datasetsDir() + "/../docs/viewer_bunny_events.json";
+  const hgdtest::CommandResult r =
+      hgdtest::shell(viewer(hgdtest::datasetsDir() + "/bunny_1839.ply --replay " + events + " --screenshot " +
+                            shot + " --size 900x650 --stats --quiet"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(hgdtest::contains(r.out, "frames 21: solve ")) << r.out;
+  const Image img = readPng(shot);
+  EXPECT_EQ(img.width, 900);
+  EXPECT_EQ(img.height, 650);
+  EXPECT_FALSE(img.rgb.empty());
+}
+
 // DISPLAY names an X server that is not there: a clear error and exit 1, not VTK's abort.
 TEST(Viewer, AbsentXServerIsAClearError) {
   hgdtest::TempDir dir;

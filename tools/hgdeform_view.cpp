@@ -17,8 +17,10 @@
 //   k          screenshot (PNG);  h  this help;  q  quit
 //
 // --replay plays a script of events (picks, keys, drags in screen or world coordinates) and
-// exits; with --screenshot it saves a picture at the end. Every committed drag is applied the
-// way `hgdeform deform` replays a scenario's drag, so a saved session replays to the same shape.
+// exits; with --screenshot it saves a picture at the end. The replay format, checked as a whole
+// before the first event runs (tools/replay.cpp), is in docs/replay.md. Every committed drag is
+// applied the way `hgdeform deform` replays a scenario's drag, so a saved session replays to
+// the same shape.
 #include <pcl/conversions.h>
 #include <pcl/visualization/interactor_style.h>
 #include <pcl/visualization/pcl_visualizer.h>
@@ -47,10 +49,8 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
-#include <fstream>
 #include <iostream>
 #include <memory>
-#include <nlohmann/json.hpp>
 #include <optional>
 #include <sstream>
 #include <stdexcept>
@@ -65,6 +65,7 @@
 #include "hgdeform/regions.h"
 #include "hgdeform/render.h"
 #include "hgdeform/scenario.h"
+#include "replay.h"
 
 namespace {
 
@@ -343,24 +344,14 @@ class Viewer {
 
   // --- replay -----------------------------------------------------------------------------
 
-  void replay(const std::string& path, vtkRenderWindowInteractor* iren) {
-    std::ifstream in(path);
-    if (!in) throw std::runtime_error(path + ": cannot open replay file");
-    nlohmann::json j;
-    try {
-      in >> j;
-    } catch (const std::exception& e) {
-      throw std::runtime_error(path + ": invalid JSON: " + e.what());
-    }
-    const nlohmann::json& events = j.is_object() && j.contains("events") ? j["events"] : j;
-    if (!events.is_array()) throw std::runtime_error(path + ": expected {\"events\": [...]}");
-    for (std::size_t n = 0; n < events.size(); ++n) {
-      const auto& e = events[n];
-      const std::string where = path + ": /events/" + std::to_string(n);
+  // Plays events that hgdview::readReplay() has checked (all of them, before the first runs).
+  void replay(const std::vector<hgdview::ReplayEvent>& events, const std::string& path,
+              vtkRenderWindowInteractor* iren) {
+    for (const hgdview::ReplayEvent& e : events) {
       try {
         replayEvent(e, iren);
       } catch (const std::exception& ex) {
-        throw std::runtime_error(where + ": " + ex.what());
+        throw std::runtime_error(path + ": " + e.path + ": " + ex.what());
       }
     }
   }
@@ -868,14 +859,15 @@ class Viewer {
 
   // --- replay -----------------------------------------------------------------------------
 
-  Eigen::Vector2d screenOf(const nlohmann::json& at) {
-    if (at.contains("screen")) return {at["screen"][0].get<double>(), at["screen"][1].get<double>()};
-    if (at.contains("world")) {
-      const Eigen::Vector3d d = toDisplay(
-          {at["world"][0].get<double>(), at["world"][1].get<double>(), at["world"][2].get<double>()});
-      return d.head<2>();
-    }
-    throw std::runtime_error("a position needs \"screen\": [x, y] or \"world\": [x, y, z]");
+  Eigen::Vector2d screenOf(const hgdview::ReplayPosition& p) {
+    return p.world ? Eigen::Vector2d(toDisplay(p.at).head<2>()) : Eigen::Vector2d(p.at.head<2>());
+  }
+
+  // A window coordinate as an int. World points far off the screen (or at the eye) project to
+  // huge or NaN display coordinates, which no int holds: they land far outside the window.
+  static int pixel(double v) {
+    if (std::isnan(v)) return -1000000;
+    return static_cast<int>(std::clamp(v, -1e6, 1e6));
   }
 
   void sendKey(vtkRenderWindowInteractor* iren, const std::string& key) {
@@ -889,58 +881,46 @@ class Viewer {
 
   void sendMouse(vtkRenderWindowInteractor* iren, unsigned long event, const Eigen::Vector2d& at,
                  bool shift = false) {
-    iren->SetEventInformation(static_cast<int>(std::lround(at.x())), static_cast<int>(std::lround(at.y())), 0,
-                              shift ? 1 : 0);
+    iren->SetEventInformation(pixel(std::round(at.x())), pixel(std::round(at.y())), 0, shift ? 1 : 0);
     iren->InvokeEvent(event, nullptr);
   }
 
-  void replayEvent(const nlohmann::json& e, vtkRenderWindowInteractor* iren) {
-    if (e.contains("key")) {
-      sendKey(iren, e["key"].get<std::string>());
-    } else if (e.contains("radius")) {
-      radius_ = e["radius"].get<double>();
-    } else if (e.contains("pick")) {  // shift+click
-      if (e["pick"].contains("radius")) radius_ = e["pick"]["radius"].get<double>();
-      const Eigen::Vector2d at = screenOf(e["pick"]);
-      sendMouse(iren, vtkCommand::LeftButtonPressEvent, at, true);
-      sendMouse(iren, vtkCommand::LeftButtonReleaseEvent, at, true);
-    } else if (e.contains("area")) {
-      const auto& a = e["area"];
-      Eigen::Vector2d p0, p1;
-      if (a.contains("screen")) {
-        p0 = {a["screen"][0].get<double>(), a["screen"][1].get<double>()};
-        p1 = {a["screen"][2].get<double>(), a["screen"][3].get<double>()};
-      } else {
-        p0 = screenOf(nlohmann::json{{"world", a["from"]}});
-        p1 = screenOf(nlohmann::json{{"world", a["to"]}});
+  void replayEvent(const hgdview::ReplayEvent& e, vtkRenderWindowInteractor* iren) {
+    using Kind = hgdview::ReplayEvent::Kind;
+    switch (e.kind) {
+      case Kind::Key: sendKey(iren, e.text); break;
+      case Kind::Radius: radius_ = e.radius; break;
+      case Kind::Pick: {  // shift+click
+        if (e.has_radius) radius_ = e.radius;
+        const Eigen::Vector2d at = screenOf(e.from);
+        sendMouse(iren, vtkCommand::LeftButtonPressEvent, at, true);
+        sendMouse(iren, vtkCommand::LeftButtonReleaseEvent, at, true);
+        break;
       }
-      selectArea(static_cast<int>(std::floor(p0.x())), static_cast<int>(std::floor(p0.y())),
-                 static_cast<int>(std::ceil(p1.x())), static_cast<int>(std::ceil(p1.y())));
-    } else if (e.contains("drag")) {
-      const auto& d = e["drag"];
-      const int steps = d.value("steps", 20);
-      if (!drag_mode_) sendKey(iren, "d");
-      const Eigen::Vector2d a = screenOf(d["from"]);
-      // The target's depth is that of the press: world targets are taken in that plane.
-      sendMouse(iren, vtkCommand::LeftButtonPressEvent, a);
-      const Eigen::Vector2d b = screenOf(d["to"]);
-      for (int k = 1; k <= steps; ++k)
-        sendMouse(iren, vtkCommand::MouseMoveEvent, a + (b - a) * (static_cast<double>(k) / steps));
-      sendMouse(iren, vtkCommand::LeftButtonReleaseEvent, b);
-    } else if (e.contains("screenshot")) {
-      screenshot(e["screenshot"].get<std::string>());
-    } else if (e.contains("save")) {
-      saveShape(e["save"].get<std::string>());
-    } else if (e.contains("save_scenario")) {
-      saveScenario(e["save_scenario"].get<std::string>());
-    } else if (e.contains("view")) {
-      const std::string v = e["view"].get<std::string>();
-      view_ = v == "field" ? 1 : v == "clusters" ? 2 : 0;
-      refresh();
-    } else {
-      throw std::runtime_error(
-          "unknown event (expected key, pick, area, drag, radius, view, screenshot, save, "
-          "save_scenario)");
+      case Kind::Area: {
+        const Eigen::Vector2d p0 = screenOf(e.from), p1 = screenOf(e.to);
+        selectArea(pixel(std::floor(p0.x())), pixel(std::floor(p0.y())), pixel(std::ceil(p1.x())),
+                   pixel(std::ceil(p1.y())));
+        break;
+      }
+      case Kind::Drag: {
+        if (!drag_mode_) sendKey(iren, "d");
+        const Eigen::Vector2d a = screenOf(e.from);
+        // The target's depth is that of the press: world targets are taken in that plane.
+        sendMouse(iren, vtkCommand::LeftButtonPressEvent, a);
+        const Eigen::Vector2d b = screenOf(e.to);
+        for (int k = 1; k <= e.steps; ++k)
+          sendMouse(iren, vtkCommand::MouseMoveEvent, a + (b - a) * (static_cast<double>(k) / e.steps));
+        sendMouse(iren, vtkCommand::LeftButtonReleaseEvent, b);
+        break;
+      }
+      case Kind::View:
+        view_ = e.view;
+        refresh();
+        break;
+      case Kind::Screenshot: screenshot(e.text); break;
+      case Kind::Save: saveShape(e.text); break;
+      case Kind::SaveScenario: saveScenario(e.text); break;
     }
   }
 
@@ -1039,7 +1019,10 @@ void Style::OnLeftButtonUp() {
 const char* kUsage =
     "usage: hgdeform-view INPUT [--scenario S.json] [--replay EVENTS.json] [--screenshot OUT.png]\n"
     "                     [--size WxH] [--stats] [--quiet]\n"
-    "Opens a shape for interactive deformation; 'h' in the window lists the keys.\n";
+    "Opens a shape for interactive deformation; 'h' in the window lists the keys.\n"
+    "--replay plays a script of events and exits (the whole file is checked first); with\n"
+    "--screenshot it then saves a PNG, with --stats it prints frame timings. The replay format\n"
+    "and how the options combine: docs/replay.md.\n";
 
 }  // namespace
 
@@ -1085,19 +1068,27 @@ int main(int argc, char** argv) {
     return 2;
   }
   try {
-    if (const std::string problem = hgd::displayProblem(); !problem.empty())
-      throw std::runtime_error(problem);
     // No output of the viewer (screenshots, saved shapes and scenarios, from keys or replay
     // events) may replace one of its inputs.
-    if (!shot.empty()) hgd::refuseInputs(shot, {input, scenario, replay});
+    const std::vector<std::string> inputs = {input, scenario, replay};
+    if (!shot.empty()) hgd::refuseInputs(shot, inputs);
+    // The whole replay is checked before anything runs (no display needed): a bad event late in
+    // the file does nothing at all, not even the events before it.
+    std::vector<hgdview::ReplayEvent> events;
+    if (!replay.empty()) {
+      events = hgdview::readReplay(replay);
+      hgdview::refuseInputsAsOutputs(events, replay, inputs);
+    }
+    if (const std::string problem = hgd::displayProblem(); !problem.empty())
+      throw std::runtime_error(problem);
     Viewer viewer(input, width, height);
     viewer.verbose_ = !quiet;
-    viewer.inputs_ = {input, scenario, replay};
+    viewer.inputs_ = inputs;
     if (!scenario.empty()) viewer.loadScenario(scenario);
     viewer.open();
     viewer.vis().setSize(width, height);  // the first render may shrink the window (TOOLCHAIN.md)
     if (!replay.empty()) {
-      viewer.replay(replay, viewer.vis().getRenderWindow()->GetInteractor());
+      viewer.replay(events, replay, viewer.vis().getRenderWindow()->GetInteractor());
       if (!shot.empty()) viewer.screenshot(shot);
       if (stats) viewer.printStats();
       return 0;  // scripted: no interactive loop (and no close(), which crashes without one)

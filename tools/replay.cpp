@@ -1,0 +1,369 @@
+#include "replay.h"
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <initializer_list>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <set>
+
+#include "hgdeform/io.h"
+
+namespace hgdview {
+
+namespace {
+
+using nlohmann::json;
+
+/// Coordinates of a real shape (as scenarios allow), and pixels of a real window: beyond these
+/// the arithmetic, and the conversion to integer pixels, would overflow.
+constexpr double kMaxCoordinate = 1e15;
+constexpr double kMaxPixel = 1e6;
+constexpr unsigned kMaxSteps = 10000;
+constexpr std::uintmax_t kMaxReplayBytes = std::uintmax_t{1} << 26;
+
+constexpr const char* kEvents = "key, radius, pick, area, drag, view, screenshot, save, save_scenario";
+
+/// One JSON-pointer step for `key` (RFC 6901 escapes; control characters spelled out, so that
+/// a message never carries raw control bytes), as src/scenario.cpp writes them.
+std::string pointerStep(const std::string& key) {
+  std::string out = "/";
+  for (const char ch : key) {
+    const auto c = static_cast<unsigned char>(ch);
+    if (ch == '~') {
+      out += "~0";
+    } else if (ch == '/') {
+      out += "~1";
+    } else if (c < 0x20 || c == 0x7f) {
+      char buf[8];
+      std::snprintf(buf, sizeof buf, "\\u%04x", c);
+      out += buf;
+    } else {
+      out += ch;
+    }
+  }
+  return out;
+}
+
+/// Follows the parse to name the JSON path of a problem the parser itself finds: a duplicated
+/// key (the last one would silently win otherwise) or a number out of range (1e999).
+class PathTracker {
+ public:
+  struct State {
+    struct Frame {
+      bool array;
+      std::size_t index;
+      std::string key;
+      std::set<std::string> keys;
+    };
+    std::vector<Frame> frames;
+    std::string path() const {
+      std::string p;
+      for (const Frame& f : frames) p += f.array ? "/" + std::to_string(f.index) : pointerStep(f.key);
+      return p.empty() ? "/" : p;
+    }
+  };
+
+  PathTracker(std::string name, State* state) : name_(std::move(name)), state_(state) {}
+
+  bool operator()(int /*depth*/, json::parse_event_t event, json& parsed) {
+    using E = json::parse_event_t;
+    auto& frames = state_->frames;
+    switch (event) {
+      case E::object_start: frames.push_back({false, 0, {}, {}}); break;
+      case E::array_start: frames.push_back({true, 0, {}, {}}); break;
+      case E::key: {
+        State::Frame& f = frames.back();
+        f.key = parsed.get<std::string>();
+        if (!f.keys.insert(f.key).second)
+          throw ReplayError(name_ + ": " + state_->path() + ": duplicate key");
+        break;
+      }
+      case E::object_end:
+      case E::array_end:
+        frames.pop_back();
+        completed();
+        break;
+      case E::value: completed(); break;
+    }
+    return true;
+  }
+
+ private:
+  void completed() {
+    if (!state_->frames.empty() && state_->frames.back().array) ++state_->frames.back().index;
+  }
+  std::string name_;
+  State* state_;
+};
+
+struct Parser {
+  std::string name;
+
+  [[noreturn]] void fail(const std::string& path, const std::string& what) const {
+    throw ReplayError(name + ": " + (path.empty() ? "/" : path) + ": " + what);
+  }
+
+  static std::string list(std::initializer_list<const char*> keys) {
+    std::string out;
+    for (const char* k : keys) out += std::string(out.empty() ? "" : ", ") + k;
+    return out;
+  }
+
+  void onlyKeys(const json& j, const std::string& path, std::initializer_list<const char*> keys) const {
+    for (auto it = j.begin(); it != j.end(); ++it) {
+      bool known = false;
+      for (const char* k : keys) known = known || it.key() == k;
+      if (!known) fail(path + pointerStep(it.key()), "unknown key (expected one of: " + list(keys) + ")");
+    }
+  }
+
+  void object(const json& j, const std::string& path) const {
+    if (!j.is_object()) fail(path, "must be an object");
+  }
+
+  const json& member(const json& j, const std::string& path, const char* key) const {
+    const auto it = j.find(key);
+    if (it == j.end()) fail(path + pointerStep(key), "missing");
+    return *it;
+  }
+
+  double number(const json& j, const std::string& path) const {
+    if (!j.is_number()) fail(path, "must be a number");
+    const double v = j.get<double>();
+    if (!std::isfinite(v)) fail(path, "must be a finite number");
+    return v;
+  }
+
+  double positive(const json& j, const std::string& path) const {
+    const double v = number(j, path);
+    if (!(v > 0) || v > kMaxCoordinate) fail(path, "must be a positive number (at most 1e15)");
+    return v;
+  }
+
+  std::string text(const json& j, const std::string& path) const {
+    if (!j.is_string() || j.get_ref<const std::string&>().empty()) fail(path, "must be a non-empty string");
+    const std::string& s = j.get_ref<const std::string&>();
+    if (s.find('\0') != std::string::npos) fail(path, "must not contain a NUL character");
+    return s;
+  }
+
+  /// `n` numbers each within `limit`: world coordinates or pixels.
+  Eigen::Vector4d numbers(const json& j, const std::string& path, std::size_t n, double limit,
+                          const char* what) const {
+    if (!j.is_array() || j.size() != n) fail(path, "must be an array of " + std::to_string(n) + " numbers");
+    Eigen::Vector4d v = Eigen::Vector4d::Zero();
+    for (std::size_t i = 0; i < n; ++i) {
+      const std::string p = path + "/" + std::to_string(i);
+      v[static_cast<Eigen::Index>(i)] = number(j[i], p);
+      if (std::abs(v[static_cast<Eigen::Index>(i)]) > limit) fail(p, what);
+    }
+    return v;
+  }
+
+  ReplayPosition world(const json& j, const std::string& path) const {
+    ReplayPosition r;
+    r.world = true;
+    r.at = numbers(j, path, 3, kMaxCoordinate, "must be a coordinate between -1e15 and 1e15").head<3>();
+    return r;
+  }
+
+  ReplayPosition screen(double x, double y) const {
+    ReplayPosition r;
+    r.world = false;
+    r.at = {x, y, 0};
+    return r;
+  }
+
+  Eigen::Vector4d pixels(const json& j, const std::string& path, std::size_t n) const {
+    return numbers(j, path, n, kMaxPixel, "must be a pixel coordinate between -1e6 and 1e6");
+  }
+
+  /// {"world": [x, y, z]} or {"screen": [x, y]}; `keys` are the keys the object may have.
+  ReplayPosition position(const json& j, const std::string& path,
+                          std::initializer_list<const char*> keys = {"world", "screen"}) const {
+    object(j, path);
+    onlyKeys(j, path, keys);
+    const bool w = j.contains("world"), s = j.contains("screen");
+    if (w == s) fail(path, "must have exactly one of: world, screen");
+    if (w) return world(j["world"], path + "/world");
+    const Eigen::Vector4d p = pixels(j["screen"], path + "/screen", 2);
+    return screen(p[0], p[1]);
+  }
+
+  ReplayEvent event(const json& j, const std::string& path) const {
+    object(j, path);
+    onlyKeys(j, path,
+             {"key", "radius", "pick", "area", "drag", "view", "screenshot", "save", "save_scenario"});
+    if (j.size() != 1) fail(path, std::string("an event must have exactly one of: ") + kEvents);
+    ReplayEvent e;
+    e.path = path;
+    const std::string key = j.begin().key(), p = path + pointerStep(key);
+    const json& v = j.begin().value();
+    if (key == "key") {
+      e.kind = ReplayEvent::Kind::Key;
+      e.text = text(v, p);
+    } else if (key == "radius") {
+      e.kind = ReplayEvent::Kind::Radius;
+      e.radius = positive(v, p);
+    } else if (key == "pick") {
+      e.kind = ReplayEvent::Kind::Pick;
+      e.from = position(v, p, {"world", "screen", "radius"});
+      if (v.contains("radius")) {
+        e.has_radius = true;
+        e.radius = positive(v["radius"], p + "/radius");
+      }
+    } else if (key == "area") {
+      e.kind = ReplayEvent::Kind::Area;
+      object(v, p);
+      onlyKeys(v, p, {"screen", "from", "to"});
+      if (v.contains("screen")) {
+        if (v.contains("from") || v.contains("to"))
+          fail(p, "must have either \"screen\" or \"from\" and \"to\", not both");
+        const Eigen::Vector4d r = pixels(v["screen"], p + "/screen", 4);
+        e.from = screen(r[0], r[1]);
+        e.to = screen(r[2], r[3]);
+      } else {
+        if (v.empty()) fail(p, "needs \"screen\": [x0, y0, x1, y1] or \"from\" and \"to\": [x, y, z]");
+        e.from = world(member(v, p, "from"), p + "/from");
+        e.to = world(member(v, p, "to"), p + "/to");
+      }
+    } else if (key == "drag") {
+      e.kind = ReplayEvent::Kind::Drag;
+      object(v, p);
+      onlyKeys(v, p, {"from", "to", "steps"});
+      e.from = position(member(v, p, "from"), p + "/from");
+      e.to = position(member(v, p, "to"), p + "/to");
+      if (v.contains("steps")) {
+        const json& s = v["steps"];
+        // Non-negative integers parse as unsigned, negative ones as signed.
+        const bool ok = s.is_number_unsigned()
+                            ? s.get<unsigned long long>() >= 1 && s.get<unsigned long long>() <= kMaxSteps
+                        : s.is_number_integer() ? s.get<long long>() >= 1 && s.get<long long>() <= kMaxSteps
+                                                : false;
+        if (!ok) fail(p + "/steps", "must be an integer from 1 to " + std::to_string(kMaxSteps));
+        e.steps = s.get<int>();
+      }
+    } else if (key == "view") {
+      e.kind = ReplayEvent::Kind::View;
+      const std::string name = text(v, p);
+      if (name == "colours")
+        e.view = 0;
+      else if (name == "field")
+        e.view = 1;
+      else if (name == "clusters")
+        e.view = 2;
+      else
+        fail(p, "must be \"colours\", \"field\" or \"clusters\"");
+    } else {
+      e.kind = key == "screenshot" ? ReplayEvent::Kind::Screenshot
+               : key == "save"     ? ReplayEvent::Kind::Save
+                                   : ReplayEvent::Kind::SaveScenario;
+      e.text = text(v, p);
+    }
+    return e;
+  }
+};
+
+}  // namespace
+
+const char* eventName(ReplayEvent::Kind kind) {
+  switch (kind) {
+    case ReplayEvent::Kind::Key: return "key";
+    case ReplayEvent::Kind::Radius: return "radius";
+    case ReplayEvent::Kind::Pick: return "pick";
+    case ReplayEvent::Kind::Area: return "area";
+    case ReplayEvent::Kind::Drag: return "drag";
+    case ReplayEvent::Kind::View: return "view";
+    case ReplayEvent::Kind::Screenshot: return "screenshot";
+    case ReplayEvent::Kind::Save: return "save";
+    case ReplayEvent::Kind::SaveScenario: return "save_scenario";
+  }
+  return "?";
+}
+
+const std::string* outputOf(const ReplayEvent& e) {
+  const bool writes = e.kind == ReplayEvent::Kind::Screenshot || e.kind == ReplayEvent::Kind::Save ||
+                      e.kind == ReplayEvent::Kind::SaveScenario;
+  return writes ? &e.text : nullptr;
+}
+
+std::vector<ReplayEvent> parseReplay(const std::string& json_text, const std::string& name) {
+  const Parser p{name};
+  json j;
+  PathTracker::State state;
+  try {
+    j = json::parse(json_text, PathTracker(name, &state));
+  } catch (const json::out_of_range& e) {
+    // A number beyond the range of a double (1e999): where it is, as for any other bad number.
+    if (e.id == 406) p.fail(state.path(), "must be a finite number");
+    throw ReplayError(name + ": invalid JSON: " + e.what());
+  } catch (const json::exception& e) {
+    throw ReplayError(name + ": invalid JSON: " + e.what());
+  }
+  // {"events": [...]} or, as the first replay files were, the bare array.
+  std::string base;
+  const json* events = &j;
+  if (j.is_object()) {
+    p.onlyKeys(j, "", {"events"});
+    events = &p.member(j, "", "events");
+    base = "/events";
+  }
+  if (!events->is_array())
+    p.fail(base, j.is_object() ? "must be an array of events"
+                               : "must be an object {\"events\": [...]} (or an array of events)");
+  std::vector<ReplayEvent> out;
+  out.reserve(events->size());
+  for (std::size_t i = 0; i < events->size(); ++i)
+    out.push_back(p.event((*events)[i], base + "/" + std::to_string(i)));
+  return out;
+}
+
+std::vector<ReplayEvent> readReplay(const std::string& path) {
+  struct Closer {
+    void operator()(std::FILE* f) const { std::fclose(f); }
+  };
+  // Non-blocking, so that a FIFO given as the replay is refused instead of waiting for a writer.
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);
+  if (fd < 0) throw ReplayError(path + ": cannot open replay file: " + std::strerror(errno));
+  std::unique_ptr<std::FILE, Closer> file(::fdopen(fd, "rb"));
+  if (!file) {
+    const int e = errno;
+    ::close(fd);
+    throw ReplayError(path + ": cannot open replay file: " + std::strerror(e));
+  }
+  struct stat st {};
+  if (::fstat(::fileno(file.get()), &st) != 0)
+    throw ReplayError(path + ": cannot open replay file: " + std::strerror(errno));
+  if (S_ISDIR(st.st_mode)) throw ReplayError(path + ": cannot open replay file: " + std::strerror(EISDIR));
+  if (!S_ISREG(st.st_mode)) throw ReplayError(path + ": cannot open replay file: not a regular file");
+  if (st.st_size == 0) throw ReplayError(path + ": empty file");
+  const auto size = static_cast<std::uintmax_t>(st.st_size);
+  if (size > kMaxReplayBytes)
+    throw ReplayError(path + ": file too large for a replay (" + std::to_string(size) + " bytes)");
+  std::string text(static_cast<std::size_t>(size), '\0');
+  if (std::fread(text.data(), 1, text.size(), file.get()) != text.size())
+    throw ReplayError(path + ": cannot read replay file: " +
+                      (std::ferror(file.get()) ? std::strerror(errno) : "the file shrank while being read"));
+  return parseReplay(text, path);
+}
+
+void refuseInputsAsOutputs(const std::vector<ReplayEvent>& events, const std::string& name,
+                           const std::vector<std::string>& inputs) {
+  for (const ReplayEvent& e : events)
+    if (const std::string* out = outputOf(e)) {
+      try {
+        hgd::refuseInputs(*out, inputs);
+      } catch (const std::exception& ex) {
+        throw ReplayError(name + ": " + e.path + "/" + eventName(e.kind) + ": " + ex.what());
+      }
+    }
+}
+
+}  // namespace hgdview
