@@ -4,6 +4,7 @@
 #include <Eigen/Sparse>
 #include <algorithm>
 #include <cmath>
+#include <numeric>
 #include <stdexcept>
 
 #include "parallel.h"
@@ -116,22 +117,41 @@ void HarmonicField::buildGraph() {
 
 void HarmonicField::joinPieces(const std::vector<char>& constrained) {
   // The normal filter never splits the surface: a piece of the filtered graph that holds no
-  // handle, and that the filter alone cut off, is joined back through every dropped pair that
-  // leads out of it. Pieces that each hold a handle stay apart (a handle on one layer of a
-  // sheet does not pull the other).
+  // handle, and that the filter alone cut off, is joined back through the dropped pairs that
+  // lead out of it. Pieces that each hold a handle stay apart (a handle on one layer of a
+  // sheet does not pull the other), also through a piece between them (three stacked plates,
+  // handles on the outer two): pieces are merged in pair order, and a pair that would merge
+  // two groups that each hold a handle is left out.
   joined_.clear();
   if (dropped_.empty()) return;
-  std::vector<char> has_handle(
+  const std::size_t pieces =
       base_piece_.empty()
           ? 0
-          : static_cast<std::size_t>(*std::max_element(base_piece_.begin(), base_piece_.end())) + 1,
-      0);
+          : static_cast<std::size_t>(*std::max_element(base_piece_.begin(), base_piece_.end())) + 1;
+  std::vector<char> has_handle(pieces, 0);
   for (std::size_t i = 0; i < constrained.size(); ++i)
     if (constrained[i]) has_handle[static_cast<std::size_t>(base_piece_[i])] = 1;
+  std::vector<int> parent(pieces);
+  std::iota(parent.begin(), parent.end(), 0);
+  const auto find = [&](int x) {
+    while (parent[static_cast<std::size_t>(x)] != x) {
+      parent[static_cast<std::size_t>(x)] =
+          parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(x)])];
+      x = parent[static_cast<std::size_t>(x)];
+    }
+    return x;
+  };
   for (const auto& [a, b] : dropped_) {
     const int pa = base_piece_[static_cast<std::size_t>(a)], pb = base_piece_[static_cast<std::size_t>(b)];
-    if (pa != pb && (!has_handle[static_cast<std::size_t>(pa)] || !has_handle[static_cast<std::size_t>(pb)]))
-      joined_.emplace_back(a, b);
+    if (pa == pb || (has_handle[static_cast<std::size_t>(pa)] && has_handle[static_cast<std::size_t>(pb)]))
+      continue;
+    const int ra = find(pa), rb = find(pb);
+    if (ra != rb) {
+      if (has_handle[static_cast<std::size_t>(ra)] && has_handle[static_cast<std::size_t>(rb)]) continue;
+      parent[static_cast<std::size_t>(rb)] = ra;
+      has_handle[static_cast<std::size_t>(ra)] |= has_handle[static_cast<std::size_t>(rb)];
+    }
+    joined_.emplace_back(a, b);
   }
   if (!joined_.empty()) graph_joined_ = addEdges(graph_, joined_);
 }

@@ -841,3 +841,51 @@ TEST(Creases, FoldedSheetNeitherLeaksNorTears) {
 }
 
 }  // namespace
+
+namespace {
+
+// Three nested tori (closed, so no rim reaches further than the rest), 0.85 spacings apart,
+// normals alternating (two thin gaps): the outer two are out of each other's kNN reach, the
+// middle one within reach of both, and every pair between them is across a thin gap. The
+// middle torus holds no handle and is joined back to the surface, but to one side only: the
+// outer torus's manipulated handle must not reach the inner torus's fixed one through it (each
+// then holds one handle only and keeps its value, 1 or 0, throughout).
+TEST(Creases, NestedLayersStayApartThroughALayerBetween) {
+  Surface s;
+  const float major = 20.0f;
+  const int nu = 126;
+  for (int layer = 0; layer < 3; ++layer) {
+    const float minor = 4.0f + 0.85f * static_cast<float>(layer);
+    const int nv = static_cast<int>(std::lround(2 * M_PI * minor));
+    for (int i = 0; i < nu; ++i)
+      for (int j = 0; j < nv; ++j) {
+        const float u = 2 * static_cast<float>(M_PI) * static_cast<float>(i) / static_cast<float>(nu);
+        const float v = 2 * static_cast<float>(M_PI) * static_cast<float>(j) / static_cast<float>(nv);
+        const V3 out(std::cos(v) * std::cos(u), std::cos(v) * std::sin(u), std::sin(v));
+        s.p.push_back(V3(major * std::cos(u), major * std::sin(u), 0) + minor * out);
+        s.n.push_back(layer == 1 ? V3(-out) : out);
+      }
+  }
+  shuffle(s, 4);
+  // The layer of a point: its distance from the torus's core circle.
+  const auto layer = [major](const V3& x) {
+    const float d = V3(x.x(), x.y(), 0).norm() - major;
+    const float r = std::sqrt(d * d + x.z() * x.z());
+    return static_cast<int>(std::lround((r - 4.0f) / 0.85f));
+  };
+  const std::vector<long long> fixed = where(s, [&](const V3& x) { return layer(x) == 0 && x.x() > 15; });
+  const std::vector<long long> manipulated =
+      where(s, [&](const V3& x) { return layer(x) == 2 && x.x() > 15; });
+  const std::vector<float> phi = field(s, fixed, manipulated);
+  double top = 0, bottom = 0;
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    if (layer(s.p[i]) == 2) top = std::max(top, std::abs(1.0 - phi[i]));
+    if (layer(s.p[i]) == 0) bottom = std::max(bottom, static_cast<double>(std::abs(phi[i])));
+  }
+  std::printf("nested tori: the outer one's field departs from 1 by %.3g, the inner one's from 0 by %.3g\n",
+              top, bottom);
+  EXPECT_LE(top, 1e-6);
+  EXPECT_LE(bottom, 1e-6);
+}
+
+}  // namespace
