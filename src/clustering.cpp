@@ -160,9 +160,11 @@ SampleGraph sampleGraph(const NeighborGraph& graph, const std::vector<int>& samp
 std::vector<int> sampleSurface(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles& handles,
                                int target, const std::vector<char>* exclude) {
   const std::size_t n = points.size();
-  if (target <= 0 || static_cast<std::size_t>(target) >= n) {
-    std::vector<int> all(n);
-    std::iota(all.begin(), all.end(), 0);
+  if (target <= 0 || static_cast<std::size_t>(target) >= n) {  // every point but the excluded
+    std::vector<int> all;
+    all.reserve(n);
+    for (std::size_t i = 0; i < n; ++i)
+      if (!exclude || exclude->size() != n || !(*exclude)[i]) all.push_back(static_cast<int>(i));
     return all;
   }
   std::vector<int> cls(n, 0);

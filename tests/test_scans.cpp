@@ -889,3 +889,47 @@ TEST(Creases, NestedLayersStayApartThroughALayerBetween) {
 }
 
 }  // namespace
+
+namespace {
+
+// A small scan (under the 4,000-point sample, so every point is a sample point) with strays
+// around it: the strays are found, and none is a sample point or a cluster member (an affine
+// fit through a stray far off the surface would tilt its cluster).
+TEST(Scans, SmallCloudKeepsStraysOutOfTheSample) {
+  Surface s = tube(1.0f, 0.1f, 0.02f);
+  const std::size_t surface = s.size();
+  std::mt19937 rng(8);
+  std::uniform_real_distribution<float> u(-0.4f, 0.4f);
+  for (int k = 0; k < 30; ++k) {
+    s.p.push_back(V3(0.5f + u(rng), 0.25f + std::abs(u(rng)), u(rng)));  // above the tube, well off it
+    s.n.push_back(V3(0, 1, 0));
+  }
+  const hgd::Geometry g = hgd::extractGeometry(toShape(s, true, false));
+  hgd::Handles h;
+  h.fixed.emplace_back();
+  for (std::size_t i = 0; i < g.size(); ++i) {
+    const double x = g.world(i).x();
+    if (static_cast<std::size_t>(g.raw_index[i]) < surface && x < 0.05)
+      h.fixed[0].push_back(static_cast<int>(i));
+    if (static_cast<std::size_t>(g.raw_index[i]) < surface && x > 0.95)
+      h.manipulated.push_back(static_cast<int>(i));
+  }
+  hgd::Deformer d(g, h);
+  const auto stray = [&](int i) {
+    return static_cast<std::size_t>(g.raw_index[static_cast<std::size_t>(i)]) >= surface;
+  };
+  std::size_t flagged = 0, sampled = 0, members = 0;
+  for (std::size_t i = 0; i < g.size(); ++i)
+    flagged += stray(static_cast<int>(i)) && !d.harmonicField().outliers().empty() &&
+               d.harmonicField().outliers()[i];
+  for (const int i : d.clustering().sample) sampled += stray(i);
+  for (const auto& cl : d.clustering().clusters)
+    for (const int i : cl.members) members += stray(i);
+  std::printf("small cloud: %zu of 30 strays found; %zu in the sample, %zu in clusters\n", flagged, sampled,
+              members);
+  EXPECT_EQ(flagged, 30u);
+  EXPECT_EQ(sampled, 0u);
+  EXPECT_EQ(members, 0u);
+}
+
+}  // namespace
