@@ -1,6 +1,7 @@
-// hgdeform batch: deform every scan of a folder. A thread pool (--jobs), resumable runs (outputs
-// newer than their inputs are skipped), deterministic shards (--shard K/N) for job arrays, and,
-// when launched by mpirun, MPI ranks sharing the scans through a one-sided counter.
+// hgdeform batch: deform every scan of a folder. A thread pool (--jobs), resumable runs (an output
+// whose provenance record matches its input, scenario, options and tool version is skipped; see
+// batch_provenance.h), deterministic shards (--shard K/N) for job arrays, and, when launched by
+// mpirun, MPI ranks sharing the scans through a one-sided counter.
 #include <omp.h>
 #include <sys/ioctl.h>
 #include <unistd.h>
@@ -30,6 +31,7 @@
 #include <thread>
 #include <vector>
 
+#include "batch_provenance.h"
 #include "batch_report.h"
 #include "hgdeform/deformer.h"
 #include "hgdeform/io.h"
@@ -55,9 +57,14 @@ const char* kBatchHelp =
     "Deforms every PLY, PCD and OBJ file in INPUT_DIR as the scenario says and writes the results\n"
     "under OUTPUT_DIR with the same relative paths. A scenario beside a scan with the same base\n"
     "name (scan_017.json for scan_017.pcd) replaces S.json for that scan. Outputs are written\n"
-    "atomically and inputs are never modified. A scan whose output is newer than both its input\n"
-    "and its scenario is skipped, so an interrupted batch resumes where it stopped. A scan that\n"
-    "fails is reported and the batch goes on.\n"
+    "atomically and inputs are never modified. Each output's provenance (its input's size, time\n"
+    "and content hash, the scenario, the options, the tool version) is recorded in\n"
+    "OUTPUT_DIR/.hgdeform/; a scan whose record still matches is skipped (up to date), so a rerun\n"
+    "redoes exactly what changed and an interrupted batch resumes where it stopped; each line says\n"
+    "why. A scan that fails is reported and the batch goes on. A second batch writing to the same\n"
+    "OUTPUT_DIR at the same time refuses to start (exit 1); shards of one split may share it.\n"
+    "FIFOs, devices, dangling links and (with --recursive) links to folders are skipped with a\n"
+    "warning; links to folders are not followed.\n"
     "\n"
     "options:\n"
     "  -s, --scenario FILE   default scenario (SCENARIO.md); required\n"
@@ -66,7 +73,7 @@ const char* kBatchHelp =
     "                        max(1, cores / N) OpenMP threads (at most OMP_NUM_THREADS)\n"
     "      --recursive       every scan of the tree under INPUT_DIR, not only the top level\n"
     "      --format FORMAT   ply, pcd or same (default same: the input's own format)\n"
-    "  -f, --force           also redo scans whose output is up to date\n"
+    "  -f, --force           also redo scans whose output is up to date (reason \"forced\")\n"
     "      --report DIR      write DIR/summary.json, DIR/summary.csv and DIR/index.html, with\n"
     "                        before/after thumbnails in DIR/thumbs/ (needs an X display)\n"
     "      --shard K/N       process only shard K (0-based) of N: scan i of the list sorted by\n"
@@ -248,12 +255,43 @@ bool hidden(const fs::path& p) {
 }
 
 /// Every scan of the input, sorted by relative path (the order shards and ranks agree on).
-std::vector<Scan> listScans(const Config& c) {
+/// Entries that look like scans but cannot be one (FIFOs, devices, dangling links) and, with
+/// --recursive, links to folders (not followed: they could make cycles) go to `skipped`, with why.
+std::vector<Scan> listScans(const Config& c, std::vector<batch::SkippedEntry>& skipped) {
   std::vector<fs::path> files;
   std::error_code ec;
   auto consider = [&](const fs::directory_entry& e) {
-    std::error_code e2;
-    if (!hidden(e.path()) && isScanFile(e.path()) && e.is_regular_file(e2)) files.push_back(e.path());
+    if (hidden(e.path())) return;
+    std::error_code e1, e2;
+    const fs::file_status own = e.symlink_status(e1);
+    const fs::file_status target = e.status(e2);  // links followed
+    const bool link = !e1 && fs::is_symlink(own);
+    const std::string rel = e.path().lexically_relative(c.input_dir).generic_string();
+    if (link && !fs::exists(target)) {  // dangling, or a loop of links
+      std::error_code e3;
+      const fs::path to = fs::read_symlink(e.path(), e3);
+      if (isScanFile(e.path()) || isScanFile(to))
+        skipped.push_back({rel, "a dangling symbolic link (" + to.string() + ": " +
+                                    (e2 ? e2.message() : std::string("No such file or directory")) + ")"});
+      return;
+    }
+    if (link && fs::is_directory(target)) {
+      if (c.recursive)
+        skipped.push_back({rel,
+                           "a symbolic link to a folder: not followed, to avoid cycles (give the folder "
+                           "it names as INPUT_DIR to process it)"});
+      return;
+    }
+    if (!isScanFile(e.path()) || fs::is_directory(target)) return;
+    if (fs::is_regular_file(target)) {
+      files.push_back(e.path());
+      return;
+    }
+    const std::string what = fs::is_fifo(target)                                          ? "a FIFO"
+                             : fs::is_socket(target)                                      ? "a socket"
+                             : fs::is_block_file(target) || fs::is_character_file(target) ? "a device"
+                                                                                          : "a special file";
+    skipped.push_back({rel, what + (link ? " (through a symbolic link)" : "") + ", not a regular file"});
   };
   if (c.recursive) {
     fs::recursive_directory_iterator it(c.input_dir, fs::directory_options::skip_permission_denied, ec), end;
@@ -300,6 +338,8 @@ std::vector<Scan> listScans(const Config& c) {
     scans.push_back(std::move(s));
   }
   std::sort(scans.begin(), scans.end(), [](const Scan& a, const Scan& b) { return a.rel < b.rel; });
+  std::sort(skipped.begin(), skipped.end(),
+            [](const batch::SkippedEntry& a, const batch::SkippedEntry& b) { return a.path < b.path; });
   std::map<std::string, std::string> writer;  // output -> the scan writing it
   for (auto& s : scans) {
     auto [it, fresh] = writer.emplace(s.out_rel, s.rel);
@@ -342,6 +382,7 @@ void removeStaleTemporaries(const fs::path& dir) {
 struct Context {
   Config cfg;
   hgd::Scenario default_scenario;
+  std::string default_scenario_hash;  // of its canonical form (hgd::scenarioToJson)
   bool thumbnails = false;
   int rank = 0;
 };
@@ -350,13 +391,67 @@ double msSince(Clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 }
 
-bool upToDate(const Scan& s) {
-  std::error_code e1, e2, e3;
-  const auto out = fs::last_write_time(s.output, e1);
-  if (e1) return false;
-  const auto in = fs::last_write_time(s.input, e2);
-  const auto scenario = fs::last_write_time(s.scenario, e3);
-  return !e2 && !e3 && out > in && out > scenario;
+// --- provenance: is an output up to date? ---------------------------------------------------
+
+/// OUTPUT_DIR/.hgdeform/records/<output>.json: what the output was made from. One small file per
+/// output, written by whichever thread, shard or MPI rank made that output (each output has
+/// exactly one writer), right after the output: no shared file to merge, and an interrupted run
+/// keeps the records of the scans it finished.
+fs::path recordPath(const Context& ctx, const Scan& s) {
+  return ctx.cfg.output_dir / ".hgdeform" / "records" / (s.out_rel + ".json");
+}
+
+/// The options that change an output's bytes: only its format (the deformation options are the
+/// tool's own, covered by its version).
+nlohmann::json outputOptions(const Scan& s) {
+  std::string ext = lowerExtension(s.output);
+  if (!ext.empty()) ext.erase(0, 1);
+  return {{"output_format", ext}};
+}
+
+/// Why the scan must be (re)done: reasons joined by ", ", "" when its output is up to date.
+/// Hashes the input (into `input_hash`) only when its size is the recorded one but its time is
+/// not; `refresh` then says that only the record's input time is out of date.
+std::string whyRedo(const Scan& s, const batch::FileState& input, const std::optional<batch::Provenance>& rec,
+                    const std::string& scenario_hash, const nlohmann::json& options, std::string& input_hash,
+                    bool& refresh) {
+  const batch::FileState out = batch::fileState(s.output.string());
+  if (!out.exists) return rec ? "output missing" : "new";
+  if (!rec) return "no record";
+  std::vector<std::string> why;
+  if (!rec->invalid.empty() || rec->input != s.rel || rec->input_size != input.size) {
+    why.push_back("input changed");
+  } else if (rec->input_mtime_ns != input.mtime_ns) {
+    input_hash = batch::hashFile(s.input.string());
+    if (input_hash != rec->input_hash)
+      why.push_back("input changed");
+    else
+      refresh = batch::fileState(s.input.string()).unchangedFrom(input);
+  }
+  if (scenario_hash != rec->scenario_hash) why.push_back("scenario changed");
+  if (options != rec->options) why.push_back("options changed");
+  if (batch::toolVersion() != rec->tool) why.push_back("tool version changed");
+  if (out.size != rec->output_size) why.push_back("output changed");
+  std::string text;
+  for (const auto& w : why) text += (text.empty() ? "" : ", ") + w;
+  return text;
+}
+
+/// HGDEFORM_BATCH_TEST_HOOK=REL:FILE, for tests only: once the output of scan REL is written
+/// (before its input is checked again and its record written), create FILE and wait until it
+/// is removed (60 s at most). Lets a test change an input mid-scan or hold a run open.
+void testHook(const std::string& rel) {
+  const char* env = std::getenv("HGDEFORM_BATCH_TEST_HOOK");
+  if (!env) return;
+  const std::string hook = env;
+  const auto colon = hook.find(':');
+  if (colon == std::string::npos || hook.compare(0, colon, rel) != 0) return;
+  const fs::path flag = hook.substr(colon + 1);
+  hgd::writeFileAtomically(flag.string(), "waiting\n");
+  const auto deadline = Clock::now() + std::chrono::seconds(60);
+  std::error_code ec;
+  while (fs::exists(flag, ec) && Clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
 }
 
 #ifdef HGD_HAVE_RENDER
@@ -425,15 +520,41 @@ ScanResult processScan(const Scan& s, const Context& ctx) {
   const auto t0 = Clock::now();
   try {
     if (!s.error.empty()) throw std::runtime_error(s.error);
-    if (!ctx.cfg.force && upToDate(s)) {
+    std::optional<hgd::Scenario> own;
+    if (s.own_scenario) own = hgd::readScenario(s.scenario.string());
+    const hgd::Scenario& scenario = own ? *own : ctx.default_scenario;
+    const std::string scenario_hash =
+        own ? batch::hashBytes(hgd::scenarioToJson(*own)) : ctx.default_scenario_hash;
+    const nlohmann::json options = outputOptions(s);
+    const std::string record_path = recordPath(ctx, s).string();
+    const std::optional<batch::Provenance> rec = batch::readRecord(record_path);
+    const batch::FileState in_before = batch::fileState(s.input.string());
+    std::string input_hash;
+    bool refresh = false;
+    r.reason =
+        ctx.cfg.force ? "forced" : whyRedo(s, in_before, rec, scenario_hash, options, input_hash, refresh);
+    if (r.reason.empty()) {
+      r.reason = "up to date";
       r.status = "skipped";
+      if (refresh) {  // touched, same bytes: remember the new time so as not to hash it again
+        batch::Provenance p = *rec;
+        p.input_mtime_ns = in_before.mtime_ns;
+        try {
+          hgd::writeFileAtomically(record_path, batch::recordText(p));
+        } catch (const std::exception& e) {
+          appendWarning(r.warning, std::string("provenance record not updated: ") + e.what());
+        }
+      }
       if (ctx.thumbnails) r.thumbnail = thumbnail(ctx, s, nullptr, nullptr, r.warning);
       r.ms_wall = msSince(t0);
       return r;
     }
-    std::optional<hgd::Scenario> own;
-    if (s.own_scenario) own = hgd::readScenario(s.scenario.string());
-    const hgd::Scenario& scenario = own ? *own : ctx.default_scenario;
+    // Hash before reading: a change from here to the end shows in the input's stat below.
+    if (input_hash.empty()) {
+      const bool recorded = rec && rec->invalid.empty() && rec->input == s.rel &&
+                            rec->input_size == in_before.size && rec->input_mtime_ns == in_before.mtime_ns;
+      input_hash = recorded ? rec->input_hash : batch::hashFile(s.input.string());
+    }
     const auto t_read = Clock::now();
     hgd::Shape shape = hgd::readShape(s.input.string());
     const double read_ms = msSince(t_read);
@@ -447,9 +568,36 @@ ScanResult processScan(const Scan& s, const Context& ctx) {
     rep.build_ms += read_ms;
     rep.total_ms += read_ms;
     fs::create_directories(s.output.parent_path());
+    std::error_code gone;
+    fs::remove(record_path, gone);  // from here until the new record, the output is unrecorded
     const auto t_write = Clock::now();
     hgd::writeShape(s.output.string(), shape);
     r.ms_write = msSince(t_write);
+    testHook(s.rel);
+    batch::Provenance p;
+    p.input = s.rel;
+    p.input_size = in_before.size;
+    p.input_mtime_ns = in_before.mtime_ns;
+    p.input_hash = input_hash;
+    p.scenario = s.scenario.string();
+    p.scenario_hash = scenario_hash;
+    p.options = options;
+    p.tool = batch::toolVersion();
+    p.output_size = batch::fileState(s.output.string()).size;
+    if (!batch::fileState(s.input.string()).unchangedFrom(in_before)) {
+      p.invalid = "the input changed while it was being deformed";
+      appendWarning(r.warning,
+                    "the input changed while it was being deformed: the output is not recorded as up to "
+                    "date and the next run redoes it");
+    }
+    try {
+      fs::create_directories(fs::path(record_path).parent_path());
+      hgd::writeFileAtomically(record_path, batch::recordText(p));
+    } catch (const std::exception& e) {
+      appendWarning(
+          r.warning,
+          std::string("provenance record not written (the next run redoes this scan): ") + e.what());
+    }
     r.status = "ok";
     r.has_metrics = true;
     r.points = rep.points;
@@ -529,7 +677,7 @@ class Progress {
     std::string line =
         prefix_ + "[" + std::to_string(number) + "/" + std::to_string(total_) + "] " + r.file + ": ";
     if (r.status == "ok")
-      line += "ok " + std::to_string(static_cast<long long>(r.ms_wall + 0.5)) + " ms";
+      line += "ok " + std::to_string(static_cast<long long>(r.ms_wall + 0.5)) + " ms (" + r.reason + ")";
     else if (r.status == "skipped")
       line += "skipped (up to date)";
     else
@@ -739,6 +887,13 @@ struct MpiSession {
     if (active) MPI_Barrier(MPI_COMM_WORLD);
 #endif
   }
+  /// Rank 0's value on every rank.
+  int broadcast(int value) const {
+#ifdef HGD_HAVE_MPI
+    if (active) MPI_Bcast(&value, 1, MPI_INT, 0, MPI_COMM_WORLD);
+#endif
+    return value;
+  }
 };
 
 #ifdef HGD_HAVE_MPI
@@ -869,14 +1024,19 @@ int run(const Config& cfg, MpiSession& mpi) {
   ctx.cfg = cfg;
   ctx.rank = mpi.rank;
   ctx.default_scenario = hgd::readScenario(cfg.scenario_path.string());
+  ctx.default_scenario_hash = batch::hashBytes(hgd::scenarioToJson(ctx.default_scenario));
 
-  const std::vector<Scan> all = listScans(cfg);
+  std::vector<batch::SkippedEntry> skipped_entries;
+  const std::vector<Scan> all = listScans(cfg, skipped_entries);
   std::vector<Scan> scans;
   for (std::size_t i = 0; i < all.size(); ++i)
     if (static_cast<int>(i % static_cast<std::size_t>(cfg.shard_n)) == cfg.shard_k) scans.push_back(all[i]);
   if (all.empty() && root)
     std::fprintf(stderr, "hgdeform batch: warning: no PLY, PCD or OBJ file in %s%s\n", cfg.input_dir.c_str(),
                  cfg.recursive ? "" : " (subfolders are searched with --recursive)");
+  if (root)
+    for (const auto& e : skipped_entries)
+      std::fprintf(stderr, "hgdeform batch: warning: skipped %s: %s\n", e.path.c_str(), e.why.c_str());
 
   std::string note;
   if (!cfg.report_dir.empty()) {
@@ -892,9 +1052,24 @@ int run(const Config& cfg, MpiSession& mpi) {
 #endif
   }
 
-  mpi.collectives_started = true;  // the other ranks wait for rank 0 from here on
+  // One run per output folder (shards of one split excepted). Under MPI rank 0 holds the lock
+  // for all ranks and tells them whether it got it.
+  batch::OutputLock lock;
+  std::string lock_problem;
   if (root) {
-    fs::create_directories(cfg.output_dir);
+    try {
+      fs::create_directories(cfg.output_dir);
+      lock.acquire(cfg.output_dir.string(), cfg.shard_k, cfg.sharded ? cfg.shard_n : 0);
+    } catch (const std::exception& e) {
+      lock_problem = e.what();
+    }
+  }
+  mpi.collectives_started = true;  // the other ranks wait for rank 0 from here on
+  if (mpi.broadcast(lock_problem.empty() ? 0 : 1) != 0) {
+    if (root) std::fprintf(stderr, "hgdeform batch: %s\n", lock_problem.c_str());
+    return 1;
+  }
+  if (root) {
     removeStaleTemporaries(cfg.output_dir);
     if (!cfg.report_dir.empty()) {
       fs::create_directories(cfg.report_dir);
@@ -932,10 +1107,13 @@ int run(const Config& cfg, MpiSession& mpi) {
   totals.jobs = mpi.active ? 1 : cfg.jobs;
   totals.ranks = mpi.size;
   if (cfg.sharded) totals.shard = std::to_string(cfg.shard_k) + "/" + std::to_string(cfg.shard_n);
+  totals.skipped_entries = skipped_entries;
   int status = any_failed ? 1 : 0;
+  bool report_written = false;
   if (!cfg.report_dir.empty()) {
     try {
       writeReport(ctx, results, totals, note);
+      report_written = true;
     } catch (const std::exception& e) {
       std::fprintf(stderr, "hgdeform batch: report: %s\n", e.what());
       status = 1;
@@ -947,9 +1125,17 @@ int run(const Config& cfg, MpiSession& mpi) {
         totals.scans, totals.wall_s,
         totals.wall_s > 0 ? static_cast<double>(totals.scans) / totals.wall_s : 0.0, totals.ok, totals.failed,
         totals.skipped);
+    if (!skipped_entries.empty())
+      std::printf("; %zu %s skipped (see the warnings)", skipped_entries.size(),
+                  skipped_entries.size() == 1 ? "entry" : "entries");
     if (cfg.sharded) std::printf("; shard %s", totals.shard.c_str());
     if (mpi.active) std::printf("; %d MPI ranks", mpi.size);
-    if (!cfg.report_dir.empty()) std::printf("; report %s", (cfg.report_dir / "index.html").c_str());
+    if (!cfg.report_dir.empty()) {
+      if (report_written)
+        std::printf("; report %s", (cfg.report_dir / "index.html").c_str());
+      else
+        std::printf("; report FAILED: %s not (completely) written (see the error)", cfg.report_dir.c_str());
+    }
     std::printf("\n");
     std::fflush(stdout);
   }

@@ -52,6 +52,7 @@ nlohmann::json toJson(const ScanResult& r) {
   j["scenario"] = r.scenario;
   j["own_scenario"] = r.own_scenario;
   j["status"] = r.status;
+  j["reason"] = r.reason;
   j["error"] = r.error;
   j["warning"] = r.warning;
   j["notes"] = r.notes;
@@ -86,6 +87,7 @@ ScanResult fromJson(const nlohmann::json& j) {
   r.scenario = j.at("scenario").get<std::string>();
   r.own_scenario = j.at("own_scenario").get<bool>();
   r.status = j.at("status").get<std::string>();
+  r.reason = j.value("reason", std::string());
   r.error = j.at("error").get<std::string>();
   r.warning = j.value("warning", std::string());
   r.notes = j.value("notes", std::vector<std::string>());
@@ -127,7 +129,10 @@ std::string summaryJson(const std::vector<ScanResult>& results, const Totals& t)
                  {"files_per_s", t.wall_s > 0 ? static_cast<double>(t.scans) / t.wall_s : 0.0},
                  {"jobs", t.jobs},
                  {"ranks", t.ranks},
-                 {"shard", t.shard}};
+                 {"shard", t.shard},
+                 {"skipped_entries", t.skipped_entries.size()}};
+  j["skipped_entries"] = nlohmann::json::array();
+  for (const auto& e : t.skipped_entries) j["skipped_entries"].push_back({{"path", e.path}, {"why", e.why}});
   return j.dump(2) + "\n";
 }
 
@@ -144,7 +149,7 @@ std::string csvField(const std::string& s) {
 std::string summaryCsv(const std::vector<ScanResult>& results) {
   std::string out =
       "file,status,error,points,clusters,iterations,handle_error,ms_build,ms_field,ms_sampling,ms_clusters,"
-      "ms_solve,ms_interpolation,ms_total\r\n";
+      "ms_solve,ms_interpolation,ms_total,reason\r\n";
   for (const auto& r : sorted(results)) {
     out += csvField(r.file) + ',' + csvField(r.status) + ',' + csvField(r.error);
     if (r.has_metrics) {
@@ -156,7 +161,7 @@ std::string summaryCsv(const std::vector<ScanResult>& results) {
     } else {
       out += ",,,,,,,,,,,";
     }
-    out += "\r\n";
+    out += ',' + csvField(r.reason) + "\r\n";
   }
   return out;
 }
@@ -210,6 +215,12 @@ std::string indexHtml(const std::vector<ScanResult>& results, const Totals& t, c
   if (t.ranks > 1) h += "; " + std::to_string(t.ranks) + " MPI ranks";
   h += ".</p>\n";
   if (!note.empty()) h += "<p class=\"note\">" + htmlEscape(note) + "</p>\n";
+  if (!t.skipped_entries.empty()) {
+    h += "<p class=\"note\">Not taken as scans:</p>\n<ul>\n";
+    for (const auto& e : t.skipped_entries)
+      h += "<li>" + htmlEscape(e.path) + ": " + htmlEscape(e.why) + "</li>\n";
+    h += "</ul>\n";
+  }
   h += "<table>\n<tr><th>#</th><th>file</th><th>status</th><th>points</th><th>clusters</th>"
        "<th>iterations</th><th>ms</th><th>before / after</th></tr>\n";
   int n = 0;
@@ -217,7 +228,9 @@ std::string indexHtml(const std::vector<ScanResult>& results, const Totals& t, c
     h += "<tr id=\"" + htmlEscape(urlPath(r.file)) + "\"><td>" + std::to_string(++n) + "</td><td>" +
          htmlEscape(r.file);
     if (r.own_scenario) h += "<br><small>scenario " + htmlEscape(r.scenario) + "</small>";
-    h += "</td><td class=\"" + htmlEscape(r.status) + "\">" + htmlEscape(r.status) + "</td>";
+    h += "</td><td class=\"" + htmlEscape(r.status) + "\">" + htmlEscape(r.status);
+    if (!r.reason.empty()) h += "<br><small>" + htmlEscape(r.reason) + "</small>";
+    h += "</td>";
     if (r.has_metrics)
       h += "<td>" + std::to_string(r.points) + "</td><td>" + std::to_string(r.clusters) + "</td><td>" +
            std::to_string(r.iterations) + "</td><td>" + fixed(r.ms_total, 0) + "</td>";
