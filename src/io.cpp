@@ -767,13 +767,18 @@ Shape readPly(const std::string& path) {
           if (!is_face) extra[e].values.push_back(static_cast<double>(len));
           for (long long j = 0; j < len; ++j) {
             const std::string_view tok = next(p);
-            double v = 0;
-            if (!parseFloating(tok, &v)) nonNumeric(tok, p);
-            if (!is_face) {  // as the declared type holds it (text may carry more digits)
-              extra[e].values.push_back(p.type == Field::FLOAT32 ? static_cast<double>(static_cast<float>(v))
-                                                                 : v);
+            if (!is_face) {  // as the declared type holds it (in range; text may carry more digits)
+              std::uint8_t item[8];
+              const Parse st = parseInto(tok, p.type, item);
+              if (st == Parse::Bad) nonNumeric(tok, p);
+              if (st == Parse::Range)
+                fail(path, "value out of range " + excerpt(tok) + " at line " + num(lex.line()) +
+                               " for property '" + p.name + "' of type " + plyTypeName(p.type));
+              extra[e].values.push_back(loadDouble(item, p.type, false));
               continue;
             }
+            double v = 0;
+            if (!parseFloating(tok, &v)) nonNumeric(tok, p);
             if (!(v >= 0 && v < nverts && v == std::floor(v)))
               fail(path, "bad face index " + excerpt(tok) + " at line " + num(lex.line()) + " (" +
                              num(nverts) + " vertices)");
