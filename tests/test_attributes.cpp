@@ -253,3 +253,29 @@ TEST(Attributes, PlyKeepsFacePropertiesListsElementsAndComments) {
 }
 
 }  // namespace
+
+namespace {
+
+// A list kept aside is read as its declared type: a value it cannot hold is an error naming
+// the file and the line, as for scalars (it would otherwise be cast out of range on writing).
+TEST(Attributes, PlyListValuesOutOfTheirTypeAreRefused) {
+  TempDir dir;
+  writeText(dir.file("bad.ply"),
+            "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+            "property list uchar short tags\nend_header\n0 0 0 1 5\n1 0 0 2 7 1e300\n0 1 0 0\n");
+  try {
+    hgd::readShape(dir.file("bad.ply"));
+    ADD_FAILURE() << "accepted 1e300 as a short";
+  } catch (const hgd::IoError& e) {
+    EXPECT_NE(std::string(e.what()).find("bad.ply: value out of range"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("line 10"), std::string::npos) << e.what();
+  }
+  writeText(dir.file("good.ply"),
+            "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+            "property list uchar short tags\nend_header\n0 0 0 1 5\n1 0 0 2 7 -32768\n0 1 0 0\n");
+  const hgd::Shape s = hgd::readShape(dir.file("good.ply"));
+  ASSERT_EQ(s.extras.ply_elements.size(), 1u);
+  EXPECT_EQ(s.extras.ply_elements[0].values, (std::vector<double>{1, 5, 2, 7, -32768, 0}));
+}
+
+}  // namespace
