@@ -11,6 +11,7 @@ packages=(
   libxxhash-dev                             # hgdeform batch: content hashes of the inputs (provenance)
   libopenmpi-dev openmpi-bin                # hgdeform batch under mpirun (already pulled in by VTK)
   libpng-dev                                # the viewer tests read screenshots
+  libx11-dev                                # the renderer asks X whether a display opens (pulled in by VTK too)
   libgtest-dev libgmock-dev libbenchmark-dev
   xvfb xauth clang-format
   clang libclang-rt-14-dev                  # scripts/fuzz.sh: libFuzzer targets (clang's runtime)
