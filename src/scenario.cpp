@@ -40,22 +40,7 @@ Region Region::fromIndices(std::vector<long long> idx) {
   return reg;
 }
 
-namespace {
-
-using nlohmann::json;
-
-constexpr const char* kFormat = "hgdeform-scenario/1";
-/// Lists of moves may nest (a list is a move); deeper than this is no scenario anyone wrote.
-constexpr int kMaxMoveDepth = 32;
-/// Positions and translations beyond this are not coordinates of a real shape (and would
-/// overflow the solver's arithmetic).
-constexpr double kMaxCoordinate = 1e15;
-constexpr double kMaxDegrees = 1e6;
-constexpr std::uintmax_t kMaxScenarioBytes = std::uintmax_t{1} << 30;
-
-/// One JSON-pointer step for `key` (RFC 6901 escapes; control characters spelled out, so that
-/// a message never carries raw control bytes).
-std::string pointerStep(const std::string& key) {
+std::string jsonPointerStep(const std::string& key) {
   std::string out = "/";
   for (const char ch : key) {
     const auto c = static_cast<unsigned char>(ch);
@@ -73,6 +58,19 @@ std::string pointerStep(const std::string& key) {
   }
   return out;
 }
+
+namespace {
+
+using nlohmann::json;
+
+constexpr const char* kFormat = "hgdeform-scenario/1";
+/// Lists of moves may nest (a list is a move); deeper than this is no scenario anyone wrote.
+constexpr int kMaxMoveDepth = 32;
+/// Positions and translations beyond this are not coordinates of a real shape (and would
+/// overflow the solver's arithmetic).
+constexpr double kMaxCoordinate = 1e15;
+constexpr double kMaxDegrees = 1e6;
+constexpr std::uintmax_t kMaxScenarioBytes = std::uintmax_t{1} << 30;
 
 /// Rejects duplicated keys while parsing (the last one would silently win otherwise), naming
 /// the JSON path of the second occurrence.
@@ -113,7 +111,7 @@ class DuplicateKeyCheck {
   }
   std::string path() const {
     std::string p;
-    for (const Frame& f : frames_) p += f.array ? "/" + std::to_string(f.index) : pointerStep(f.key);
+    for (const Frame& f : frames_) p += f.array ? "/" + std::to_string(f.index) : jsonPointerStep(f.key);
     return p;
   }
   std::string name_;
@@ -134,7 +132,7 @@ struct Parser {
       if (!known) {
         std::string list;
         for (const char* k : keys) list += std::string(list.empty() ? "" : ", ") + k;
-        fail(path + pointerStep(it.key()), "unknown key (expected one of: " + list + ")");
+        fail(path + jsonPointerStep(it.key()), "unknown key (expected one of: " + list + ")");
       }
     }
   }
@@ -169,7 +167,7 @@ struct Parser {
 
   const json& member(const json& j, const std::string& path, const char* key) const {
     auto it = j.find(key);
-    if (it == j.end()) fail(path + pointerStep(key), "is required");
+    if (it == j.end()) fail(path + jsonPointerStep(key), "is required");
     return *it;
   }
 
@@ -210,7 +208,7 @@ struct Parser {
         r.indices.push_back(a[i].get<long long>());
       }
     } else {
-      fail(path + pointerStep(j.begin().key()), "unknown region kind (expected sphere, box or indices)");
+      fail(path + jsonPointerStep(j.begin().key()), "unknown region kind (expected sphere, box or indices)");
     }
     return r;
   }
@@ -254,7 +252,7 @@ struct Parser {
       }
       if (!f.contains("translate") && !f.contains("rotate")) fail(p, "needs translate and/or rotate");
     } else {
-      fail(path + pointerStep(j.begin().key()), "unknown move (expected drag or frame)");
+      fail(path + jsonPointerStep(j.begin().key()), "unknown move (expected drag or frame)");
     }
     out.push_back(m);
   }

@@ -14,6 +14,7 @@
 #include <set>
 
 #include "hgdeform/io.h"
+#include "hgdeform/scenario.h"
 
 namespace hgdview {
 
@@ -30,27 +31,6 @@ constexpr std::uintmax_t kMaxReplayBytes = std::uintmax_t{1} << 26;
 
 constexpr const char* kEvents = "key, radius, pick, area, drag, view, screenshot, save, save_scenario";
 
-/// One JSON-pointer step for `key` (RFC 6901 escapes; control characters spelled out, so that
-/// a message never carries raw control bytes), as src/scenario.cpp writes them.
-std::string pointerStep(const std::string& key) {
-  std::string out = "/";
-  for (const char ch : key) {
-    const auto c = static_cast<unsigned char>(ch);
-    if (ch == '~') {
-      out += "~0";
-    } else if (ch == '/') {
-      out += "~1";
-    } else if (c < 0x20 || c == 0x7f) {
-      char buf[8];
-      std::snprintf(buf, sizeof buf, "\\u%04x", c);
-      out += buf;
-    } else {
-      out += ch;
-    }
-  }
-  return out;
-}
-
 /// Follows the parse to name the JSON path of a problem the parser itself finds: a duplicated
 /// key (the last one would silently win otherwise) or a number out of range (1e999).
 class PathTracker {
@@ -65,7 +45,8 @@ class PathTracker {
     std::vector<Frame> frames;
     std::string path() const {
       std::string p;
-      for (const Frame& f : frames) p += f.array ? "/" + std::to_string(f.index) : pointerStep(f.key);
+      for (const Frame& f : frames)
+        p += f.array ? "/" + std::to_string(f.index) : hgd::jsonPointerStep(f.key);
       return p.empty() ? "/" : p;
     }
   };
@@ -120,7 +101,8 @@ struct Parser {
     for (auto it = j.begin(); it != j.end(); ++it) {
       bool known = false;
       for (const char* k : keys) known = known || it.key() == k;
-      if (!known) fail(path + pointerStep(it.key()), "unknown key (expected one of: " + list(keys) + ")");
+      if (!known)
+        fail(path + hgd::jsonPointerStep(it.key()), "unknown key (expected one of: " + list(keys) + ")");
     }
   }
 
@@ -130,7 +112,7 @@ struct Parser {
 
   const json& member(const json& j, const std::string& path, const char* key) const {
     const auto it = j.find(key);
-    if (it == j.end()) fail(path + pointerStep(key), "missing");
+    if (it == j.end()) fail(path + hgd::jsonPointerStep(key), "missing");
     return *it;
   }
 
@@ -204,7 +186,7 @@ struct Parser {
     if (j.size() != 1) fail(path, std::string("an event must have exactly one of: ") + kEvents);
     ReplayEvent e;
     e.path = path;
-    const std::string key = j.begin().key(), p = path + pointerStep(key);
+    const std::string key = j.begin().key(), p = path + hgd::jsonPointerStep(key);
     const json& v = j.begin().value();
     if (key == "key") {
       e.kind = ReplayEvent::Kind::Key;
