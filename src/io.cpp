@@ -1774,6 +1774,14 @@ void writePcd(const std::string& path, const Shape& shape, bool ascii) {
   w.commit();
 }
 
+/// " x y z" of the point at `pt`, each at its declared type (an OBJ vertex's coordinates).
+void appendXyz(std::string& buf, const pcl::PCLPointCloud2& c, const std::uint8_t* pt, const XyzFields& xyz) {
+  for (const int idx : {xyz.x, xyz.y, xyz.z}) {
+    buf += ' ';
+    appendValue(buf, pt + c.fields[idx].offset, c.fields[idx].datatype);
+  }
+}
+
 /// An OBJ written line by line as it was read: 'v' lines with the cloud's x/y/z (the rest of
 /// the line, colours or a weight, as it was), 'vn' lines with the turned normals, every other
 /// line (vt, g, o, usemtl, mtllib, s, l, comments, faces with their v/vt/vn corners) unchanged.
@@ -1793,12 +1801,8 @@ bool writeObjLines(const std::string& path, const Shape& shape, const XyzFields&
   for (const auto& line : x.obj_lines) {
     const std::vector<std::string_view> words = splitWords(line);
     if (!words.empty() && words[0] == "v") {
-      const std::uint8_t* pt = c.data.data() + i++ * c.point_step;
       buf += 'v';
-      for (const int idx : {xyz.x, xyz.y, xyz.z}) {
-        buf += ' ';
-        appendValue(buf, pt + c.fields[idx].offset, c.fields[idx].datatype);
-      }
+      appendXyz(buf, c, c.data.data() + i++ * c.point_step, xyz);
       for (std::size_t k = 4; k < words.size(); ++k) {
         buf += ' ';
         buf += words[k];
@@ -1839,10 +1843,7 @@ void writeObj(const std::string& path, const Shape& shape) {
   for (std::size_t i = 0; i < n; ++i) {
     const std::uint8_t* pt = c.data.data() + i * c.point_step;
     buf += 'v';
-    for (const int idx : {xyz.x, xyz.y, xyz.z}) {
-      buf += ' ';
-      appendValue(buf, pt + c.fields[idx].offset, c.fields[idx].datatype);
-    }
+    appendXyz(buf, c, pt, xyz);
     if (colour) {
       for (const int idx : {r, g, b}) {
         const Field& f = c.fields[idx];
