@@ -1,4 +1,4 @@
-// The paper's demonstrations as checks (ALGORITHM.md §6).
+// The paper's demonstrations as checks (the paper's figures).
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>

@@ -67,7 +67,7 @@ const char* kBatchHelp =
     "warning; links to folders are not followed.\n"
     "\n"
     "options:\n"
-    "  -s, --scenario FILE   default scenario (SCENARIO.md); required\n"
+    "  -s, --scenario FILE   default scenario (README.md); required\n"
     "  -o, --output DIR      output directory (created); neither INPUT_DIR nor inside it; required\n"
     "  -j, --jobs N          scans processed in parallel (default 1); each scan gets\n"
     "                        max(1, cores / N) OpenMP threads (at most OMP_NUM_THREADS)\n"

@@ -46,7 +46,8 @@ const char* kFieldHelp =
     "the shape with it as the per-point scalar 'harmonic' (all other fields kept).\n"
     "\n"
     "options:\n"
-    "  -s, --scenario FILE   handles (SCENARIO.md); required\n"
+    "  -s, --scenario FILE   handles (README.md, " Scenarios
+    "); required\n"
     "  -o, --output FILE     output file; required; never the input\n"
     "  -k, --k N             neighbours per point for the Laplacian (default 10)\n"
     "      --solver NAME     auto | exact | multilevel (default auto)\n"
@@ -63,7 +64,7 @@ const char* kDeformHelp =
     "normals change, every other field and the mesh faces are kept.\n"
     "\n"
     "options:\n"
-    "  -s, --scenario FILE   handles and moves (SCENARIO.md); required\n"
+    "  -s, --scenario FILE   handles and moves (README.md); required\n"
     "  -o, --output FILE     output file; required; never the input\n"
     "  -r, --report FILE     write a JSON report (points, clusters, iterations, energy, ms);\n"
     "                        - for stdout; a link is followed, a FIFO or device written to\n"

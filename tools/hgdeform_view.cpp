@@ -1086,7 +1086,7 @@ int main(int argc, char** argv) {
     viewer.inputs_ = inputs;
     if (!scenario.empty()) viewer.loadScenario(scenario);
     viewer.open();
-    viewer.vis().setSize(width, height);  // the first render may shrink the window (TOOLCHAIN.md)
+    viewer.vis().setSize(width, height);  // the first render may shrink the window
     if (!replay.empty()) {
       viewer.replay(events, replay, viewer.vis().getRenderWindow()->GetInteractor());
       if (!shot.empty()) viewer.screenshot(shot);

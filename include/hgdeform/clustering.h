@@ -1,6 +1,6 @@
-// Harmonic-guided clustering (ALGORITHM.md §2): a surface sample is cut into handle clusters
-// and isoclusters by the harmonic field, every cluster split into connected pieces of the
-// surface so that two branches at the same harmonic value get separate transforms.
+// Harmonic-guided clustering (docs/scans.md, "Clusters from the surface sample"): a surface sample is cut
+// into handle clusters and isoclusters by the harmonic field, every cluster split into connected pieces of
+// the surface so that two branches at the same harmonic value get separate transforms.
 #pragma once
 
 #include <pcl/point_cloud.h>

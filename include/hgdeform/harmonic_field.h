@@ -1,5 +1,5 @@
-// The harmonic field φ on a point cloud or mesh (ALGORITHM.md §1): 1 on the manipulated
-// handle, 0 on the fixed ones, harmonic for the uniform quasi-Laplacian elsewhere.
+// The harmonic field φ on a point cloud or mesh (docs/scans.md: the graph it is solved on): 1 on the
+// manipulated handle, 0 on the fixed ones, harmonic for the uniform quasi-Laplacian elsewhere.
 //
 // A PCL-style stage:
 //   hgd::HarmonicField field;

@@ -1,4 +1,4 @@
-// Interpolating cluster transforms back to every point (ALGORITHM.md §4, the paper's eq. 1).
+// Interpolating cluster transforms back to every point (the paper's eq. 1).
 #pragma once
 
 #include <Eigen/Core>

@@ -1,4 +1,4 @@
-// Normals and the neighbour graph of a point cloud (ALGORITHM.md §1, steps 1-2).
+// Normals and the neighbour graph of a point cloud (docs/scans.md: the graph and its normal filter).
 #pragma once
 
 #include <pcl/Vertices.h>

@@ -1,5 +1,5 @@
-// Scenario files (SCENARIO.md): which parts of a shape are handles and how the manipulated
-// one moves. One parser, used by the CLI, the batch runner and the viewer alike.
+// Scenario files (the format: README.md, "Scenarios"): which parts of a shape are handles and how the
+// manipulated one moves. One parser, used by the CLI, the batch runner and the viewer alike.
 #pragma once
 
 #include <Eigen/Core>
@@ -78,7 +78,7 @@ Scenario parseScenario(const std::string& json_text, const std::string& name);
 /// Reads and parses a scenario file.
 Scenario readScenario(const std::string& path);
 
-/// Serialises a scenario as SCENARIO.md JSON (what the viewer saves).
+/// Serialises a scenario as hgdeform-scenario/1 JSON (what the viewer saves).
 std::string scenarioToJson(const Scenario& scenario);
 
 }  // namespace hgd

@@ -1,4 +1,4 @@
-// The cluster transforms (ALGORITHM.md §3): one affine map per free cluster, found by
+// The cluster transforms (the paper's Gauss-Newton step): one affine map per free cluster, found by
 // Gauss–Newton on w_Detail E_Detail + w_Prop E_Prop + w_Manip E_Manip + w_Length E_Length.
 //
 // Coordinates here are normalised (the deformer scales the shape to a unit bounding-box
