@@ -46,8 +46,7 @@ const char* kFieldHelp =
     "the shape with it as the per-point scalar 'harmonic' (all other fields kept).\n"
     "\n"
     "options:\n"
-    "  -s, --scenario FILE   handles (README.md, " Scenarios
-    "); required\n"
+    "  -s, --scenario FILE   handles (README.md, section Scenarios); required\n"
     "  -o, --output FILE     output file; required; never the input\n"
     "  -k, --k N             neighbours per point for the Laplacian (default 10)\n"
     "      --solver NAME     auto | exact | multilevel (default auto)\n"
