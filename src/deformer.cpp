@@ -228,20 +228,28 @@ DragResult Deformer::dragTo(const Eigen::Vector3d& from, const Eigen::Vector3d& 
 SolveStats Deformer::setHandleTransform(const Eigen::Affine3d& transform) {
   if (!transform.matrix().allFinite())
     throw std::invalid_argument("setHandleTransform: transform is not finite");
+  return moveHandle(transform * handleTransform().inverse());
+}
+
+Eigen::Vector3d Deformer::handleCentre() const {
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  for (int i : handles_.manipulated) c += deformedWorld(static_cast<std::size_t>(i));
+  return c / static_cast<double>(handles_.manipulated.size());
+}
+
+SolveStats Deformer::moveHandle(const Eigen::Affine3d& motion) {
+  if (!motion.matrix().allFinite()) throw std::invalid_argument("moveHandle: motion is not finite");
   // A large jump (a half turn given at once) has no preferred way round for the clusters in
   // between: Gauss-Newton from the old pose would sit at the saddle and collapse them. So the
   // handle travels there as a user would move it: in steps of at most 20 degrees and a tenth
   // of the diagonal, each solve warm-starting the next.
   const Eigen::Affine3d current = handleTransform();
-  const Eigen::Affine3d motion = transform * current.inverse();
   Eigen::JacobiSVD<Eigen::Matrix3d> svd(motion.linear(), Eigen::ComputeFullU | Eigen::ComputeFullV);
   Eigen::Matrix3d u = svd.matrixU();
   if ((u * svd.matrixV().transpose()).determinant() < 0) u.col(2) *= -1.0;
   const Eigen::Matrix3d rot = u * svd.matrixV().transpose();
   const Eigen::Matrix3d stretch = rot.transpose() * motion.linear();
-  Eigen::Vector3d c = Eigen::Vector3d::Zero();  // the handle's current barycentre: the pivot
-  for (int i : handles_.manipulated) c += deformedWorld(static_cast<std::size_t>(i));
-  c /= static_cast<double>(handles_.manipulated.size());
+  const Eigen::Vector3d c = handleCentre();  // the pivot
   const double angle = Eigen::AngleAxisd(rot).angle();
   const double travel = (motion * c - c).norm() * scale_;
   // (At most 200 steps: a handle sent absurdly far still ends, in longer steps.)
@@ -364,99 +372,6 @@ void Deformer::writeDeformed(Shape& shape) const {
     if (!(n0.squaredNorm() > 0) || !(n1.squaredNorm() > 0) || !n0.allFinite() || !n1.allFinite()) continue;
     x.obj_normals_out[j] = Eigen::Quaternionf::FromTwoVectors(n0, n1) * x.obj_normals[j];
   }
-}
-
-DeformReport deformShape(Shape& shape, const Scenario& scenario, const DeformOptions& options) {
-  Stopwatch total;
-  DeformReport rep;
-  const Geometry geometry = extractGeometry(shape);
-  const Handles handles = resolveHandles(scenario, geometry);
-  DeformOptions opt = options;
-  if (scenario.clusters) opt.clusters.isoclusters = *scenario.clusters;
-  if (scenario.blend) opt.blend = *scenario.blend == "linear" ? Blend::Linear : Blend::Rotation;
-  if (shape.isOrganized()) {
-    opt.field.orient_to_viewpoint = true;
-    opt.field.viewpoint = (shape.sensor_origin.head<3>().cast<double>() - geometry.origin).cast<float>();
-  }
-  Deformer d(geometry, handles, opt);
-  const BuildTimings& b = d.buildTimings();
-  rep.build = b;
-  rep.build_ms = total.ms();  // everything before the first solve
-  rep.field_ms = b.field_ms;
-  rep.sampling_ms = b.sampling_ms;
-  rep.clusters_ms = b.clusters_ms;
-  rep.points = geometry.size();
-  rep.sample = d.clustering().sample.size();
-  rep.clusters = d.clustering().clusters.size();
-  rep.isoclusters = opt.clusters.isoclusters;
-  rep.unreachable = d.harmonicField().unreachable().size();
-  rep.notes = d.clustering().notes;
-  if (d.harmonicField().normalsReoriented())
-    rep.notes.emplace_back(
-        "the file's normals are not consistently oriented: the neighbour filter used re-oriented copies "
-        "(the output keeps the file's signs)");
-  if (!d.harmonicField().rejoinedPairs().empty())
-    rep.notes.push_back("the normal filter would have cut pieces without a handle off the surface: " +
-                        std::to_string(d.harmonicField().rejoinedPairs().size()) +
-                        " neighbour pairs across thin gaps were kept to join them back");
-  rep.pieces = d.pieces().report;
-  rep.warnings = rep.pieces.warnings();
-
-  const double diagonal = d.diagonal();
-  int move_number = 0;
-  for (const Move& m : scenario.moves) {
-    ++move_number;
-    if (m.kind == Move::Kind::Drag) {
-      const DragResult r = d.dragTo(m.drag.from, m.drag.to);
-      if (!r.reached) {
-        char buf[320];
-        std::snprintf(buf, sizeof buf,
-                      "move %d (drag): the picked point stopped %.6g (%.3g of the diagonal) from its "
-                      "target after %d frames%s",
-                      move_number, r.error, r.error / diagonal, r.frames,
-                      r.last.decreased ? "" : "; Gauss-Newton could not decrease the energy further");
-        rep.warnings.emplace_back(buf);
-      }
-      rep.frames += r.frames;
-      rep.iterations += r.iterations;
-      rep.max_frame_iterations = std::max(rep.max_frame_iterations, r.max_frame_iterations);
-      rep.solve_ms += r.solve_ms;
-      rep.interpolation_ms += r.interpolation_ms;
-      rep.handle_error = r.error;
-      rep.reached = rep.reached && r.reached;
-    } else {
-      const FrameMove& f = m.frame;
-      Eigen::Vector3d center;
-      if (f.center) {
-        center = *f.center;
-      } else {  // the handle's current barycentre
-        center.setZero();
-        for (int i : handles.manipulated) center += d.deformedWorld(static_cast<std::size_t>(i));
-        center /= static_cast<double>(handles.manipulated.size());
-      }
-      Eigen::Affine3d motion = Eigen::Affine3d::Identity();
-      motion.translate(center + f.translate);
-      motion.rotate(Eigen::AngleAxisd(f.degrees * M_PI / 180.0, f.axis.normalized()));
-      motion.translate(-center);
-      const SolveStats st = d.setHandleTransform(motion * d.handleTransform());
-      if (!st.decreased)
-        rep.warnings.push_back("move " + std::to_string(move_number) +
-                               " (frame): Gauss-Newton could not decrease the energy; the shape may not "
-                               "follow the handle exactly");
-      rep.frames += 1;
-      rep.iterations += st.iterations;
-      rep.max_frame_iterations = std::max(rep.max_frame_iterations, st.iterations);
-      rep.solve_ms += st.ms;
-      rep.interpolation_ms += d.lastInterpolationMs();
-    }
-  }
-  rep.energy = d.energies();
-  rep.solve_per_iteration_ms = rep.iterations > 0 ? rep.solve_ms / rep.iterations : 0;
-  rep.surface = d.surfaceStretch();
-  if (const std::string w = stretchWarning(rep.surface); !w.empty()) rep.warnings.push_back(w);
-  d.writeDeformed(shape);
-  rep.total_ms = total.ms();
-  return rep;
 }
 
 }  // namespace hgd

@@ -101,6 +101,7 @@ std::string reportJson(const DeformReport& r) {
              {"solve", r.solve_ms},
              {"solve_per_iteration", r.solve_per_iteration_ms},
              {"interpolation", r.interpolation_ms},
+             {"write", r.write_ms},
              {"total", r.total_ms}};
   return j.dump(2) + "\n";
 }

@@ -40,6 +40,56 @@ Region Region::fromIndices(std::vector<long long> idx) {
   return reg;
 }
 
+const char* blendName(Blend blend) {
+  return blend == Blend::Linear ? "linear" : "rotation";
+}
+
+bool parseBlend(const std::string& text, Blend& blend) {
+  if (text == "linear")
+    blend = Blend::Linear;
+  else if (text == "rotation")
+    blend = Blend::Rotation;
+  else
+    return false;
+  return true;
+}
+
+// In-code scenarios name their regions as a file would, so that errors read the same.
+Scenario& Scenario::fix(Region region) {
+  if (region.json_path.empty()) region.json_path = "/fixed/" + std::to_string(fixed.size());
+  fixed.push_back(std::move(region));
+  return *this;
+}
+
+Scenario& Scenario::manipulate(Region region) {
+  if (region.json_path.empty()) region.json_path = "/manipulated";
+  manipulated = std::move(region);
+  return *this;
+}
+
+Scenario& Scenario::joint(Region region) {
+  if (region.json_path.empty()) region.json_path = "/joints/" + std::to_string(joints.size());
+  joints.push_back(std::move(region));
+  return *this;
+}
+
+Scenario& Scenario::drag(const Eigen::Vector3d& from, const Eigen::Vector3d& to) {
+  Move m;
+  m.kind = Move::Kind::Drag;
+  m.drag.from = from;
+  m.drag.to = to;
+  moves.push_back(m);
+  return *this;
+}
+
+Scenario& Scenario::frame(const FrameMove& move) {
+  Move m;
+  m.kind = Move::Kind::Frame;
+  m.frame = move;
+  moves.push_back(m);
+  return *this;
+}
+
 std::string jsonPointerStep(const std::string& key) {
   std::string out = "/";
   for (const char ch : key) {
@@ -295,9 +345,10 @@ Scenario parseScenario(const std::string& json_text, const std::string& name) {
   }
   if (j.contains("blend")) {
     const json& b = j["blend"];
-    if (!b.is_string() || (b.get<std::string>() != "linear" && b.get<std::string>() != "rotation"))
+    Blend blend = Blend::Rotation;
+    if (!b.is_string() || !parseBlend(b.get<std::string>(), blend))
       p.fail("/blend", "must be \"linear\" or \"rotation\"");
-    s.blend = b.get<std::string>();
+    s.blend = blend;
   }
   if (j.contains("move")) p.moves(j["move"], "/move", s.moves);
   return s;
@@ -360,7 +411,7 @@ std::string scenarioToJson(const Scenario& s) {
     for (const auto& r : s.joints) j["joints"].push_back(regionJson(r));
   }
   if (s.clusters) j["clusters"] = *s.clusters;
-  if (s.blend) j["blend"] = *s.blend;
+  if (s.blend) j["blend"] = blendName(*s.blend);
   if (!s.moves.empty()) {
     json moves = json::array();
     for (const auto& m : s.moves) {

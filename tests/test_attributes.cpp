@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "hgdeform/deformer.h"
+#include "hgdeform/runner.h"
 #include "hgdeform/io.h"
 #include "hgdeform/scenario.h"
 #include "test_util.h"

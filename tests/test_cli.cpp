@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "hgdeform/deformer.h"
+#include "hgdeform/runner.h"
 #include "hgdeform/fields.h"
 #include "hgdeform/geometry.h"
 #include "hgdeform/io.h"

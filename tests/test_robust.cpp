@@ -35,6 +35,7 @@
 #include <vector>
 
 #include "hgdeform/deformer.h"
+#include "hgdeform/runner.h"
 #include "hgdeform/fields.h"
 #include "hgdeform/geometry.h"
 #include "hgdeform/harmonic_field.h"

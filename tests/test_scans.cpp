@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "hgdeform/deformer.h"
+#include "hgdeform/runner.h"
 #include "hgdeform/harmonic_field.h"
 #include "hgdeform/shapes.h"
 #include "test_util.h"

@@ -35,6 +35,7 @@
 #include "batch_report.h"
 #include "hgdeform/deformer.h"
 #include "hgdeform/io.h"
+#include "hgdeform/runner.h"
 #include "hgdeform/scenario.h"
 #ifdef HGD_HAVE_RENDER
 #include "hgdeform/render.h"
@@ -555,24 +556,15 @@ ScanResult processScan(const Scan& s, const Context& ctx) {
                             rec->input_size == in_before.size && rec->input_mtime_ns == in_before.mtime_ns;
       input_hash = recorded ? rec->input_hash : batch::hashFile(s.input.string());
     }
-    const auto t_read = Clock::now();
-    hgd::Shape shape = hgd::readShape(s.input.string());
-    const double read_ms = msSince(t_read);
-    std::optional<hgd::Shape> before;
-    if (ctx.thumbnails) before = shape;
-    hgd::DeformReport rep = hgd::deformShape(shape, scenario, hgd::DeformOptions{});
-    if (const std::string lost = hgd::extrasLost(shape, hgd::formatFromPath(s.output.string()));
-        !lost.empty())
-      rep.warnings.push_back(lost);
-    rep.read_ms = read_ms;  // as `hgdeform deform` counts it
-    rep.build_ms += read_ms;
-    rep.total_ms += read_ms;
+    hgd::ScenarioRunner run = hgd::ScenarioRunner::read(s.input.string());
+    run.setScenario(scenario);
+    run.applyMoves();
     fs::create_directories(s.output.parent_path());
     std::error_code gone;
     fs::remove(record_path, gone);  // from here until the new record, the output is unrecorded
-    const auto t_write = Clock::now();
-    hgd::writeShape(s.output.string(), shape);
-    r.ms_write = msSince(t_write);
+    run.write(s.output.string(), {}, {s.scenario.string()});
+    const hgd::DeformReport rep = run.report();
+    r.ms_write = rep.write_ms;
     testHook(s.rel);
     batch::Provenance p;
     p.input = s.rel;
@@ -615,7 +607,10 @@ ScanResult processScan(const Scan& s, const Context& ctx) {
     r.ms_total = rep.total_ms;
     r.notes = rep.notes;
     for (const auto& w : rep.warnings) appendWarning(r.warning, w);
-    if (ctx.thumbnails) r.thumbnail = thumbnail(ctx, s, &*before, &shape, r.warning);
+    if (ctx.thumbnails) {
+      const hgd::Shape after = run.deformedShape();
+      r.thumbnail = thumbnail(ctx, s, &run.shape(), &after, r.warning);
+    }
   } catch (const std::bad_alloc&) {
     r.status = "failed";
     r.error = "out of memory";

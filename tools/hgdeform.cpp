@@ -20,6 +20,7 @@
 #include "hgdeform/io.h"
 #include "hgdeform/regions.h"
 #include "hgdeform/report.h"
+#include "hgdeform/runner.h"
 #include "hgdeform/scenario.h"
 
 namespace hgdcli {
@@ -257,33 +258,27 @@ int runDeform(int argc, char** argv) {
       throw UsageError("--report " + report_path + " would replace the output " + output);
   }
 
-  hgd::DeformOptions opt;
+  hgd::RunOptions ro;
+  hgd::DeformOptions& opt = ro.deform;
   opt.field.k_neighbors = intOption(a, "k", opt.field.k_neighbors, 2, 100);
   opt.field.solver = solverOption(a);
   opt.clusters.samples = intOption(a, "samples", opt.clusters.samples, 10, 10000000);
-  const int clusters_override = intOption(a, "clusters", 0, 1, 1000);
+  if (const int clusters = intOption(a, "clusters", 0, 1, 1000); clusters > 0) ro.clusters = clusters;
   opt.clusters.joint_isoclusters = intOption(a, "joint-clusters", opt.clusters.joint_isoclusters, 1, 100);
-
-  hgd::Scenario scenario = hgd::readScenario(scenario_path);
-  if (clusters_override > 0) scenario.clusters = clusters_override;
   if (auto it = a.values.find("blend"); it != a.values.end()) {
-    if (it->second != "linear" && it->second != "rotation")
+    hgd::Blend blend;
+    if (!hgd::parseBlend(it->second, blend))
       throw UsageError("--blend must be linear or rotation (got '" + it->second + "')");
-    scenario.blend = it->second;  // the command line wins over the scenario
+    ro.blend = blend;  // the command line wins over the scenario
   }
-  const auto t0 = std::chrono::steady_clock::now();
-  hgd::Shape shape = hgd::readShape(input);
-  const double read_ms =
-      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  const hgd::Scenario scenario = hgd::readScenario(scenario_path);
+  hgd::ScenarioRunner run = hgd::ScenarioRunner::read(input, ro);
+  run.setScenario(scenario);
+  run.applyMoves();
   hgd::WriteOptions wo;
   if (a.flags.count("ascii")) wo.encoding = hgd::Encoding::Ascii;
-  hgd::DeformReport report = hgd::deformShape(shape, scenario, opt);
-  if (const std::string lost = hgd::extrasLost(shape, hgd::formatFromPath(output)); !lost.empty())
-    report.warnings.push_back(output + ": " + lost);
-  report.read_ms = read_ms;  // reading is part of everything before the first solve
-  report.build_ms += read_ms;
-  report.total_ms += read_ms;
-  hgd::writeShape(output, shape, wo);
+  run.write(output, wo, {scenario_path});
+  const hgd::DeformReport report = run.report();
   // A failed run leaves no output: when the report cannot be written, the shape goes too.
   if (!report_path.empty()) {
     try {

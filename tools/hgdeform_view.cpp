@@ -64,6 +64,7 @@
 #include "hgdeform/io.h"
 #include "hgdeform/regions.h"
 #include "hgdeform/render.h"
+#include "hgdeform/runner.h"
 #include "hgdeform/scenario.h"
 #include "replay.h"
 
@@ -111,36 +112,33 @@ struct FrameStats {
 
 class Viewer {
  public:
-  Viewer(const std::string& input, int width, int height) : input_(input), width_(width), height_(height) {
-    shape_ = hgd::readShape(input);
-    geometry_ = hgd::extractGeometry(shape_);
-    diagonal_ = hgd::boundingBoxDiagonal(geometry_);
+  Viewer(const std::string& input, int width, int height)
+      : input_(input), width_(width), height_(height), run_(hgd::ScenarioRunner::read(input)) {
+    diagonal_ = hgd::boundingBoxDiagonal(run_.geometry());
     radius_ = 0.03 * diagonal_;
     display_.reset(new pcl::PointCloud<pcl::PointXYZRGB>);
-    display_->resize(geometry_.size());
+    display_->resize(run_.geometry().size());
     rest_.reset(new pcl::PointCloud<pcl::PointXYZRGB>);
-    rest_->resize(geometry_.size());
-    for (std::size_t i = 0; i < geometry_.size(); ++i) {
-      (*rest_)[i].getVector3fMap() = geometry_.world(i).cast<float>();
+    rest_->resize(run_.geometry().size());
+    for (std::size_t i = 0; i < run_.geometry().size(); ++i) {
+      (*rest_)[i].getVector3fMap() = run_.geometry().world(i).cast<float>();
       (*rest_)[i].r = (*rest_)[i].g = (*rest_)[i].b = 170;
     }
-    role_.assign(geometry_.size(), 0);
-    selected_.assign(geometry_.size(), 0);
+    role_.assign(run_.geometry().size(), 0);
+    selected_.assign(run_.geometry().size(), 0);
     fileColours();
   }
 
   void loadScenario(const std::string& path) {
-    scenario_ = hgd::readScenario(path);
-    const hgd::Handles h = hgd::resolveHandles(scenario_, geometry_);
-    fixed_regions_ = scenario_.fixed;
-    manipulated_region_ = scenario_.manipulated;
-    joint_regions_ = scenario_.joints;
-    handles_ = h;
+    const hgd::Scenario scenario = hgd::readScenario(path);
+    run_.setScenario(scenario);
+    fixed_regions_ = scenario.fixed;
+    manipulated_region_ = scenario.manipulated;
+    joint_regions_ = scenario.joints;
+    handles_ = run_.handles();
     refreshRoles();
-    if (!handles_.fixed.empty() && !handles_.manipulated.empty()) build();
-    for (const auto& m : scenario_.moves) commit(m);
-    scenario_.moves.clear();
-    for (const auto& m : moves_) scenario_.moves.push_back(m);
+    run_.applyMoves();
+    updateAlerts();
   }
 
   void open() {
@@ -151,16 +149,16 @@ class Viewer {
                                                                true);
     vis_->setSize(width_, height_);
     vis_->setBackgroundColor(1, 1, 1);
-    if (geometry_.faces.empty()) {
+    if (run_.geometry().faces.empty()) {
       const pcl::visualization::PointCloudColorHandlerRGBField<pcl::PointXYZRGB> rgb(display_);
       vis_->addPointCloud<pcl::PointXYZRGB>(display_, rgb, "shape");
       // Big points cost fill rate under software GL: dense clouds need no more than one pixel.
-      const double size = geometry_.size() > 200000 ? 1 : geometry_.size() > 50000 ? 2 : 3;
+      const double size = run_.geometry().size() > 200000 ? 1 : run_.geometry().size() > 50000 ? 2 : 3;
       vis_->setPointCloudRenderingProperties(pcl::visualization::PCL_VISUALIZER_POINT_SIZE, size, "shape");
     } else {
       pcl::PolygonMesh mesh;
       pcl::toPCLPointCloud2(*display_, mesh.cloud);
-      mesh.polygons = geometry_.faces;
+      mesh.polygons = run_.geometry().faces;
       vis_->addPolygonMesh(mesh, "shape");
     }
     vis_->addText("", 10, 10, 13, 0.1, 0.1, 0.1, "status");
@@ -271,13 +269,13 @@ class Viewer {
     if (hit < 0) return message("nothing under the cursor");
     const Eigen::Vector3d p = deformed(static_cast<std::size_t>(hit));
     std::size_t count = 0;
-    for (std::size_t i = 0; i < geometry_.size(); ++i)
+    for (std::size_t i = 0; i < run_.geometry().size(); ++i)
       if ((deformed(i) - p).norm() <= radius_) {
         selected_[i] = 1;
         ++count;
       }
     message("selected " + std::to_string(count) + " points around point " +
-            std::to_string(geometry_.raw_index[static_cast<std::size_t>(hit)]));
+            std::to_string(run_.geometry().raw_index[static_cast<std::size_t>(hit)]));
     refresh();
   }
 
@@ -286,7 +284,7 @@ class Viewer {
     if (x0 > x1) std::swap(x0, x1);
     if (y0 > y1) std::swap(y0, y1);
     std::size_t count = 0;
-    for (std::size_t i = 0; i < geometry_.size(); ++i) {
+    for (std::size_t i = 0; i < run_.geometry().size(); ++i) {
       const Eigen::Vector3d d = toDisplay(deformed(i));
       if (d.x() >= x0 && d.x() <= x1 && d.y() >= y0 && d.y() <= y1) {
         selected_[i] = 1;
@@ -299,14 +297,13 @@ class Viewer {
 
   // Direct manipulation: press on the manipulated handle, move, release.
   bool dragBegin(int x, int y) {
-    if (!drag_mode_ || !deformer_) return false;
+    if (!drag_mode_ || !run_.ready()) return false;
     const int hit = nearestOnScreen(x, y, 20.0, /*manipulated_only=*/true);
     if (hit < 0) {
       message("press on the manipulated handle (red) to drag it");
       return true;
     }
     dragging_ = true;
-    drag_start_state_ = deformer_->state();
     drag_from_ = deformed(static_cast<std::size_t>(hit));
     drag_depth_ = toDisplay(drag_from_).z();
     drag_last_ = drag_from_;
@@ -317,10 +314,10 @@ class Viewer {
     if (!dragging_) return false;
     const Eigen::Vector3d to = fromDisplay(x, y, drag_depth_);
     const auto t0 = Clock::now();
-    deformer_->drag(drag_last_, to);
+    run_.liveDrag(drag_last_, to);
     const double total = msSince(t0);
-    stats_.interpolate.push_back(deformer_->lastInterpolationMs());
-    stats_.solve.push_back(total - deformer_->lastInterpolationMs());
+    stats_.interpolate.push_back(run_.deformer().lastInterpolationMs());
+    stats_.solve.push_back(total - run_.deformer().lastInterpolationMs());
     drag_last_ = to;
     updatePositions();
     return true;
@@ -330,9 +327,9 @@ class Viewer {
     if (!dragging_) return false;
     dragMove(x, y);
     dragging_ = false;
-    // Commit as `hgdeform deform` would replay it: from the state before the gesture, the
-    // picked point dragged from where it was to where the cursor let go.
-    deformer_->restore(drag_start_state_);
+    // Commit as `hgdeform deform` would replay it: from the state before the gesture (the
+    // runner drops the live frames), the picked point dragged from where it was to where the
+    // cursor let go.
     hgd::Move m;
     m.kind = hgd::Move::Kind::Drag;
     m.drag.from = drag_from_;
@@ -401,7 +398,7 @@ class Viewer {
       if (selected_[i]) idx.push_back(static_cast<int>(i));
     if (idx.empty()) return message("nothing selected (x: area, shift+click: point)");
     std::vector<long long> raw;
-    for (int i : idx) raw.push_back(geometry_.raw_index[static_cast<std::size_t>(i)]);
+    for (int i : idx) raw.push_back(run_.geometry().raw_index[static_cast<std::size_t>(i)]);
     hgd::Region region = hgd::Region::fromIndices(raw);
     hgd::Handles h = handles_;
     auto remove = [&](std::vector<int>& from) {
@@ -432,17 +429,14 @@ class Viewer {
     syncRegions();
     clearSelection(false);
     refreshRoles();
-    moves_.clear();
-    undone_.clear();
-    history_.clear();
-    if (!handles_.fixed.empty() && !handles_.manipulated.empty()) {
-      build();
+    run_.setHandles(handles_);
+    updateAlerts();
+    if (run_.ready()) {
       message("handles: " + std::to_string(handles_.fixed.size()) + " fixed, manipulated " +
               std::to_string(handles_.manipulated.size()) + " points, " +
               std::to_string(handles_.joints.size()) + " joints; " +
-              std::to_string(deformer_->clustering().clusters.size()) + " clusters");
+              std::to_string(run_.deformer().clustering().clusters.size()) + " clusters");
     } else {
-      deformer_.reset();
       message(std::string("marked; still needed: ") + (handles_.fixed.empty() ? "a fixed handle " : "") +
               (handles_.manipulated.empty() ? "the manipulated handle" : ""));
     }
@@ -453,7 +447,7 @@ class Viewer {
   void syncRegions() {
     auto asRegion = [&](const std::vector<int>& idx) {
       std::vector<long long> raw;
-      for (int i : idx) raw.push_back(geometry_.raw_index[static_cast<std::size_t>(i)]);
+      for (int i : idx) raw.push_back(run_.geometry().raw_index[static_cast<std::size_t>(i)]);
       return hgd::Region::fromIndices(raw);
     };
     fixed_regions_.clear();
@@ -461,6 +455,7 @@ class Viewer {
     if (!handles_.manipulated.empty()) manipulated_region_ = asRegion(handles_.manipulated);
     joint_regions_.clear();
     for (const auto& jt : handles_.joints) joint_regions_.push_back(asRegion(jt));
+    run_.setRegions(fixed_regions_, manipulated_region_, joint_regions_);
   }
 
   void clearSelection(bool redraw = true) {
@@ -472,43 +467,27 @@ class Viewer {
     handles_ = hgd::Handles{};
     fixed_regions_.clear();
     joint_regions_.clear();
-    deformer_.reset();
-    moves_.clear();
-    history_.clear();
-    undone_.clear();
+    run_.setHandles(handles_);
+    run_.setRegions(fixed_regions_, manipulated_region_, joint_regions_);
+    updateAlerts();
     refreshRoles();
     message("handles cleared");
     refresh();
-  }
-
-  void build() {
-    hgd::DeformOptions opt;
-    if (scenario_.clusters) opt.clusters.isoclusters = *scenario_.clusters;
-    if (scenario_.blend) opt.blend = *scenario_.blend == "linear" ? hgd::Blend::Linear : hgd::Blend::Rotation;
-    if (shape_.isOrganized()) {
-      opt.field.orient_to_viewpoint = true;
-      opt.field.viewpoint = (shape_.sensor_origin.head<3>().cast<double>() - geometry_.origin).cast<float>();
-    }
-    if (deformer_ && !deformer_->handles().manipulated.empty())
-      deformer_->setHandles(handles_);  // normals and kNN are kept
-    else
-      deformer_ = std::make_unique<hgd::Deformer>(geometry_, handles_, opt);
-    updateAlerts();
   }
 
   // What the deformation cannot do for this shape, on the status line and stderr: pieces that
   // no handle reaches (followed or left), a piece moved rigidly, a surface pulled apart.
   void updateAlerts() {
     alert_.clear();
-    if (!deformer_) return;
-    const hgd::PieceReport& p = deformer_->pieces().report;
+    if (!run_.ready()) return;
+    const hgd::PieceReport& p = run_.deformer().pieces().report;
     std::vector<std::string> full = p.warnings();
     std::ostringstream s;
     if (p.followed_points) s << " | " << p.followed_points << " points without a handle follow";
     if (p.stayed_points) s << " | " << p.stayed_points << " points without a handle stay";
     if (p.rigid_points) s << " | " << p.rigid_points << " points move rigidly with the handle";
-    if (!moves_.empty()) {
-      const hgd::SurfaceStretch st = deformer_->surfaceStretch();
+    if (!run_.moves().empty()) {
+      const hgd::SurfaceStretch st = run_.deformer().surfaceStretch();
       if (st.split_points) s << " | SURFACE PULLED APART at " << st.split_points << " points";
       if (const std::string w = hgd::stretchWarning(st); !w.empty()) full.push_back(w);
     }
@@ -520,29 +499,16 @@ class Viewer {
       }
   }
 
-  // Applies a move exactly as deformShape() does, and records it for undo and the scenario.
+  // Applies a move through the runner (as `hgdeform deform` does), recorded for undo and the
+  // saved scenario.
   void commit(const hgd::Move& m) {
-    if (!deformer_) return;
-    history_.push_back(deformer_->state());
-    if (m.kind == hgd::Move::Kind::Drag) {
-      deformer_->dragTo(m.drag.from, m.drag.to);
-    } else {
-      const hgd::FrameMove& f = m.frame;
-      const Eigen::Vector3d c = f.center ? *f.center : handleCentre();
-      Eigen::Affine3d motion = Eigen::Affine3d::Identity();
-      motion.translate(c + f.translate);
-      motion.rotate(Eigen::AngleAxisd(f.degrees * M_PI / 180.0, f.axis.normalized()));
-      motion.translate(-c);
-      deformer_->setHandleTransform(motion * deformer_->handleTransform());
-    }
-    moves_.push_back(m);
-    undone_.clear();
-    redo_states_.clear();
+    if (!run_.ready()) return;
+    run_.apply(m);
     updateAlerts();
   }
 
   void frameMove(const Eigen::Vector3d& translate, const Eigen::Vector3d& axis, double degrees) {
-    if (!deformer_) return message("mark a fixed and a manipulated handle first");
+    if (!run_.ready()) return message("mark a fixed and a manipulated handle first");
     hgd::Move m;
     m.kind = hgd::Move::Kind::Frame;
     m.frame.translate = translate;
@@ -554,51 +520,34 @@ class Viewer {
     const auto t0 = Clock::now();
     commit(m);
     stats_.solve.push_back(msSince(t0));
-    stats_.interpolate.push_back(deformer_->lastInterpolationMs());
+    stats_.interpolate.push_back(run_.deformer().lastInterpolationMs());
     refresh();
   }
 
   void undo() {
-    if (history_.empty()) return message("nothing to undo");
-    redo_states_.push_back(deformer_->state());
-    undone_.push_back(moves_.back());
-    moves_.pop_back();
-    deformer_->restore(history_.back());
-    history_.pop_back();
+    if (!run_.ready() || !run_.undo()) return message("nothing to undo");
     updateAlerts();
     message("undone");
     refresh();
   }
 
   void redo() {
-    if (undone_.empty()) return message("nothing to redo");
-    history_.push_back(deformer_->state());
-    moves_.push_back(undone_.back());
-    undone_.pop_back();
-    deformer_->restore(redo_states_.back());
-    redo_states_.pop_back();
+    if (!run_.ready() || !run_.redo()) return message("nothing to redo");
     updateAlerts();
     message("redone");
     refresh();
   }
 
   void resetShape() {
-    if (!deformer_) return;
-    deformer_->reset();
-    moves_.clear();
-    history_.clear();
-    undone_.clear();
-    redo_states_.clear();
+    if (!run_.ready()) return;
+    run_.reset();
     updateAlerts();
     message("rest shape");
     refresh();
   }
 
   void saveShape(const std::string& path) {
-    hgd::refuseInputs(path, inputs_);
-    hgd::Shape out = shape_;
-    if (deformer_) deformer_->writeDeformed(out);
-    hgd::writeShape(path, out);
+    run_.write(path, {}, inputs_);
     message("saved " + path);
   }
 
@@ -606,26 +555,19 @@ class Viewer {
     hgd::refuseInputs(path, inputs_);
     if (handles_.fixed.empty() || handles_.manipulated.empty())
       return message("a scenario needs a fixed and a manipulated handle");
-    hgd::Scenario s;
-    s.fixed = fixed_regions_;
-    s.manipulated = manipulated_region_;
-    s.joints = joint_regions_;
-    s.clusters = scenario_.clusters;
-    s.blend = scenario_.blend;
-    s.moves = moves_;
-    hgd::writeFileAtomically(path, hgd::scenarioToJson(s));
+    hgd::writeFileAtomically(path, hgd::scenarioToJson(run_.scenario()));
     message("saved " + path);
   }
 
   // --- drawing ----------------------------------------------------------------------------
 
   void fileColours() {
-    colours_.assign(geometry_.size(), Eigen::Vector3f(0.75f, 0.75f, 0.72f));
-    const auto& c = shape_.cloud;
+    colours_.assign(run_.geometry().size(), Eigen::Vector3f(0.75f, 0.75f, 0.72f));
+    const auto& c = run_.shape().cloud;
     const int r = hgd::findField(c, "red"), g = hgd::findField(c, "green"), b = hgd::findField(c, "blue");
     const int rgb = hgd::findField(c, "rgb") >= 0 ? hgd::findField(c, "rgb") : hgd::findField(c, "rgba");
-    for (std::size_t i = 0; i < geometry_.size(); ++i) {
-      const auto raw = static_cast<std::size_t>(geometry_.raw_index[i]);
+    for (std::size_t i = 0; i < run_.geometry().size(); ++i) {
+      const auto raw = static_cast<std::size_t>(run_.geometry().raw_index[i]);
       if (r >= 0 && g >= 0 && b >= 0) {
         const double scale =
             c.fields[static_cast<std::size_t>(r)].datatype == pcl::PCLPointField::UINT8 ? 255.0 : 1.0;
@@ -656,21 +598,21 @@ class Viewer {
     if (!vis_) return;
     static const Eigen::Vector3f kRole[4] = {
         {0, 0, 0}, {0.15f, 0.35f, 0.95f}, {0.95f, 0.15f, 0.1f}, {0.2f, 0.75f, 0.2f}};
-    const bool field_view = view_ == 1 && deformer_;
-    const bool cluster_view = view_ == 2 && deformer_;
-    for (std::size_t i = 0; i < geometry_.size(); ++i) {
+    const bool field_view = view_ == 1 && run_.ready();
+    const bool cluster_view = view_ == 2 && run_.ready();
+    for (std::size_t i = 0; i < run_.geometry().size(); ++i) {
       auto& p = (*display_)[i];
       p.getVector3fMap() = deformed(i).cast<float>();
       Eigen::Vector3f c = colours_[i];
-      if (field_view) c = hgd::colourMap(deformer_->field()[i]);
-      if (cluster_view) c = clusterColour(deformer_->clustering().piece[i]);
+      if (field_view) c = hgd::colourMap(run_.deformer().field()[i]);
+      if (cluster_view) c = clusterColour(run_.deformer().clustering().piece[i]);
       if (!field_view && role_[i] != 0) c = 0.35f * c + 0.65f * kRole[static_cast<int>(role_[i])];
       if (selected_[i]) c = Eigen::Vector3f(1.0f, 0.85f, 0.1f);
       p.r = static_cast<std::uint8_t>(std::clamp(c.x(), 0.0f, 1.0f) * 255);
       p.g = static_cast<std::uint8_t>(std::clamp(c.y(), 0.0f, 1.0f) * 255);
       p.b = static_cast<std::uint8_t>(std::clamp(c.z(), 0.0f, 1.0f) * 255);
     }
-    if (geometry_.faces.empty()) {
+    if (run_.geometry().faces.empty()) {
       // With an explicit colour handler: PCL's plain update paints the cloud white.
       const pcl::visualization::PointCloudColorHandlerRGBField<pcl::PointXYZRGB> rgb(display_);
       vis_->updatePointCloud<pcl::PointXYZRGB>(display_, rgb, "shape");
@@ -678,7 +620,7 @@ class Viewer {
       // PCL's updatePolygonMesh drops the colours (the mesh turns black): add it afresh.
       pcl::PolygonMesh mesh;
       pcl::toPCLPointCloud2(*display_, mesh.cloud);
-      mesh.polygons = geometry_.faces;
+      mesh.polygons = run_.geometry().faces;
       vis_->removePolygonMesh("shape");
       vis_->addPolygonMesh(mesh, "shape");
     }
@@ -700,15 +642,15 @@ class Viewer {
   void updatePositions() {
     vtkPolyData* poly = shapePolyData();
     vtkPoints* pts = poly ? poly->GetPoints() : nullptr;
-    if (!pts || pts->GetNumberOfPoints() != static_cast<vtkIdType>(geometry_.size()) ||
+    if (!pts || pts->GetNumberOfPoints() != static_cast<vtkIdType>(run_.geometry().size()) ||
         pts->GetDataType() != VTK_FLOAT) {
       refresh();
       return;
     }
     float* raw = static_cast<vtkFloatArray*>(pts->GetData())->GetPointer(0);
-    const long long n = static_cast<long long>(geometry_.size());
-    const auto& local = deformer_->deformedPoints();
-    const Eigen::Vector3f origin = geometry_.origin.cast<float>();
+    const long long n = static_cast<long long>(run_.geometry().size());
+    const auto& local = run_.deformer().deformedPoints();
+    const Eigen::Vector3f origin = run_.geometry().origin.cast<float>();
 #pragma omp parallel for schedule(static)
     for (long long i = 0; i < n; ++i) {
       const Eigen::Vector3f p = local[static_cast<std::size_t>(i)] + origin;
@@ -723,7 +665,7 @@ class Viewer {
 
   vtkPolyData* shapePolyData() {
     vtkMapper* mapper = nullptr;
-    if (geometry_.faces.empty()) {
+    if (run_.geometry().faces.empty()) {
       auto it = vis_->getCloudActorMap()->find("shape");
       if (it != vis_->getCloudActorMap()->end() && it->second.actor) mapper = it->second.actor->GetMapper();
     } else {
@@ -744,8 +686,8 @@ class Viewer {
   void updateStatus() {
     static const char* kViews[3] = {"colours", "field", "clusters"};
     std::ostringstream s;
-    s << geometry_.size() << " points";
-    if (deformer_) s << ", " << deformer_->clustering().clusters.size() << " clusters";
+    s << run_.geometry().size() << " points";
+    if (run_.ready()) s << ", " << run_.deformer().clustering().clusters.size() << " clusters";
     s << " | view " << kViews[view_] << (drag_mode_ ? " | DRAG" : "") << (frame_mode_ ? " | FRAME" : "");
     if (!stats_.solve.empty())
       s << " | solve " << num(stats_.solve.back()) << " ms, interpolate " << num(stats_.interpolate.back())
@@ -788,14 +730,14 @@ class Viewer {
   }
 
   Eigen::Vector3d deformed(std::size_t i) const {
-    return deformer_ ? deformer_->deformedWorld(i) : geometry_.world(i);
+    return run_.ready() ? run_.deformer().deformedWorld(i) : run_.geometry().world(i);
   }
 
   Eigen::Vector3d centre() const {
     Eigen::Vector3d lo = Eigen::Vector3d::Constant(INFINITY), hi = -lo;
-    for (std::size_t i = 0; i < geometry_.size(); ++i) {
-      lo = lo.cwiseMin(geometry_.world(i));
-      hi = hi.cwiseMax(geometry_.world(i));
+    for (std::size_t i = 0; i < run_.geometry().size(); ++i) {
+      lo = lo.cwiseMin(run_.geometry().world(i));
+      hi = hi.cwiseMax(run_.geometry().world(i));
     }
     return 0.5 * (lo + hi);
   }
@@ -852,7 +794,7 @@ class Viewer {
     if (manipulated_only) {
       for (int i : handles_.manipulated) consider(static_cast<std::size_t>(i));
     } else {
-      for (std::size_t i = 0; i < geometry_.size(); ++i) consider(i);
+      for (std::size_t i = 0; i < run_.geometry().size(); ++i) consider(i);
     }
     return best;
   }
@@ -946,16 +888,11 @@ class Viewer {
  private:
   std::string input_;
   int width_, height_;
-  hgd::Shape shape_;
-  hgd::Geometry geometry_;
+  hgd::ScenarioRunner run_;  // the shape, its handles, the deformer, moves and undo
   double diagonal_ = 1, radius_ = 0.03;
-  hgd::Scenario scenario_;
   std::vector<hgd::Region> fixed_regions_, joint_regions_;
   hgd::Region manipulated_region_;
   hgd::Handles handles_;
-  std::unique_ptr<hgd::Deformer> deformer_;
-  std::vector<hgd::Move> moves_, undone_;
-  std::vector<hgd::DeformerState> history_, redo_states_;
   std::vector<char> role_, selected_;
   std::vector<Eigen::Vector3f> colours_;
   pcl::PointCloud<pcl::PointXYZRGB>::Ptr display_, rest_;
@@ -965,7 +902,6 @@ class Viewer {
   int view_ = 0;
   bool overlay_ = false, overlay_shown_ = false, help_visible_ = false;
   bool frame_mode_ = false, dragging_ = false, quit_ = false;
-  hgd::DeformerState drag_start_state_;
   Eigen::Vector3d drag_from_, drag_last_;
   double drag_depth_ = 0;
   std::string message_;

@@ -82,6 +82,13 @@ class Deformer {
   /// (at most 20 degrees, a tenth of the diagonal each), as a user would turn the handle.
   SolveStats setHandleTransform(const Eigen::Affine3d& transform);
 
+  /// Frame metaphor, relative: the manipulated handle moves by `motion` (world coordinates)
+  /// from where it is now; travelled in steps like setHandleTransform().
+  SolveStats moveHandle(const Eigen::Affine3d& motion);
+
+  /// The manipulated handle's current barycentre (world coordinates).
+  Eigen::Vector3d handleCentre() const;
+
   /// The manipulated handle's current transform (world coordinates, relative to rest).
   Eigen::Affine3d handleTransform() const;
 
@@ -160,31 +167,5 @@ class Deformer {
   BuildTimings build_;
   double interp_ms_ = 0;
 };
-
-/// What `hgdeform deform` reports (see report.h for the JSON).
-struct DeformReport {
-  std::size_t points = 0;
-  std::size_t sample = 0;
-  std::size_t clusters = 0;
-  int isoclusters = 0;
-  std::size_t unreachable = 0;
-  int iterations = 0;
-  int frames = 0;
-  int max_frame_iterations = 0;
-  bool reached = true;
-  double handle_error = 0;            ///< world units; drags only
-  std::vector<std::string> notes;     ///< what clustering merged or adjusted (overlapping joints)
-  std::vector<std::string> warnings;  ///< a move that ended short, pieces no handle reached, splits
-  PieceReport pieces;                 ///< parts that touch no fixed handle (see pieces.h)
-  SurfaceStretch surface;             ///< after the moves (see stretch.h)
-  Energies energy;
-  double read_ms = 0, build_ms = 0, field_ms = 0, sampling_ms = 0, clusters_ms = 0, solve_ms = 0,
-         solve_per_iteration_ms = 0, interpolation_ms = 0, total_ms = 0;
-  BuildTimings build;
-};
-
-/// The whole of `hgdeform deform` on a shape already read: handles from the scenario, the
-/// deformer built, every move replayed, positions (and normals) stored back into `shape`.
-DeformReport deformShape(Shape& shape, const Scenario& scenario, const DeformOptions& options = {});
 
 }  // namespace hgd

@@ -5,17 +5,10 @@
 #include <Eigen/Geometry>
 #include <vector>
 
+#include "hgdeform/blend.h"
 #include "hgdeform/clustering.h"
 
 namespace hgd {
-
-/// How two cluster transforms are blended between isovalues.
-enum class Blend {
-  Linear,    ///< the paper's eq. (1): (1 - a) T_lo + a T_hi; shrinks where the rotations differ
-  Rotation,  ///< rigid parts blended: each cluster's rotation (polar decomposition) about its
-             ///< barycentre; rotations along the shortest arc (normalised quaternion lerp), the
-             ///< image of the pair's centre linearly. No shrinking where clusters turn apart.
-};
 
 /// A cluster's transform in the shape's local frame, x -> A x + b, with what the rotation-aware
 /// blend needs: its rigid part x -> R x + rb, R the rotation of the polar decomposition

@@ -4,7 +4,7 @@
 #include <string>
 #include <vector>
 
-#include "hgdeform/deformer.h"
+#include "hgdeform/runner.h"
 #include "hgdeform/geometry.h"
 #include "hgdeform/shape.h"
 

@@ -8,6 +8,8 @@
 #include <string>
 #include <vector>
 
+#include "hgdeform/blend.h"
+
 namespace hgd {
 
 /// A scenario that does not parse or does not fit its shape. what() reads
@@ -61,10 +63,20 @@ struct Scenario {
   Region manipulated;
   std::vector<Region> joints;
   std::optional<int> clusters;
-  /// "linear" (the paper's eq. 1) or "rotation" (rotation-aware); absent: the tool's default.
-  std::optional<std::string> blend;
+  /// Linear (the paper's eq. 1) or Rotation (rotation-aware); absent: the tool's default.
+  std::optional<Blend> blend;
   std::vector<Move> moves;  // applied in order; empty = no move
   std::string path;         // file it came from (for messages)
+
+  // Building a scenario in code, without JSON:
+  //   hgd::Scenario s;
+  //   s.fix(hgd::Region::box(lo, hi)).manipulate(hgd::Region::sphere(c, r)).drag(from, to);
+  Scenario& fix(Region region);         ///< adds a fixed handle
+  Scenario& manipulate(Region region);  ///< sets the manipulated handle
+  Scenario& joint(Region region);       ///< adds a joint (a bone between two handles' clusters)
+  /// Adds a drag: the manipulated handle's point nearest `from` is dragged to `to`.
+  Scenario& drag(const Eigen::Vector3d& from, const Eigen::Vector3d& to);
+  Scenario& frame(const FrameMove& move);  ///< adds a frame move
 };
 
 /// One JSON-pointer step for `key`, as every JSON error of hgdeform names its place: "/" and

@@ -1,0 +1,299 @@
+#include "hgdeform/runner.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <utility>
+
+#include "hgdeform/regions.h"
+#include "timer.h"
+
+namespace hgd {
+
+DeformOptions mergedOptions(const RunOptions& options, const Scenario& scenario, const Shape& shape,
+                            const Geometry& geometry) {
+  DeformOptions opt = options.deform;
+  if (options.clusters)
+    opt.clusters.isoclusters = *options.clusters;
+  else if (scenario.clusters)
+    opt.clusters.isoclusters = *scenario.clusters;
+  if (options.blend)
+    opt.blend = *options.blend;
+  else if (scenario.blend)
+    opt.blend = *scenario.blend;
+  if (shape.isOrganized()) {
+    opt.field.orient_to_viewpoint = true;
+    opt.field.viewpoint = (shape.sensor_origin.head<3>().cast<double>() - geometry.origin).cast<float>();
+  }
+  return opt;
+}
+
+ScenarioRunner ScenarioRunner::read(const std::string& path, const RunOptions& options) {
+  Stopwatch t;
+  Shape shape = readShape(path);
+  const double read_ms = t.ms();
+  ScenarioRunner run(std::move(shape), options);
+  run.read_ms_ = read_ms;
+  return run;
+}
+
+ScenarioRunner::ScenarioRunner(Shape shape, const RunOptions& options)
+    : shape_(std::move(shape)), options_(options) {
+  Stopwatch t;
+  geometry_ = extractGeometry(shape_);
+  build_ms_ = t.ms();
+}
+
+ScenarioRunner::ScenarioRunner(ScenarioRunner&&) noexcept = default;
+ScenarioRunner& ScenarioRunner::operator=(ScenarioRunner&&) noexcept = default;
+ScenarioRunner::~ScenarioRunner() = default;
+
+void ScenarioRunner::setScenario(const Scenario& scenario) {
+  Stopwatch t;
+  scenario_ = scenario;
+  handles_ = resolveHandles(scenario_, geometry_);
+  clearHistory();
+  build(mergedOptions(options_, scenario_, shape_, geometry_));
+  build_ms_ += t.ms();
+}
+
+void ScenarioRunner::setHandles(const Handles& handles) {
+  handles_ = handles;
+  clearHistory();
+  if (handles_.fixed.empty() || handles_.manipulated.empty()) {
+    deformer_.reset();
+    return;
+  }
+  build(mergedOptions(options_, scenario_, shape_, geometry_));
+}
+
+void ScenarioRunner::setRegions(std::vector<Region> fixed, Region manipulated, std::vector<Region> joints) {
+  scenario_.fixed = std::move(fixed);
+  scenario_.manipulated = std::move(manipulated);
+  scenario_.joints = std::move(joints);
+}
+
+void ScenarioRunner::build(const DeformOptions& options) {
+  if (deformer_)
+    deformer_->setHandles(handles_);  // normals and kNN are kept
+  else
+    deformer_ = std::make_unique<Deformer>(geometry_, handles_, options);
+}
+
+void ScenarioRunner::clearHistory() {
+  moves_.clear();
+  undone_.clear();
+  history_.clear();
+  redo_states_.clear();
+  results_.clear();
+  live_ = false;
+}
+
+void ScenarioRunner::applyMoves() {
+  for (const Move& m : scenario_.moves) apply(m);
+}
+
+MoveResult ScenarioRunner::apply(const Move& move) {
+  if (!deformer_) throw std::logic_error("ScenarioRunner::apply: no handles yet");
+  dropLive();
+  Deformer& d = *deformer_;
+  history_.push_back(d.state());
+  const int number = static_cast<int>(moves_.size()) + 1;
+  MoveResult r;
+  if (move.kind == Move::Kind::Drag) {
+    const DragResult dr = d.dragTo(move.drag.from, move.drag.to);
+    r.frames = dr.frames;
+    r.iterations = dr.iterations;
+    r.max_frame_iterations = dr.max_frame_iterations;
+    r.reached = dr.reached;
+    r.handle_error = dr.error;
+    r.solve_ms = dr.solve_ms;
+    r.interpolation_ms = dr.interpolation_ms;
+    if (!dr.reached) {
+      char buf[320];
+      std::snprintf(buf, sizeof buf,
+                    "move %d (drag): the picked point stopped %.6g (%.3g of the diagonal) from its "
+                    "target after %d frames%s",
+                    number, dr.error, dr.error / d.diagonal(), dr.frames,
+                    dr.last.decreased ? "" : "; Gauss-Newton could not decrease the energy further");
+      r.warning = buf;
+    }
+  } else {
+    const FrameMove& f = move.frame;
+    const Eigen::Vector3d center = f.center ? *f.center : d.handleCentre();
+    Eigen::Affine3d motion = Eigen::Affine3d::Identity();
+    motion.translate(center + f.translate);
+    motion.rotate(Eigen::AngleAxisd(f.degrees * M_PI / 180.0, f.axis.normalized()));
+    motion.translate(-center);
+    const SolveStats st = d.moveHandle(motion);
+    if (!st.decreased)
+      r.warning = "move " + std::to_string(number) +
+                  " (frame): Gauss-Newton could not decrease the energy; the shape may not follow the "
+                  "handle exactly";
+    r.frames = 1;
+    r.iterations = st.iterations;
+    r.max_frame_iterations = st.iterations;
+    r.solve_ms = st.ms;
+    r.interpolation_ms = d.lastInterpolationMs();
+  }
+  moves_.push_back(move);
+  results_.push_back(r);
+  undone_.clear();
+  redo_states_.clear();
+  return r;
+}
+
+SolveStats ScenarioRunner::liveDrag(const Eigen::Vector3d& from, const Eigen::Vector3d& to) {
+  if (!deformer_) throw std::logic_error("ScenarioRunner::liveDrag: no handles yet");
+  if (!live_) {
+    history_.push_back(deformer_->state());  // the last applied state, taken back by dropLive()
+    live_ = true;
+  }
+  return deformer_->drag(from, to);
+}
+
+void ScenarioRunner::dropLive() {
+  if (!live_) return;
+  live_ = false;
+  deformer_->restore(history_.back());
+  history_.pop_back();
+}
+
+bool ScenarioRunner::undo() {
+  dropLive();
+  if (history_.empty()) return false;
+  redo_states_.push_back(deformer_->state());
+  undone_.emplace_back(moves_.back(), results_.back());
+  moves_.pop_back();
+  results_.pop_back();
+  deformer_->restore(history_.back());
+  history_.pop_back();
+  return true;
+}
+
+bool ScenarioRunner::redo() {
+  dropLive();
+  if (undone_.empty()) return false;
+  history_.push_back(deformer_->state());
+  moves_.push_back(undone_.back().first);
+  results_.push_back(undone_.back().second);
+  undone_.pop_back();
+  deformer_->restore(redo_states_.back());
+  redo_states_.pop_back();
+  return true;
+}
+
+void ScenarioRunner::reset() {
+  if (deformer_) deformer_->reset();
+  clearHistory();
+}
+
+void ScenarioRunner::setBlend(Blend blend) {
+  options_.blend = blend;
+  if (deformer_) deformer_->setBlend(blend);
+}
+
+Scenario ScenarioRunner::scenario() const {
+  Scenario s = scenario_;
+  s.moves = moves_;
+  if (options_.clusters) s.clusters = options_.clusters;
+  if (options_.blend) s.blend = options_.blend;
+  return s;
+}
+
+DeformReport ScenarioRunner::report() const {
+  DeformReport rep;
+  rep.read_ms = read_ms_;
+  rep.build_ms = read_ms_ + build_ms_;  // everything before the first solve
+  rep.points = geometry_.size();
+  rep.write_ms = write_ms_;
+  if (deformer_) {
+    const Deformer& d = *deformer_;
+    const BuildTimings& b = d.buildTimings();
+    rep.build = b;
+    rep.field_ms = b.field_ms;
+    rep.sampling_ms = b.sampling_ms;
+    rep.clusters_ms = b.clusters_ms;
+    rep.sample = d.clustering().sample.size();
+    rep.clusters = d.clustering().clusters.size();
+    rep.isoclusters = mergedOptions(options_, scenario_, shape_, geometry_).clusters.isoclusters;
+    rep.unreachable = d.harmonicField().unreachable().size();
+    rep.notes = d.clustering().notes;
+    if (d.harmonicField().normalsReoriented())
+      rep.notes.emplace_back(
+          "the file's normals are not consistently oriented: the neighbour filter used re-oriented copies "
+          "(the output keeps the file's signs)");
+    if (!d.harmonicField().rejoinedPairs().empty())
+      rep.notes.push_back("the normal filter would have cut pieces without a handle off the surface: " +
+                          std::to_string(d.harmonicField().rejoinedPairs().size()) +
+                          " neighbour pairs across thin gaps were kept to join them back");
+    rep.pieces = d.pieces().report;
+    rep.warnings = rep.pieces.warnings();
+    for (std::size_t i = 0; i < results_.size(); ++i) {
+      const MoveResult& r = results_[i];
+      if (!r.warning.empty()) rep.warnings.push_back(r.warning);
+      rep.frames += r.frames;
+      rep.iterations += r.iterations;
+      rep.max_frame_iterations = std::max(rep.max_frame_iterations, r.max_frame_iterations);
+      rep.solve_ms += r.solve_ms;
+      rep.interpolation_ms += r.interpolation_ms;
+      if (moves_[i].kind == Move::Kind::Drag) {
+        rep.handle_error = r.handle_error;
+        rep.reached = rep.reached && r.reached;
+      }
+    }
+    rep.energy = d.energies();
+    rep.solve_per_iteration_ms = rep.iterations > 0 ? rep.solve_ms / rep.iterations : 0;
+    rep.surface = d.surfaceStretch();
+    if (const std::string w = stretchWarning(rep.surface); !w.empty()) rep.warnings.push_back(w);
+  }
+  rep.warnings.insert(rep.warnings.end(), write_warnings_.begin(), write_warnings_.end());
+  rep.total_ms = rep.build_ms + rep.solve_ms + rep.interpolation_ms + rep.write_ms;
+  return rep;
+}
+
+Shape ScenarioRunner::deformedShape() const {
+  Shape out = shape_;
+  if (deformer_) deformer_->writeDeformed(out);
+  return out;
+}
+
+void ScenarioRunner::write(const std::string& path, const WriteOptions& options,
+                           const std::vector<std::string>& inputs) {
+  std::vector<std::string> all = inputs;
+  if (!shape_.path.empty()) all.push_back(shape_.path);
+  refuseInputs(path, all);
+  const FileFormat format = formatFromPath(path);
+  Stopwatch t;
+  const Shape out = deformedShape();
+  writeShape(path, out, options);
+  write_ms_ = t.ms();
+  if (const std::string lost = extrasLost(out, format); !lost.empty()) {
+    const std::string w = path + ": " + lost;
+    if (std::find(write_warnings_.begin(), write_warnings_.end(), w) == write_warnings_.end())
+      write_warnings_.push_back(w);
+  }
+}
+
+Shape ScenarioRunner::release(bool deformed) {
+  if (deformed && deformer_) deformer_->writeDeformed(shape_);
+  return std::move(shape_);
+}
+
+DeformReport deformShape(Shape& shape, const Scenario& scenario, const DeformOptions& options) {
+  RunOptions ro;
+  ro.deform = options;
+  ScenarioRunner run(std::move(shape), ro);
+  try {
+    run.setScenario(scenario);
+    run.applyMoves();
+  } catch (...) {
+    shape = run.release(false);  // the caller's shape, unchanged
+    throw;
+  }
+  const DeformReport rep = run.report();
+  shape = run.release(true);
+  return rep;
+}
+
+}  // namespace hgd
