@@ -1,4 +1,4 @@
-// The harmonic field (docs/scans.md) on shapes whose answer is known.
+// The harmonic field (docs/method.md; its graph: docs/scans.md) on shapes whose answer is known.
 #include <algorithm>
 #include <array>
 #include <cmath>

@@ -1,4 +1,4 @@
-// Harmonic-guided clustering (docs/scans.md, "Clusters from the surface sample"): a surface sample is cut
+// Harmonic-guided clustering (docs/method.md; why on a sample: docs/scans.md): a surface sample is cut
 // into handle clusters and isoclusters by the harmonic field, every cluster split into connected pieces of
 // the surface so that two branches at the same harmonic value get separate transforms.
 #pragma once

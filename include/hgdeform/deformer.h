@@ -73,8 +73,9 @@ class Deformer {
   /// (`from` equal to the previous `to`) keeps the picked point.
   SolveStats drag(const Eigen::Vector3d& from, const Eigen::Vector3d& to);
 
-  /// A whole drag replayed (a scenario's "drag" move, README.md): frames with the cursor moving from the
-  /// picked point to `to`, then held there, until the picked point is within tolerance.
+  /// A whole drag replayed (a scenario's "drag" move, docs/scenario.md): frames with the cursor
+  /// moving from the picked point to `to`, then held there, until the picked point is within
+  /// tolerance.
   DragResult dragTo(const Eigen::Vector3d& from, const Eigen::Vector3d& to);
 
   /// Frame metaphor: the manipulated handle gets the rigid (or affine) transform T, world

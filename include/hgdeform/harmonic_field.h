@@ -1,4 +1,4 @@
-// The harmonic field φ on a point cloud or mesh (docs/scans.md: the graph it is solved on): 1 on the
+// The harmonic field φ on a point cloud or mesh (docs/method.md; its graph: docs/scans.md): 1 on the
 // manipulated handle, 0 on the fixed ones, harmonic for the uniform quasi-Laplacian elsewhere.
 //
 // A PCL-style stage:

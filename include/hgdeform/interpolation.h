@@ -1,4 +1,4 @@
-// Interpolating cluster transforms back to every point (the paper's eq. 1).
+// Interpolating cluster transforms back to every point (the paper's eq. 1; docs/method.md, section 6).
 #pragma once
 
 #include <Eigen/Core>

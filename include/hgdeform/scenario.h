@@ -1,4 +1,4 @@
-// Scenario files (the format: README.md, "Scenarios"): which parts of a shape are handles and how the
+// Scenario files (the format: docs/scenario.md): which parts of a shape are handles and how the
 // manipulated one moves. One parser, used by the CLI, the batch runner and the viewer alike.
 #pragma once
 

@@ -1,5 +1,6 @@
-// The cluster transforms (the paper's Gauss-Newton step): one affine map per free cluster, found by
-// Gauss–Newton on w_Detail E_Detail + w_Prop E_Prop + w_Manip E_Manip + w_Length E_Length.
+// The cluster transforms (the paper's §4; docs/method.md, section 5): one affine map per free
+// cluster, found by Gauss–Newton on w_Detail E_Detail + w_Prop E_Prop + w_Manip E_Manip +
+// w_Length E_Length.
 //
 // Coordinates here are normalised (the deformer scales the shape to a unit bounding-box
 // diagonal) so that the weights mean the same for any unit. Each transform is written about
