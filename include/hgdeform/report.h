@@ -4,8 +4,8 @@
 #include <string>
 #include <vector>
 
-#include "hgdeform/runner.h"
 #include "hgdeform/geometry.h"
+#include "hgdeform/runner.h"
 #include "hgdeform/shape.h"
 
 namespace hgd {
