@@ -147,6 +147,9 @@ class ScenarioRunner {
   const Handles& handles() const { return handles_; }
   /// The deformer (ready() must be true).
   const Deformer& deformer() const { return *deformer_; }
+  /// The deformer for direct frames (Deformer::drag, setHandleTransform): those are not
+  /// recorded as moves, and undo() does not see them.
+  Deformer& deformer() { return *deformer_; }
   const RunOptions& options() const { return options_; }
 
  private:

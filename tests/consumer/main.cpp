@@ -1,32 +1,51 @@
-// A downstream program built against the installed hgdeform: the harmonic field of a bar.
-#include <hgdeform/geometry.h>
-#include <hgdeform/harmonic_field.h>
-#include <hgdeform/shapes.h>
+// A downstream program built against the installed hgdeform: a PCL cloud deformed through
+// <hgdeform/pcl.h>, once with a scenario built in code and once with the interactive stage.
+#include <hgdeform/pcl.h>
 
-#include <algorithm>
+#include <cmath>
 #include <cstdio>
-#include <vector>
+#include <memory>
 
 int main() {
-  const hgd::Shape shape = hgd::shapes::bar(1.0f, 0.1f, 0.02f);
-  const hgd::Geometry geometry = hgd::extractGeometry(shape);
-  std::vector<std::vector<int>> fixed(1);
-  std::vector<int> manipulated;
-  for (std::size_t i = 0; i < geometry.size(); ++i) {
-    const double x = geometry.world(i).x();
-    if (x < 0.05) fixed[0].push_back(static_cast<int>(i));
-    if (x > 0.95) manipulated.push_back(static_cast<int>(i));
+  // A 1 x 0.1 strip of 2,000 points, with colours that must come back unchanged.
+  auto cloud = std::make_shared<pcl::PointCloud<pcl::PointXYZRGB>>();
+  for (int i = 0; i < 200; ++i)
+    for (int j = 0; j < 10; ++j) {
+      pcl::PointXYZRGB p;
+      p.x = i / 199.0f;
+      p.y = j / 90.0f;
+      p.z = 0.0f;
+      p.r = static_cast<std::uint8_t>(i);
+      p.g = static_cast<std::uint8_t>(j);
+      p.b = 7;
+      cloud->push_back(p);
+    }
+  hgd::Scenario s;
+  s.fix(hgd::Region::box(Eigen::Vector3d(-1, -1, -1), Eigen::Vector3d(0.1, 1, 1)))
+      .manipulate(hgd::Region::box(Eigen::Vector3d(0.9, -1, -1), Eigen::Vector3d(2, 1, 1)))
+      .drag(Eigen::Vector3d(1, 0.05, 0), Eigen::Vector3d(1, 0.05, 0.3));
+  pcl::PointCloud<pcl::PointXYZRGB> out;
+  const hgd::DeformReport report = hgd::deform(*cloud, s, out);
+  std::printf("consumer: %zu points, %zu clusters, tip at z = %.3f\n", report.points, report.clusters,
+              out[cloud->size() - 5].z);
+  if (out.size() != cloud->size() || !report.reached) return 1;
+  for (std::size_t i = 0; i < out.size(); ++i)
+    if (out[i].r != (*cloud)[i].r || out[i].g != (*cloud)[i].g || out[i].b != 7) return 1;
+  if (!(std::abs(out[cloud->size() - 5].z - 0.3f) < 0.01f)) return 1;
+
+  hgd::HandleDeformation<pcl::PointXYZRGB> stage;
+  stage.setInputCloud(cloud);
+  pcl::Indices base, tip;
+  for (std::size_t i = 0; i < cloud->size(); ++i) {
+    if ((*cloud)[i].x < 0.1f) base.push_back(static_cast<pcl::index_t>(i));
+    if ((*cloud)[i].x > 0.9f) tip.push_back(static_cast<pcl::index_t>(i));
   }
-  hgd::HarmonicField field;
-  field.setInputCloud(geometry.points);
-  field.setHandles(fixed, manipulated);
-  std::vector<float> phi;
-  field.compute(phi);
-  std::printf("consumer: %zu points\n", geometry.size());
-  if (phi.size() != geometry.size() || phi.empty()) return 1;
-  const auto [lo, hi] = std::minmax_element(phi.begin(), phi.end());
-  std::printf("consumer: phi in [%g, %g]\n", *lo, *hi);
-  for (float v : phi)
-    if (!(v >= 0.0f && v <= 1.0f)) return 1;
-  return (*lo == 0.0f && *hi == 1.0f) ? 0 : 1;
+  stage.setFixedHandles({base});
+  stage.setManipulatedHandle(tip);
+  Eigen::Affine3d lift = Eigen::Affine3d::Identity();
+  lift.translate(Eigen::Vector3d(0, 0, 0.2));
+  stage.setHandleTransform(lift);
+  stage.getDeformedCloud(out);
+  std::printf("consumer: stage tip at z = %.3f\n", out[cloud->size() - 5].z);
+  return std::abs(out[cloud->size() - 5].z - 0.2f) < 1e-3f ? 0 : 1;
 }

@@ -1,0 +1,179 @@
+// The scenario runner: undo/redo and live frames return exactly to states a fresh run reaches,
+// front-end options win over the scenario's, the saved scenario replays what was done, and the
+// report carries read and write times. References are fresh runners doing the plain thing.
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include "hgdeform/io.h"
+#include "hgdeform/runner.h"
+#include "hgdeform/shapes.h"
+#include "test_util.h"
+
+namespace {
+
+hgd::Scenario barScenario() {
+  hgd::Scenario s;
+  s.fix(hgd::Region::box(Eigen::Vector3d(-1, -1, -1), Eigen::Vector3d(0.1, 1, 1)))
+      .manipulate(hgd::Region::box(Eigen::Vector3d(0.9, -1, -1), Eigen::Vector3d(2, 1, 1)));
+  return s;
+}
+
+hgd::Move dragMove(const Eigen::Vector3d& from, const Eigen::Vector3d& to) {
+  hgd::Move m;
+  m.kind = hgd::Move::Kind::Drag;
+  m.drag.from = from;
+  m.drag.to = to;
+  return m;
+}
+
+hgd::Move turnMove(double degrees) {
+  hgd::Move m;
+  m.kind = hgd::Move::Kind::Frame;
+  m.frame.axis = Eigen::Vector3d::UnitY();
+  m.frame.degrees = degrees;
+  return m;
+}
+
+double largestDifference(const hgd::ScenarioRunner& a, const hgd::ScenarioRunner& b) {
+  const auto &pa = a.deformer().deformedPoints(), &pb = b.deformer().deformedPoints();
+  EXPECT_EQ(pa.size(), pb.size());
+  double worst = 0;
+  for (std::size_t i = 0; i < pa.size() && i < pb.size(); ++i)
+    worst = std::max(worst, static_cast<double>((pa[i] - pb[i]).norm()));
+  return worst;
+}
+
+hgd::ScenarioRunner bar(const hgd::Scenario& s = barScenario(), const hgd::RunOptions& o = {}) {
+  hgd::ScenarioRunner run(hgd::shapes::bar(1.0f, 0.1f, 0.01f), o);
+  run.setScenario(s);
+  return run;
+}
+
+const Eigen::Vector3d kTip(1.0, 0.05, 0.0);
+
+TEST(ScenarioRunner, UndoAndRedoReturnToTheStatesAFreshRunReaches) {
+  const hgd::Move m1 = dragMove(kTip, kTip + Eigen::Vector3d(0, 0, 0.3)), m2 = turnMove(40);
+  hgd::ScenarioRunner a = bar();
+  a.apply(m1);
+  a.apply(m2);
+  const std::vector<Eigen::Vector3f> both = a.deformer().deformedPoints();
+  ASSERT_TRUE(a.undo());
+  hgd::ScenarioRunner one = bar();
+  one.apply(m1);
+  EXPECT_EQ(a.moves().size(), 1u);
+  const double after_undo = largestDifference(a, one);
+  ASSERT_TRUE(a.redo());
+  double after_redo = 0;
+  for (std::size_t i = 0; i < both.size(); ++i)
+    after_redo =
+        std::max(after_redo, static_cast<double>((a.deformer().deformedPoints()[i] - both[i]).norm()));
+  // The moves did something: the two states are far apart.
+  const double apart = largestDifference(a, one);
+  std::printf("undo vs one move: %.3g; redo vs both moves: %.3g; the two states differ by %.3g\n", after_undo,
+              after_redo, apart);
+  EXPECT_LE(after_undo, 1e-6);
+  EXPECT_LE(after_redo, 1e-6);
+  EXPECT_GT(apart, 0.1);
+  EXPECT_FALSE(a.redo());
+  ASSERT_TRUE(a.undo());
+  ASSERT_TRUE(a.undo());
+  EXPECT_FALSE(a.undo());
+  // At rest again: every point where it was read.
+  double rest = 0;
+  for (std::size_t i = 0; i < a.geometry().size(); ++i)
+    rest = std::max(
+        rest, static_cast<double>(
+                  (a.deformer().deformedPoints()[i] - a.geometry().points->at(i).getVector3fMap()).norm()));
+  EXPECT_LE(rest, 1e-6);
+  // The report counts only the moves that stand.
+  EXPECT_EQ(a.report().frames, 0);
+}
+
+TEST(ScenarioRunner, LiveFramesAreDroppedWhenAMoveIsApplied) {
+  const hgd::Move m = dragMove(kTip, kTip + Eigen::Vector3d(0, 0.2, 0.2));
+  hgd::ScenarioRunner a = bar();
+  for (int k = 1; k <= 10; ++k) a.liveDrag(kTip, kTip + Eigen::Vector3d(0, 0, -0.03 * k));
+  a.apply(m);
+  hgd::ScenarioRunner b = bar();
+  b.apply(m);
+  const double d = largestDifference(a, b);
+  std::printf("live frames then a move vs the move alone: %.3g\n", d);
+  EXPECT_LE(d, 1e-6);
+  // Undo after live frames goes back to before the last applied move, not to a live frame.
+  for (int k = 1; k <= 5; ++k) a.liveDrag(kTip, kTip + Eigen::Vector3d(0, -0.05 * k, 0));
+  ASSERT_TRUE(a.undo());
+  EXPECT_TRUE(a.moves().empty());
+}
+
+TEST(ScenarioRunner, FrontEndOptionsWinOverTheScenario) {
+  hgd::Scenario s = barScenario();
+  s.clusters = 5;
+  s.blend = hgd::Blend::Linear;
+  const hgd::Move turn = turnMove(120);
+  s.moves = {turn};
+  EXPECT_EQ(bar(s).report().isoclusters, 5);
+  hgd::RunOptions o;
+  o.clusters = 9;
+  o.blend = hgd::Blend::Rotation;
+  hgd::ScenarioRunner a = bar(s, o);
+  EXPECT_EQ(a.report().isoclusters, 9);
+  a.applyMoves();
+  // The same as a scenario that says 9 and rotation itself.
+  hgd::Scenario t = barScenario();
+  t.clusters = 9;
+  t.blend = hgd::Blend::Rotation;
+  hgd::ScenarioRunner b = bar(t);
+  b.apply(turn);
+  hgd::ScenarioRunner linear = bar(s);
+  linear.applyMoves();
+  const double same = largestDifference(a, b), other = largestDifference(a, linear);
+  std::printf("options vs the same in the scenario: %.3g; vs the scenario's own: %.3g\n", same, other);
+  EXPECT_LE(same, 1e-6);
+  EXPECT_GT(other, 1e-3);
+  // The scenario a front end saves says what was used.
+  EXPECT_EQ(a.scenario().clusters, 9);
+  EXPECT_EQ(a.scenario().blend, hgd::Blend::Rotation);
+}
+
+TEST(ScenarioRunner, TheSavedScenarioReplaysWhatWasDone) {
+  hgd::ScenarioRunner a = bar();
+  a.apply(dragMove(kTip, kTip + Eigen::Vector3d(0, 0, 0.25)));
+  a.apply(turnMove(-30));
+  a.apply(dragMove(kTip, kTip + Eigen::Vector3d(0.1, 0, 0)));
+  a.undo();
+  const hgd::Scenario saved = hgd::parseScenario(hgd::scenarioToJson(a.scenario()), "saved.json");
+  ASSERT_EQ(saved.moves.size(), 2u);
+  hgd::ScenarioRunner b = bar(saved);
+  b.applyMoves();
+  const double d = largestDifference(a, b);
+  std::printf("saved scenario replayed vs the session: %.3g\n", d);
+  EXPECT_LE(d, 1e-5);  // JSON keeps 17 significant digits; measured 0
+}
+
+TEST(ScenarioRunner, ReportsReadAndWriteTimesAndNeverWritesOverItsInput) {
+  hgdtest::TempDir dir;
+  const std::string in = (dir.path() / "bar.ply").string(), out = (dir.path() / "out.pcd").string();
+  hgd::writeShape(in, hgd::shapes::bar(1.0f, 0.1f, 0.01f));
+  const std::string before = hgdtest::slurp(in);
+  hgd::ScenarioRunner run = hgd::ScenarioRunner::read(in);
+  run.setScenario(barScenario());
+  run.apply(dragMove(kTip, kTip + Eigen::Vector3d(0, 0, 0.2)));
+  EXPECT_THROW(run.write(in), hgd::IoError);
+  EXPECT_EQ(hgdtest::slurp(in), before);
+  run.write(out);
+  const hgd::DeformReport rep = run.report();
+  EXPECT_GT(rep.read_ms, 0.0);
+  EXPECT_GT(rep.write_ms, 0.0);
+  EXPECT_GE(rep.build_ms, rep.read_ms);
+  EXPECT_GE(rep.total_ms, rep.build_ms + rep.solve_ms + rep.write_ms - 1e-9);
+  // What was written is the deformed shape.
+  const hgd::Geometry g = hgd::extractGeometry(hgd::readShape(out));
+  double tip = 0;
+  for (std::size_t i = 0; i < g.size(); ++i) tip = std::max(tip, g.world(i).z());
+  EXPECT_GT(tip, 0.15);
+}
+
+}  // namespace
