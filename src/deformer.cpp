@@ -21,11 +21,8 @@ Deformer::Deformer(const Geometry& geometry, const Handles& handles, const Defor
   if (geometry_.hasFileNormals()) field_.setInputNormals(geometry_.file_normals);
   if (!geometry_.faces.empty()) field_.setPolygons(geometry_.faces);
   field_.setOptions(options_.field);
-  Eigen::Vector3d lo = Eigen::Vector3d::Constant(INFINITY), hi = -lo;
-  for (const auto& p : *geometry_.points) {
-    lo = lo.cwiseMin(p.getVector3fMap().cast<double>());
-    hi = hi.cwiseMax(p.getVector3fMap().cast<double>());
-  }
+  const Eigen::AlignedBox3f box = boundingBox(*geometry_.points);
+  const Eigen::Vector3d lo = box.min().cast<double>(), hi = box.max().cast<double>();
   center_ = 0.5 * (lo + hi);
   const double diag = (hi - lo).norm();
   scale_ = diag > 0 ? 1.0 / diag : 1.0;
@@ -244,10 +241,7 @@ SolveStats Deformer::moveHandle(const Eigen::Affine3d& motion) {
   // handle travels there as a user would move it: in steps of at most 20 degrees and a tenth
   // of the diagonal, each solve warm-starting the next.
   const Eigen::Affine3d current = handleTransform();
-  Eigen::JacobiSVD<Eigen::Matrix3d> svd(motion.linear(), Eigen::ComputeFullU | Eigen::ComputeFullV);
-  Eigen::Matrix3d u = svd.matrixU();
-  if ((u * svd.matrixV().transpose()).determinant() < 0) u.col(2) *= -1.0;
-  const Eigen::Matrix3d rot = u * svd.matrixV().transpose();
+  const Eigen::Matrix3d rot = nearestRotation<double>(motion.linear());
   const Eigen::Matrix3d stretch = rot.transpose() * motion.linear();
   const Eigen::Vector3d c = handleCentre();  // the pivot
   const double angle = Eigen::AngleAxisd(rot).angle();
@@ -325,12 +319,7 @@ void Deformer::updateShape() {
     Eigen::Matrix3d a = tr[c].A;
     // The barycentre's image, g + t in the normalised frame, back in the local frame.
     const Eigen::Vector3d image = (g + tr[c].t) / scale_ + center_;
-    if (cl.kind == ClusterKind::Range) {  // bones move rigidly: the nearest rotation
-      Eigen::JacobiSVD<Eigen::Matrix3d> svd(a, Eigen::ComputeFullU | Eigen::ComputeFullV);
-      Eigen::Matrix3d u = svd.matrixU();
-      if ((u * svd.matrixV().transpose()).determinant() < 0) u.col(2) *= -1.0;
-      a = u * svd.matrixV().transpose();
-    }
+    if (cl.kind == ClusterKind::Range) a = nearestRotation(a);  // bones move rigidly
     local_[c].set(a.cast<float>(), (image - a * cl.barycenter).cast<float>(), cl.barycenter.cast<float>());
   }
   interpolate(table_, local_, positions_, &out_normals_, options_.blend);

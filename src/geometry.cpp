@@ -133,14 +133,16 @@ void storePositions(Shape& shape, const Geometry& geometry, const std::vector<Ei
   }
 }
 
+Eigen::AlignedBox3f boundingBox(const pcl::PointCloud<pcl::PointXYZ>& points) {
+  Eigen::AlignedBox3f box;  // empty
+  for (const auto& p : points) box.extend(p.getVector3fMap());
+  return box;
+}
+
 double boundingBoxDiagonal(const Geometry& geometry) {
   if (geometry.points->empty()) return 0;
-  Eigen::Vector3f lo = Eigen::Vector3f::Constant(INFINITY), hi = -lo;
-  for (const auto& p : *geometry.points) {
-    lo = lo.cwiseMin(p.getVector3fMap());
-    hi = hi.cwiseMax(p.getVector3fMap());
-  }
-  return static_cast<double>((hi - lo).norm());
+  const Eigen::AlignedBox3f box = boundingBox(*geometry.points);
+  return static_cast<double>((box.max() - box.min()).norm());
 }
 
 }  // namespace hgd

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "hgdeform/geometry.h"
 #include "timer.h"
 
 namespace hgd {
@@ -59,11 +60,7 @@ void LocalAffine::set(const Eigen::Matrix3f& a, const Eigen::Vector3f& translati
   A = a;
   b = translation;
   // Polar decomposition through the SVD: R = U V^T, a proper rotation.
-  Eigen::JacobiSVD<Eigen::Matrix3f> svd(a, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  Eigen::Matrix3f u = svd.matrixU();
-  const Eigen::Matrix3f v = svd.matrixV();
-  if ((u * v.transpose()).determinant() < 0) u.col(2) *= -1.0f;
-  R = u * v.transpose();
+  R = nearestRotation(a);
   q = Eigen::Quaternionf(R).normalized();
   rb = a * barycenter + b - R * barycenter;
   g = barycenter;

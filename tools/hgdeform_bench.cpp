@@ -71,11 +71,8 @@ nlohmann::json runSize(const std::string& model, const std::string& armadillo, s
   h.fixed.emplace_back();
   if (model == "armadillo") {
     g = hgd::extractGeometry(hgd::shapes::sampleMesh(hgd::readShape(armadillo), n, 7));
-    Eigen::Vector3d lo = Eigen::Vector3d::Constant(INFINITY), hi = -lo;
-    for (std::size_t i = 0; i < g.size(); ++i) {
-      lo = lo.cwiseMin(g.world(i));
-      hi = hi.cwiseMax(g.world(i));
-    }
+    const Eigen::AlignedBox3f box = hgd::boundingBox(*g.points);
+    const Eigen::Vector3d lo = box.min().cast<double>() + g.origin, hi = box.max().cast<double>() + g.origin;
     const double height = hi.y() - lo.y();
     for (std::size_t i = 0; i < g.size(); ++i) {
       const double y = g.world(i).y();

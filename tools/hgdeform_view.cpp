@@ -734,12 +734,8 @@ class Viewer {
   }
 
   Eigen::Vector3d centre() const {
-    Eigen::Vector3d lo = Eigen::Vector3d::Constant(INFINITY), hi = -lo;
-    for (std::size_t i = 0; i < run_.geometry().size(); ++i) {
-      lo = lo.cwiseMin(run_.geometry().world(i));
-      hi = hi.cwiseMax(run_.geometry().world(i));
-    }
-    return 0.5 * (lo + hi);
+    const Eigen::AlignedBox3f box = hgd::boundingBox(*run_.geometry().points);
+    return run_.geometry().origin + 0.5 * (box.min() + box.max()).cast<double>();
   }
 
   Eigen::Vector3d handleCentre() const {

@@ -6,6 +6,8 @@
 #include <pcl/point_types.h>
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <Eigen/SVD>
 #include <vector>
 
 #include "hgdeform/shape.h"
@@ -40,6 +42,20 @@ Geometry extractGeometry(const Shape& shape);
 /// Points that were not finite are left untouched.
 void storePositions(Shape& shape, const Geometry& geometry, const std::vector<Eigen::Vector3f>& positions,
                     const std::vector<Eigen::Vector3f>* normals = nullptr);
+
+/// The axis-aligned bounding box of a cloud's points (empty for an empty cloud).
+Eigen::AlignedBox3f boundingBox(const pcl::PointCloud<pcl::PointXYZ>& points);
+
+/// The rotation nearest `a` (the R of its polar decomposition a = R S, by SVD): a proper
+/// rotation even when `a` reflects.
+template <typename Scalar>
+Eigen::Matrix<Scalar, 3, 3> nearestRotation(const Eigen::Matrix<Scalar, 3, 3>& a) {
+  Eigen::JacobiSVD<Eigen::Matrix<Scalar, 3, 3>> svd(a, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::Matrix<Scalar, 3, 3> u = svd.matrixU();
+  const Eigen::Matrix<Scalar, 3, 3> v = svd.matrixV();
+  if ((u * v.transpose()).determinant() < 0) u.col(2) *= Scalar(-1);
+  return u * v.transpose();
+}
 
 /// Axis-aligned bounding-box diagonal of the finite points (0 for a single point).
 double boundingBoxDiagonal(const Geometry& geometry);
