@@ -370,7 +370,7 @@ DeformReport deformShape(Shape& shape, const Scenario& scenario, const DeformOpt
   Stopwatch total;
   DeformReport rep;
   const Geometry geometry = extractGeometry(shape);
-  const Handles handles = resolveHandles(scenario, geometry);
+  const Handles handles = resolveHandles(scenario, geometry, shape);
   DeformOptions opt = options;
   if (scenario.clusters) opt.clusters.isoclusters = *scenario.clusters;
   if (scenario.blend) opt.blend = *scenario.blend == "linear" ? Blend::Linear : Blend::Rotation;

@@ -131,7 +131,7 @@ class Viewer {
 
   void loadScenario(const std::string& path) {
     scenario_ = hgd::readScenario(path);
-    const hgd::Handles h = hgd::resolveHandles(scenario_, geometry_);
+    const hgd::Handles h = hgd::resolveHandles(scenario_, geometry_, shape_);
     fixed_regions_ = scenario_.fixed;
     manipulated_region_ = scenario_.manipulated;
     joint_regions_ = scenario_.joints;
