@@ -12,6 +12,7 @@
 #include "hgdeform/fields.h"
 #include "hgdeform/geometry.h"
 #include "hgdeform/io.h"
+#include "hgdeform/scenario.h"
 #include "hgdeform/shapes.h"
 #include "test_util.h"
 
@@ -322,6 +323,53 @@ TEST(Viewer, AbsentXServerIsAClearError) {
     EXPECT_NE(out.find("cannot open the X display ':4711'"), std::string::npos) << out;
   }
   EXPECT_FALSE(hgdtest::exists(dir.file("p.png")));
+}
+
+// A scenario of field and cylinder regions loaded into the viewer is saved with those regions,
+// not as the indices they selected, and `hgdeform deform` replays the session to the same shape.
+TEST(Viewer, SavedScenarioKeepsFieldAndCylinderRegions) {
+  if (!haveXvfb()) GTEST_SKIP() << "xvfb-run not installed";
+  hgdtest::TempDir dir;
+  hgd::Shape bar = hgd::shapes::bar(1.0f, 0.1f, 0.02f);
+  const int label = hgd::addFloatField(bar.cloud, "label");
+  const int x = hgd::findField(bar.cloud, "x");
+  for (std::size_t i = 0; i < bar.size(); ++i) {
+    const double px = hgd::readValue(bar.cloud, i, bar.cloud.fields[static_cast<std::size_t>(x)]);
+    hgd::writeValue(bar.cloud, i, bar.cloud.fields[static_cast<std::size_t>(label)],
+                    px < 0.05   ? 1
+                    : px > 0.95 ? 2
+                                : 0);
+  }
+  hgd::writeShape(dir.file("bar.pcd"), bar);
+  hgdtest::writeText(dir.file("s.json"), R"({"format": "hgdeform-scenario/1",
+    "fixed": [{"field": {"name": "label", "equals": 1}}],
+    "manipulated": {"field": {"name": "label", "min": 1.5}},
+    "joints": [{"cylinder": {"start": [0.45, 0, 0], "end": [0.55, 0, 0], "radius": 0.2}}],
+    "move": {"frame": {"translate": [0, 0, 0.2]}}})");
+  const std::string d = dir.path().string() + "/";
+  hgdtest::writeText(dir.file("events.json"), R"({"events": [{"save": ")" + d + R"(viewer.pcd"},
+    {"save_scenario": ")" + d + R"(session.json"}]})");
+  std::string out;
+  ASSERT_EQ(hgdtest::run(viewer(dir.file("bar.pcd") + " -s " + dir.file("s.json") + " --replay " +
+                                dir.file("events.json") + " --quiet"),
+                         out),
+            0)
+      << out;
+  const hgd::Scenario saved = hgd::readScenario(dir.file("session.json"));
+  ASSERT_EQ(saved.fixed.size(), 1u);
+  EXPECT_EQ(saved.fixed[0].kind, hgd::Region::Kind::Field);
+  EXPECT_EQ(saved.fixed[0].equals, 1.0);
+  EXPECT_EQ(saved.manipulated.kind, hgd::Region::Kind::Field);
+  EXPECT_EQ(saved.manipulated.field_min, 1.5);
+  ASSERT_EQ(saved.joints.size(), 1u);
+  EXPECT_EQ(saved.joints[0].kind, hgd::Region::Kind::Cylinder);
+  ASSERT_EQ(hgdtest::run(std::string(HGD_TOOL) + " deform " + dir.file("bar.pcd") + " -s " +
+                             dir.file("session.json") + " -o " + dir.file("cli.pcd") + " -q",
+                         out),
+            0)
+      << out;
+  double diag = 1;
+  EXPECT_LE(maxDistance(dir.file("viewer.pcd"), dir.file("cli.pcd"), diag), 1e-5 * diag);
 }
 
 // --- hgdeform-render: colours and the up axis ----------------------------------------------
