@@ -35,8 +35,11 @@ std::vector<int> selectByField(const Region& region, const Geometry& geometry, c
   const bool packed = name == "rgb" || name == "rgba";
   if (packed) {
     // A packed colour: its 4 bytes as 0xAARRGGBB, whatever the declared type (float or uint32).
-    if (size != 4 || !region.equals)
-      throw ScenarioError(where + "/field: field '" + name + "' is not a packed colour of 4 bytes");
+    if (!region.equals)
+      throw ScenarioError(where + "/field: a packed colour (" + name +
+                          ") has no order: select one colour with equals");
+    if (size != 4)
+      throw ScenarioError(where + "/field/name: field '" + name + "' is not a packed colour of 4 bytes");
     const std::uint32_t mask = name == "rgb" ? 0xFFFFFFu : 0xFFFFFFFFu;
     const auto want = static_cast<std::uint32_t>(*region.equals);
     for (std::size_t i = 0; i < geometry.size(); ++i) {

@@ -274,6 +274,13 @@ TEST(Regions, PackedRgbEqualsSelectsOneColour) {
   }
   const hgd::Geometry g = hgd::extractGeometry(shape);
   EXPECT_EQ(fileIndices(g, hgd::selectRegion(hgd::Region::field("rgb", 0xFF0000), g, shape, "s")), red);
+  // A range over packed colours, built in code (the parser refuses it): refused here too.
+  try {
+    hgd::selectRegion(hgd::Region::fieldRange("rgb", 0, 0xFF), g, shape, "s");
+    ADD_FAILURE() << "a range of packed colours was accepted";
+  } catch (const hgd::ScenarioError& e) {
+    EXPECT_TRUE(contains(e.what(), "s: region/field: a packed colour (rgb) has no order")) << e.what();
+  }
 }
 
 TEST(Regions, NewKindsRoundTripThroughScenarioJson) {
