@@ -137,4 +137,68 @@ XyzFields findXyzFields(const pcl::PCLPointCloud2& cloud) {
   return f;
 }
 
+ColourFields findColourFields(const pcl::PCLPointCloud2& cloud) {
+  ColourFields c;
+  const auto scalar = [&](const char* name) {
+    const int k = findField(cloud, name);
+    return k >= 0 && datatypeSize(cloud.fields[static_cast<std::size_t>(k)].datatype) > 0 ? k : -1;
+  };
+  c.red = scalar("red");
+  c.green = scalar("green");
+  c.blue = scalar("blue");
+  if (c.red >= 0 && c.green >= 0 && c.blue >= 0) {
+    const auto& r = cloud.fields[static_cast<std::size_t>(c.red)];
+    const std::size_t size = datatypeSize(r.datatype);
+    const bool integer =
+        r.datatype != pcl::PCLPointField::FLOAT32 && r.datatype != pcl::PCLPointField::FLOAT64;
+    if (integer && size == 1) {
+      c.scale = 255;
+    } else if (integer && size == 2) {
+      c.scale = 65535;
+    } else {
+      double top = 0;
+      const std::size_t n = static_cast<std::size_t>(cloud.width) * cloud.height;
+      for (const int k : {c.red, c.green, c.blue})
+        for (std::size_t i = 0; i < n && top <= 1; ++i) {
+          const double v = readValue(cloud, i, cloud.fields[static_cast<std::size_t>(k)]);
+          if (std::isfinite(v)) top = std::max(top, v);
+        }
+      c.scale = top > 1 ? 255 : 1;
+    }
+    return c;
+  }
+  c.red = c.green = c.blue = -1;
+  for (const char* name : {"rgb", "rgba"}) {
+    const int k = findField(cloud, name);
+    if (k >= 0 && datatypeSize(cloud.fields[static_cast<std::size_t>(k)].datatype) == 4) {
+      c.packed = k;
+      break;
+    }
+  }
+  return c;
+}
+
+Eigen::Vector3f readColour(const pcl::PCLPointCloud2& cloud, std::size_t point, const ColourFields& fields) {
+  if (fields.red >= 0 && fields.green >= 0 && fields.blue >= 0) {
+    Eigen::Vector3f c;
+    const int k[3] = {fields.red, fields.green, fields.blue};
+    for (int i = 0; i < 3; ++i) {
+      const double v = readValue(cloud, point, cloud.fields[static_cast<std::size_t>(k[i])]) / fields.scale;
+      c[i] = std::isfinite(v) ? static_cast<float>(std::clamp(v, 0.0, 1.0)) : 0.0f;
+    }
+    return c;
+  }
+  if (fields.packed >= 0) {
+    std::uint32_t v;
+    std::memcpy(&v,
+                cloud.data.data() + point * cloud.point_step +
+                    cloud.fields[static_cast<std::size_t>(fields.packed)].offset,
+                4);
+    return Eigen::Vector3f(static_cast<float>((v >> 16) & 255u), static_cast<float>((v >> 8) & 255u),
+                           static_cast<float>(v & 255u)) /
+           255.0f;
+  }
+  return Eigen::Vector3f(0.75f, 0.75f, 0.72f);
+}
+
 }  // namespace hgd

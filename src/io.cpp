@@ -153,6 +153,17 @@ Parse storeInteger(long long v, std::uint8_t* dst) {
   return Parse::Ok;
 }
 
+/// A FLOAT32 field called rgb or rgba: a colour packed into a float's bytes, which PCL's ascii
+/// PCD writer stores as an unsigned integer (the bits), not as a float.
+bool packedColour(const Field& f) {
+  return f.datatype == Field::FLOAT32 && (f.name == "rgb" || f.name == "rgba");
+}
+
+/// An ascii token of nothing but decimal digits.
+bool plainUnsigned(std::string_view tok) {
+  return !tok.empty() && std::all_of(tok.begin(), tok.end(), [](char ch) { return ch >= '0' && ch <= '9'; });
+}
+
 /// Parses an ascii token into `dst` as a value of pcl datatype `type` (host byte order).
 Parse parseInto(std::string_view tok, std::uint8_t type, std::uint8_t* dst) {
   if (type == Field::FLOAT32) {
@@ -1056,7 +1067,11 @@ Shape readPcd(const std::string& path) {
             fail(path, "truncated data: line " + num(lex.line()) + " (point " + num(i) + ") has fewer than " +
                            num(ascii_values) + " values");
           if (pad) continue;
-          const Parse st = parseInto(tok, f.datatype, pt + f.offset + k * sz);
+          // A packed colour as PCL writes it (an integer: the bits); a float token as older
+          // writers (hgdeform's too) wrote it.
+          const std::uint8_t type =
+              packedColour(f) && plainUnsigned(tok) ? std::uint8_t{Field::UINT32} : f.datatype;
+          const Parse st = parseInto(tok, type, pt + f.offset + k * sz);
           if (st == Parse::Bad)
             fail(path, "non-numeric value " + excerpt(tok) + " at line " + num(lex.line()) + " (point " +
                            num(i) + ", field '" + f.name + "')");
@@ -1449,10 +1464,13 @@ void writeAsciiPoints(AtomicWriter& w, const pcl::PCLPointCloud2& c, std::size_t
     bool first = true;
     for (const Field* f : fields) {
       const std::size_t sz = datatypeSize(f->datatype);
+      // A packed colour declared float is written as its bits, an unsigned integer, as PCL does:
+      // fully opaque colours are NaNs as floats, and "nan" would lose them.
+      const std::uint8_t type = packedColour(*f) ? std::uint8_t{Field::UINT32} : f->datatype;
       for (std::size_t k = 0; k < fieldCount(*f); ++k) {
         if (!first) buf += ' ';
         first = false;
-        appendValue(buf, pt + f->offset + k * sz, f->datatype);
+        appendValue(buf, pt + f->offset + k * sz, type);
       }
     }
     buf += '\n';

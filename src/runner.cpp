@@ -51,7 +51,7 @@ ScenarioRunner::~ScenarioRunner() = default;
 void ScenarioRunner::setScenario(const Scenario& scenario) {
   Stopwatch t;
   scenario_ = scenario;
-  handles_ = resolveHandles(scenario_, geometry_);
+  handles_ = resolveHandles(scenario_, geometry_, shape_);
   clearHistory();
   build(mergedOptions(options_, scenario_, shape_, geometry_));
   build_ms_ += t.ms();

@@ -40,6 +40,32 @@ Region Region::fromIndices(std::vector<long long> idx) {
   return reg;
 }
 
+Region Region::cylinder(const Eigen::Vector3d& start, const Eigen::Vector3d& end, double r) {
+  Region reg;
+  reg.kind = Kind::Cylinder;
+  reg.start = start;
+  reg.end = end;
+  reg.radius = r;
+  return reg;
+}
+
+Region Region::field(const std::string& name, double value) {
+  Region reg;
+  reg.kind = Kind::Field;
+  reg.field_name = name;
+  reg.equals = value;
+  return reg;
+}
+
+Region Region::fieldRange(const std::string& name, double lo, double hi) {
+  Region reg;
+  reg.kind = Kind::Field;
+  reg.field_name = name;
+  reg.field_min = lo;
+  reg.field_max = hi;
+  return reg;
+}
+
 const char* blendName(Blend blend) {
   return blend == Blend::Linear ? "linear" : "rotation";
 }
@@ -223,7 +249,7 @@ struct Parser {
 
   Region region(const json& j, const std::string& path) const {
     object(j, path);
-    if (j.size() != 1) fail(path, "a region must have exactly one of: sphere, box, indices");
+    if (j.size() != 1) fail(path, "a region must have exactly one of: sphere, box, cylinder, field, indices");
     Region r;
     r.json_path = path;
     if (j.contains("sphere")) {
@@ -257,8 +283,47 @@ struct Parser {
           fail(p + "/" + std::to_string(i), "must be a non-negative integer (a point index)");
         r.indices.push_back(a[i].get<long long>());
       }
+    } else if (j.contains("cylinder")) {
+      const std::string p = path + "/cylinder";
+      const json& c = object(j["cylinder"], p);
+      onlyKeys(c, p, {"start", "end", "radius"});
+      r.kind = Region::Kind::Cylinder;
+      r.start = vec3(member(c, p, "start"), p + "/start");
+      r.end = vec3(member(c, p, "end"), p + "/end");
+      r.radius = number(member(c, p, "radius"), p + "/radius");
+      if (!(r.radius > 0)) fail(p + "/radius", "must be a positive number");
+      // Too short an axis has no direction (its squared length underflows): as good as none.
+      if (!((r.end - r.start).squaredNorm() >= DBL_MIN)) fail(p + "/end", "must differ from start");
+    } else if (j.contains("field")) {
+      const std::string p = path + "/field";
+      const json& f = object(j["field"], p);
+      onlyKeys(f, p, {"name", "equals", "min", "max"});
+      r.kind = Region::Kind::Field;
+      const json& n = member(f, p, "name");
+      if (!n.is_string() || n.get<std::string>().empty()) fail(p + "/name", "must be a field name");
+      r.field_name = n.get<std::string>();
+      const bool range = f.contains("min") || f.contains("max");
+      if (f.contains("equals") && range)
+        fail(p + (f.contains("min") ? "/min" : "/max"), "cannot go with equals (one value, or a range)");
+      if (!f.contains("equals") && !range) fail(p, "needs equals, or min and/or max");
+      const bool packed = r.field_name == "rgb" || r.field_name == "rgba";
+      if (packed && range)
+        fail(p + (f.contains("min") ? "/min" : "/max"),
+             "a packed colour (" + r.field_name + ") has no order: select one colour with equals");
+      if (f.contains("equals")) {
+        r.equals = number(f["equals"], p + "/equals");
+        const double top = r.field_name == "rgb" ? 0xFFFFFF : 0xFFFFFFFF;
+        if (packed && !(f["equals"].is_number_integer() && *r.equals >= 0 && *r.equals <= top))
+          fail(p + "/equals", "must be the packed colour as an integer (" +
+                                  std::string(r.field_name == "rgb" ? "0xRRGGBB" : "0xAARRGGBB") +
+                                  ", from 0 to " + std::to_string(static_cast<unsigned long>(top)) + ")");
+      }
+      if (f.contains("min")) r.field_min = number(f["min"], p + "/min");
+      if (f.contains("max")) r.field_max = number(f["max"], p + "/max");
+      if (r.field_min > r.field_max) fail(p + "/min", "must not exceed max");
     } else {
-      fail(path + jsonPointerStep(j.begin().key()), "unknown region kind (expected sphere, box or indices)");
+      fail(path + jsonPointerStep(j.begin().key()),
+           "unknown region kind (expected sphere, box, cylinder, field or indices)");
     }
     return r;
   }
@@ -393,6 +458,25 @@ nlohmann::json regionJson(const Region& r) {
     case Region::Kind::Sphere: return {{"sphere", {{"center", v(r.center)}, {"radius", r.radius}}}};
     case Region::Kind::Box: return {{"box", {{"min", v(r.min)}, {"max", v(r.max)}}}};
     case Region::Kind::Indices: return {{"indices", r.indices}};
+    case Region::Kind::Cylinder:
+      return {{"cylinder", {{"start", v(r.start)}, {"end", v(r.end)}, {"radius", r.radius}}}};
+    case Region::Kind::Field: {
+      json f = {{"name", r.field_name}};
+      if (r.equals) {
+        // Whole numbers as integers: labels and packed colours read back as they were written.
+        const double e = *r.equals;
+        if (e == std::floor(e) && std::abs(e) < 9007199254740992.0)
+          f["equals"] = static_cast<long long>(e);
+        else
+          f["equals"] = e;
+      } else {
+        if (std::isfinite(r.field_min)) f["min"] = r.field_min;
+        if (std::isfinite(r.field_max)) f["max"] = r.field_max;
+        if (!f.contains("min") && !f.contains("max"))
+          f["min"] = std::numeric_limits<double>::lowest();  // all
+      }
+      return {{"field", f}};
+    }
   }
   return {};
 }

@@ -15,8 +15,8 @@
 #include <vector>
 
 #include "hgdeform/deformer.h"
-#include "hgdeform/runner.h"
 #include "hgdeform/io.h"
+#include "hgdeform/runner.h"
 #include "hgdeform/scenario.h"
 #include "test_util.h"
 

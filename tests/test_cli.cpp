@@ -21,10 +21,10 @@
 #include <vector>
 
 #include "hgdeform/deformer.h"
-#include "hgdeform/runner.h"
 #include "hgdeform/fields.h"
 #include "hgdeform/geometry.h"
 #include "hgdeform/io.h"
+#include "hgdeform/runner.h"
 #include "hgdeform/scenario.h"
 #include "hgdeform/shapes.h"
 #include "test_util.h"

@@ -990,3 +990,36 @@ TEST_F(IoTest, WriterHandlesUnpackedLayoutsLikePclPointXyz) {
 }
 
 }  // namespace
+
+// A colour packed into a float field (PCL's rgb) is an unsigned integer in ascii PCDs, as PCL
+// writes it: fully opaque colours are NaNs as floats, and "nan" would lose them. Files whose
+// rgb column holds floats (older writers) still read as floats.
+TEST(PcdAsciiColour, PackedRgbIsTheIntegerOfItsBits) {
+  hgdtest::TempDir dir;
+  const std::string header =
+      "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z rgb\nSIZE 4 4 4 4\nTYPE F F F F\nCOUNT 1 1 1 1\n"
+      "WIDTH 3\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 3\nDATA ascii\n";
+  float old_style = 0;
+  const std::uint32_t green = 0x0000FF00u;
+  std::memcpy(&old_style, &green, 4);
+  std::ostringstream body;
+  body.precision(9);
+  body << "0 0 0 4294901760\n1 0 0 4278190335\n2 0 0 " << old_style << "\n";
+  hgdtest::writeText(dir.file("pcl.pcd"), header + body.str());
+  const Shape s = hgd::readShape(dir.file("pcl.pcd"));
+  const hgd::ColourFields cf = hgd::findColourFields(s.cloud);
+  ASSERT_TRUE(cf.any());
+  EXPECT_EQ(hgd::readColour(s.cloud, 0, cf), Eigen::Vector3f(1, 0, 0));
+  EXPECT_EQ(hgd::readColour(s.cloud, 1, cf), Eigen::Vector3f(0, 0, 1));
+  EXPECT_EQ(hgd::readColour(s.cloud, 2, cf), Eigen::Vector3f(0, 1, 0));
+  // Written back in ascii: the same integers, and the same bits when read again.
+  hgd::WriteOptions ascii;
+  ascii.encoding = hgd::Encoding::Ascii;
+  hgd::writeShape(dir.file("out.pcd"), s, ascii);
+  const std::string text = hgdtest::slurp(dir.file("out.pcd"));
+  EXPECT_NE(text.find(" 4294901760\n"), std::string::npos) << text;
+  EXPECT_NE(text.find(" 4278190335\n"), std::string::npos) << text;
+  EXPECT_EQ(text.find("nan"), std::string::npos) << text;
+  const Shape back = hgd::readShape(dir.file("out.pcd"));
+  EXPECT_EQ(back.cloud.data, s.cloud.data);
+}

@@ -35,12 +35,12 @@
 #include <vector>
 
 #include "hgdeform/deformer.h"
-#include "hgdeform/runner.h"
 #include "hgdeform/fields.h"
 #include "hgdeform/geometry.h"
 #include "hgdeform/harmonic_field.h"
 #include "hgdeform/io.h"
 #include "hgdeform/regions.h"
+#include "hgdeform/runner.h"
 #include "hgdeform/scenario.h"
 #include "hgdeform/shapes.h"
 #include "hgdeform/solver.h"
@@ -587,7 +587,7 @@ Corpus scenarioCorpus() {
   c.add("wrong-format", scenarioWith(R"("format": "hgdeform-scenario/2", )" + handles), "/format: must be");
   c.add("region-two-kinds", withManip(R"({"indices": [1], "sphere": {"center": [0, 0, 0], "radius": 1}})"),
         "exactly one of");
-  c.add("region-unknown-kind", withManip(R"({"cylinder": {"radius": 1}})"), "unknown region kind");
+  c.add("region-unknown-kind", withManip(R"({"cone": {"radius": 1}})"), "unknown region kind");
   c.add("region-not-object", withManip("7"), "/manipulated: must be an object");
   c.add("radius-zero", withManip(R"({"sphere": {"center": [1, 0, 0], "radius": 0}})"),
         "must be a positive number");
@@ -611,6 +611,18 @@ Corpus scenarioCorpus() {
   c.add("indices-2^64-1", withManip(R"({"indices": [18446744073709551615]})"),
         "must be a non-negative integer");
   c.add("indices-out-of-range", withManip(R"({"indices": [10000000]})"), "out of range");
+  c.add("cylinder-radius-zero",
+        withManip(R"({"cylinder": {"start": [1, 0, 0], "end": [2, 0, 0], "radius": 0}})"),
+        "/manipulated/cylinder/radius: must be a positive number");
+  c.add("cylinder-start-is-end",
+        withManip(R"({"cylinder": {"start": [1, 0, 0], "end": [1, 0, 0], "radius": 1}})"),
+        "/manipulated/cylinder/end: must differ from start");
+  c.add("field-not-in-shape", withManip(R"({"field": {"name": "label", "equals": 1}})"),
+        "/manipulated/field/name: the shape has no field 'label' (its fields: x, y, z");
+  c.add("field-equals-and-min", withManip(R"({"field": {"name": "label", "equals": 1, "min": 0}})"),
+        "/manipulated/field/min: cannot go with equals");
+  c.add("field-min-above-max", withManip(R"({"field": {"name": "label", "min": 2, "max": 1}})"),
+        "/manipulated/field/min: must not exceed max");
   c.add("region-selects-nothing", withManip(R"({"sphere": {"center": [50, 50, 50], "radius": 1}})"),
         "selects no point");
   c.add("fixed-and-manipulated-overlap", withManip(R"({"box": {"min": [-1, -1, -1], "max": [2, 1, 1]}})"),
@@ -693,11 +705,12 @@ TempDir* RobustCorpus::dir_ = nullptr;
 /// The library's verdict on a bad input: the message of the exception thrown while reading it
 /// (and, for shapes, extracting the points to deform; for scenarios, resolving the regions
 /// on the bar), or "" when it was accepted.
-std::string libraryError(Kind kind, const std::string& path, const hgd::Geometry& bar) {
+std::string libraryError(Kind kind, const std::string& path, const Shape& bar_shape,
+                         const hgd::Geometry& bar) {
   try {
     if (kind == Kind::Scenario) {
       const hgd::Scenario s = hgd::readScenario(path);
-      hgd::resolveHandles(s, bar);
+      hgd::resolveHandles(s, bar, bar_shape);
     } else {
       const Shape s = hgd::readShape(path);
       hgd::extractGeometry(s);
@@ -732,7 +745,7 @@ TEST_P(RobustCorpus, EveryBadInputIsRejectedClearlyByLibraryAndCli) {
     const std::string path = work.file(fileName(kind, index, in.name));
     writeBytes(path, in.bytes);
 
-    const std::string message = libraryError(kind, path, bar);
+    const std::string message = libraryError(kind, path, bar_shape, bar);
     EXPECT_FALSE(message.empty()) << "accepted by the library";
     EXPECT_TRUE(contains(message, path)) << "the message does not name the file: " << message;
     EXPECT_TRUE(contains(message, in.phrase)) << "expected '" << in.phrase << "' in: " << message;

@@ -21,8 +21,8 @@
 #include <vector>
 
 #include "hgdeform/deformer.h"
-#include "hgdeform/runner.h"
 #include "hgdeform/harmonic_field.h"
+#include "hgdeform/runner.h"
 #include "hgdeform/shapes.h"
 #include "test_util.h"
 

@@ -185,7 +185,7 @@ int runField(int argc, char** argv) {
   const hgd::Scenario scenario = hgd::readScenario(scenario_path);
   hgd::Shape shape = hgd::readShape(input);
   const hgd::Geometry geometry = hgd::extractGeometry(shape);
-  const hgd::Handles handles = hgd::resolveHandles(scenario, geometry);
+  const hgd::Handles handles = hgd::resolveHandles(scenario, geometry, shape);
   const double read_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 

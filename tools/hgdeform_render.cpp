@@ -1,7 +1,7 @@
 // hgdeform-render: off-screen pictures of shapes (for the README, reports and thumbnails).
 //
 //   hgdeform-render IN.ply [IN2.ply ...] -o OUT.png [--field harmonic] [--size 1200x600]
-//                   [--view x,y,z] [--title "a" --title "b" ...]
+//                   [--view x,y,z] [--up x|y|z|-x|-y|-z|auto] [--title "a" --title "b" ...]
 //
 // Each input gets its own viewport, side by side, all seen from the same direction. A mesh is
 // drawn as a surface, a cloud as points; colours come from the scalar field named by --field
@@ -40,13 +40,22 @@ int main(int argc, char** argv) {
           throw std::runtime_error("--size must be WIDTHxHEIGHT");
       } else if (a == "--view") {
         const std::string s = next();
-        if (std::sscanf(s.c_str(), "%f,%f,%f", &opt.view.x(), &opt.view.y(), &opt.view.z()) != 3 ||
-            opt.view.norm() == 0)
+        Eigen::Vector3f v;
+        if (std::sscanf(s.c_str(), "%f,%f,%f", &v.x(), &v.y(), &v.z()) != 3 || v.norm() == 0)
           throw std::runtime_error("--view must be x,y,z");
+        opt.view = v;
+      } else if (a == "--up") {
+        opt.up = next();
+        hgd::upAxis(opt.up, {});  // a bad name fails here, before any work
       } else if (a == "-h" || a == "--help") {
         std::cout
             << "usage: hgdeform-render IN [IN ...] -o OUT.png [--field NAME] [--size WxH] [--view x,y,z] "
-               "[--title T ...]\n";
+               "[--up AXIS] [--title T ...]\n"
+               "  --up x|y|z|-x|-y|-z|auto  the axis that points up in the picture (default auto: -y when\n"
+               "                            the first input is a camera-frame scan, i.e. organized (height > "
+               "1)\n"
+               "                            or a PCD with a sensor pose; else y). The default --view turns "
+               "with it.\n";
         return 0;
       } else if (!a.empty() && a[0] == '-') {
         throw std::runtime_error("unknown option '" + a + "'");

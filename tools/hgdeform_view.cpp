@@ -562,27 +562,11 @@ class Viewer {
   // --- drawing ----------------------------------------------------------------------------
 
   void fileColours() {
-    colours_.assign(run_.geometry().size(), Eigen::Vector3f(0.75f, 0.75f, 0.72f));
-    const auto& c = run_.shape().cloud;
-    const int r = hgd::findField(c, "red"), g = hgd::findField(c, "green"), b = hgd::findField(c, "blue");
-    const int rgb = hgd::findField(c, "rgb") >= 0 ? hgd::findField(c, "rgb") : hgd::findField(c, "rgba");
-    for (std::size_t i = 0; i < run_.geometry().size(); ++i) {
-      const auto raw = static_cast<std::size_t>(run_.geometry().raw_index[i]);
-      if (r >= 0 && g >= 0 && b >= 0) {
-        const double scale =
-            c.fields[static_cast<std::size_t>(r)].datatype == pcl::PCLPointField::UINT8 ? 255.0 : 1.0;
-        colours_[i] = Eigen::Vector3f(
-            static_cast<float>(hgd::readValue(c, raw, c.fields[static_cast<std::size_t>(r)]) / scale),
-            static_cast<float>(hgd::readValue(c, raw, c.fields[static_cast<std::size_t>(g)]) / scale),
-            static_cast<float>(hgd::readValue(c, raw, c.fields[static_cast<std::size_t>(b)]) / scale));
-      } else if (rgb >= 0) {
-        std::uint32_t packed;
-        std::memcpy(&packed,
-                    c.data.data() + raw * c.point_step + c.fields[static_cast<std::size_t>(rgb)].offset, 4);
-        colours_[i] = Eigen::Vector3f(((packed >> 16) & 255) / 255.0f, ((packed >> 8) & 255) / 255.0f,
-                                      (packed & 255) / 255.0f);
-      }
-    }
+    const hgd::ColourFields fields = hgd::findColourFields(run_.shape().cloud);
+    colours_.resize(run_.geometry().size());
+    for (std::size_t i = 0; i < run_.geometry().size(); ++i)
+      colours_[i] =
+          hgd::readColour(run_.shape().cloud, static_cast<std::size_t>(run_.geometry().raw_index[i]), fields);
   }
 
   void refreshRoles() {

@@ -3,6 +3,7 @@
 
 #include <pcl/PCLPointCloud2.h>
 
+#include <Eigen/Core>
 #include <cstddef>
 #include <cstdint>
 #include <string>
@@ -37,5 +38,21 @@ struct XyzFields {
   bool hasNormals() const { return nx >= 0 && ny >= 0 && nz >= 0; }
 };
 XyzFields findXyzFields(const pcl::PCLPointCloud2& cloud);
+
+/// Where a cloud keeps its per-point colours, for everything that draws them (the renderer and
+/// the viewer). `red`/`green`/`blue` fields win over a packed one: 8-bit integers are 0..255,
+/// 16-bit ones 0..65535, any other type 0..1, or 0..255 when some value of the cloud exceeds 1
+/// (float colours are written both ways). Else `rgb`, else `rgba`: 4 bytes (declared float, as
+/// PCL writes it, or uint32) holding 0xAARRGGBB.
+struct ColourFields {
+  int red = -1, green = -1, blue = -1;
+  double scale = 1;  ///< red/green/blue: the value of full intensity
+  int packed = -1;   ///< rgb or rgba
+  bool any() const { return (red >= 0 && green >= 0 && blue >= 0) || packed >= 0; }
+};
+ColourFields findColourFields(const pcl::PCLPointCloud2& cloud);
+
+/// The colour of `point`, each component in [0, 1] (NaN reads as 0); grey when `fields` has none.
+Eigen::Vector3f readColour(const pcl::PCLPointCloud2& cloud, std::size_t point, const ColourFields& fields);
 
 }  // namespace hgd

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -14,7 +15,15 @@ namespace hgd {
 
 struct RenderOptions {
   int width = 1200, height = 600;
-  Eigen::Vector3f view = Eigen::Vector3f(1.0f, 0.6f, 1.4f);  ///< direction from the target to the eye
+  /// Direction from the target to the eye. Unset: (1, 0.6, 1.4) turned from +y up to the `up`
+  /// axis, so that every up axis sees the shape from the same side (for -y: from the sensor's
+  /// side, +x to the right, as the camera saw it).
+  std::optional<Eigen::Vector3f> view;
+  /// Which axis points up in the picture: "x", "y", "z", "-x", "-y", "-z", or "auto": -y when
+  /// the first shape is in a camera's frame (PCL's convention: +z forward, +y down), i.e. it
+  /// is organized (height > 1) or a PCD with a sensor pose (VIEWPOINT other than the
+  /// default); else +y.
+  std::string up = "auto";
   std::string field;                ///< scalar field to colour by ("" = file colours or grey)
   std::vector<std::string> titles;  ///< one per viewport, optional
   int point_size = 3;
@@ -24,6 +33,10 @@ struct RenderOptions {
 /// open the X display ':99'"). VTK aborts the process when its window finds no display, so
 /// every front end asks first.
 std::string displayProblem();
+
+/// The unit vector `up` names for these shapes (see RenderOptions::up). Throws
+/// std::invalid_argument naming the accepted values for anything else.
+Eigen::Vector3f upAxis(const std::string& up, const std::vector<const Shape*>& shapes);
 
 /// Renders the shapes side by side (one viewport each, one shared camera framing them all) and
 /// writes a PNG atomically. Throws std::runtime_error on failure.

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <limits>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -19,20 +20,35 @@ class ScenarioError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-/// A region of a shape: a sphere, an axis-aligned box, or explicit point indices (file order).
+/// A region of a shape: a sphere, an axis-aligned box, a cylinder (a segment and a radius,
+/// flat caps), explicit point indices (file order), or the points whose per-point field has a
+/// value (`equals`) or lies in a range (`field_min` .. `field_max`, inclusive; an absent bound
+/// is infinite).
 struct Region {
-  enum class Kind { Sphere, Box, Indices };
+  enum class Kind { Sphere, Box, Indices, Cylinder, Field };
   Kind kind = Kind::Indices;
   Eigen::Vector3d center = Eigen::Vector3d::Zero();  // sphere
-  double radius = 0;                                 // sphere
+  double radius = 0;                                 // sphere, cylinder
   Eigen::Vector3d min = Eigen::Vector3d::Zero();     // box
   Eigen::Vector3d max = Eigen::Vector3d::Zero();     // box
   std::vector<long long> indices;                    // indices
-  std::string json_path;                             // where it was read, e.g. "/fixed/0"
+  Eigen::Vector3d start = Eigen::Vector3d::Zero();   // cylinder: the axis from start ...
+  Eigen::Vector3d end = Eigen::Vector3d::Zero();     // ... to end
+  std::string field_name;                            // field
+  std::optional<double> equals;                      // field: this value, or else the range:
+  double field_min = -std::numeric_limits<double>::infinity();
+  double field_max = std::numeric_limits<double>::infinity();
+  std::string json_path;  // where it was read, e.g. "/fixed/0"
 
   static Region sphere(const Eigen::Vector3d& c, double r);
   static Region box(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi);
   static Region fromIndices(std::vector<long long> idx);
+  static Region cylinder(const Eigen::Vector3d& start, const Eigen::Vector3d& end, double r);
+  /// Points whose field `name` equals `value` (for `rgb`/`rgba`: the packed colour as an
+  /// integer, 0xRRGGBB / 0xAARRGGBB).
+  static Region field(const std::string& name, double value);
+  /// Points whose field `name` lies in [lo, hi]; pass -inf or +inf for a one-sided range.
+  static Region fieldRange(const std::string& name, double lo, double hi);
 };
 
 /// Direct manipulation: the manipulated handle's point nearest `from` is dragged to `to`.

@@ -16,7 +16,14 @@ std::string displayProblem() {
   if (!d)
     return std::string("cannot open the X display '") + name +
            "' (no X server there? run under xvfb-run -a for scripts)";
-  XCloseDisplay(d);
+  // Kept open, not closed: an X server whose last client leaves resets itself (Xvfb under
+  // xvfb-run does), and VTK's window, connecting a moment later, would find it resetting and
+  // abort ("bad X server connection"). The connection closes when the process ends.
+  static Display* kept = nullptr;
+  if (kept)
+    XCloseDisplay(d);
+  else
+    kept = d;
   return "";
 }
 

@@ -24,27 +24,15 @@ pcl::PointCloud<pcl::PointXYZRGB>::Ptr colouredPoints(const hgd::Shape& shape, c
   pcl::PointCloud<pcl::PointXYZRGB>::Ptr out(new pcl::PointCloud<pcl::PointXYZRGB>);
   out->resize(g.size());
   const int f = field.empty() ? -1 : hgd::findField(shape.cloud, field);
-  const int r = hgd::findField(shape.cloud, "red"), gr = hgd::findField(shape.cloud, "green"),
-            b = hgd::findField(shape.cloud, "blue");
+  const ColourFields colours = findColourFields(shape.cloud);
   for (std::size_t i = 0; i < g.size(); ++i) {
     auto& p = (*out)[i];
     p.getVector3fMap() = (g.world(i)).cast<float>();
     const auto raw = static_cast<std::size_t>(g.raw_index[i]);
-    Eigen::Vector3f c(0.75f, 0.75f, 0.72f);
-    if (f >= 0) {
-      c = colourMap(static_cast<float>(
-          hgd::readValue(shape.cloud, raw, shape.cloud.fields[static_cast<std::size_t>(f)])));
-    } else if (r >= 0 && gr >= 0 && b >= 0) {
-      const double scale =
-          shape.cloud.fields[static_cast<std::size_t>(r)].datatype == pcl::PCLPointField::UINT8 ? 255.0 : 1.0;
-      c = Eigen::Vector3f(
-          static_cast<float>(
-              hgd::readValue(shape.cloud, raw, shape.cloud.fields[static_cast<std::size_t>(r)]) / scale),
-          static_cast<float>(
-              hgd::readValue(shape.cloud, raw, shape.cloud.fields[static_cast<std::size_t>(gr)]) / scale),
-          static_cast<float>(
-              hgd::readValue(shape.cloud, raw, shape.cloud.fields[static_cast<std::size_t>(b)]) / scale));
-    }
+    const Eigen::Vector3f c = f >= 0
+                                  ? colourMap(static_cast<float>(hgd::readValue(
+                                        shape.cloud, raw, shape.cloud.fields[static_cast<std::size_t>(f)])))
+                                  : readColour(shape.cloud, raw, colours);
     p.r = static_cast<std::uint8_t>(std::clamp(c.x(), 0.0f, 1.0f) * 255);
     p.g = static_cast<std::uint8_t>(std::clamp(c.y(), 0.0f, 1.0f) * 255);
     p.b = static_cast<std::uint8_t>(std::clamp(c.z(), 0.0f, 1.0f) * 255);
@@ -54,11 +42,50 @@ pcl::PointCloud<pcl::PointXYZRGB>::Ptr colouredPoints(const hgd::Shape& shape, c
   return out;
 }
 
+/// The rotation that takes +y onto the unit axis `up` (one of the six), turning the default
+/// view with it.
+Eigen::Matrix3d turnYOnto(const Eigen::Vector3f& up) {
+  Eigen::Matrix3d r = Eigen::Matrix3d::Identity();
+  if (up.x() > 0.5f) r << 0, 1, 0, -1, 0, 0, 0, 0, 1;
+  if (up.x() < -0.5f) r << 0, -1, 0, 1, 0, 0, 0, 0, 1;
+  if (up.y() < -0.5f) r << 1, 0, 0, 0, -1, 0, 0, 0, -1;
+  if (up.z() > 0.5f) r << 1, 0, 0, 0, 0, -1, 0, 1, 0;
+  if (up.z() < -0.5f) r << 1, 0, 0, 0, 0, 1, 0, -1, 0;
+  return r;
+}
+
 }  // namespace
+
+Eigen::Vector3f upAxis(const std::string& up, const std::vector<const Shape*>& shapes) {
+  if (up == "auto") {
+    const Shape* s = shapes.empty() ? nullptr : shapes.front();
+    const bool posed = s && s->format == FileFormat::Pcd &&
+                       (!s->sensor_origin.head<3>().isZero() ||
+                        !s->sensor_orientation.isApprox(Eigen::Quaternionf::Identity()));
+    return s && (s->isOrganized() || posed) ? Eigen::Vector3f(-Eigen::Vector3f::UnitY())
+                                            : Eigen::Vector3f(Eigen::Vector3f::UnitY());
+  }
+  const bool minus = !up.empty() && up[0] == '-';
+  const std::string axis = minus ? up.substr(1) : up;
+  Eigen::Vector3f v;
+  if (axis == "x") {
+    v = Eigen::Vector3f::UnitX();
+  } else if (axis == "y") {
+    v = Eigen::Vector3f::UnitY();
+  } else if (axis == "z") {
+    v = Eigen::Vector3f::UnitZ();
+  } else {
+    throw std::invalid_argument("the up axis must be x, y, z, -x, -y, -z or auto, not '" + up + "'");
+  }
+  return minus ? Eigen::Vector3f(-v) : v;
+}
 
 void renderPng(const std::vector<const Shape*>& shapes, const std::string& png_path,
                const RenderOptions& options) {
   if (shapes.empty()) throw std::runtime_error(png_path + ": nothing to render");
+  const Eigen::Vector3f up = upAxis(options.up, shapes);
+  const Eigen::Vector3d view = options.view ? Eigen::Vector3d(options.view->cast<double>())
+                                            : Eigen::Vector3d(turnYOnto(up) * Eigen::Vector3d(1.0, 0.6, 1.4));
   std::vector<Geometry> geoms;
   for (const Shape* s : shapes) geoms.push_back(extractGeometry(*s));
   // One camera for all: the union of the bounding boxes, seen along `view`.
@@ -96,9 +123,9 @@ void renderPng(const std::vector<const Shape*>& shapes, const std::string& png_p
       viewer.addText(options.titles[static_cast<std::size_t>(k)], 12, 12, 18, 0.1, 0.1, 0.1, id + "_title",
                      vp);
   }
-  const Eigen::Vector3d eye =
-      centre + options.view.cast<double>().normalized() * radius * 3.3;  // 30 degree view angle
-  viewer.setCameraPosition(eye.x(), eye.y(), eye.z(), centre.x(), centre.y(), centre.z(), 0, 1, 0);
+  const Eigen::Vector3d eye = centre + view.normalized() * radius * 3.3;  // 30 degree view angle
+  viewer.setCameraPosition(eye.x(), eye.y(), eye.z(), centre.x(), centre.y(), centre.z(), up.x(), up.y(),
+                           up.z());
   viewer.setCameraClipDistances(radius * 0.1, radius * 10);
   // No interactor (a headless render): draw and grab the window ourselves. PCL's
   // saveScreenshot goes through the interactor style, which does not exist here.
