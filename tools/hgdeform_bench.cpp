@@ -234,7 +234,7 @@ int parseArgs(int argc, char** argv, BenchArgs& a) {
       ->type_name("OUT");
   // A list keeps all its values (the tools' default policy, the last value wins, would keep one).
   for (const char* name : {"--sizes", "--clusters", "--models"})
-    app.get_option(name)->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
+    app.get_option(name)->multi_option_policy(CLI::MultiOptionPolicy::TakeAll)->allow_extra_args(false);
   return hgdcli::parse(app, argc, argv);
 }
 
