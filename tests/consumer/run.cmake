@@ -7,7 +7,8 @@
 #   -DTOOLS_DATA=DIR    also run the installed tools (bin/hgdeform --version, and a deform of
 #                       DIR/bunny_1839.ply with DIR/bunny_ears.json) with LD_LIBRARY_PATH unset:
 #                       they must find libhgdeform through their RPATH, wherever the prefix is
-#   -DCOMPILER_LAUNCHER=ccache  used for the static build
+#   -DCOMPILER_LAUNCHER=ccache, -DCXX_COMPILER=..., -DC_COMPILER=...  for the static build (the
+#                       main build's, so that the library is built like the rest)
 foreach(var BUILD_DIR SOURCE_DIR WORK_DIR)
   if(NOT DEFINED ${var})
     message(FATAL_ERROR "run.cmake: ${var} is not set")
@@ -39,6 +40,11 @@ if(DEFINED STATIC_FROM)
     set(launcher "-DCMAKE_CXX_COMPILER_LAUNCHER=${COMPILER_LAUNCHER}"
                  "-DCMAKE_C_COMPILER_LAUNCHER=${COMPILER_LAUNCHER}")
   endif()
+  foreach(lang CXX C)
+    if(${lang}_COMPILER)
+      list(APPEND launcher "-DCMAKE_${lang}_COMPILER=${${lang}_COMPILER}")
+    endif()
+  endforeach()
   # The library only: no tools, no tests (they would double the build time for nothing new).
   step("static configure" "${CMAKE_COMMAND}" -S "${STATIC_FROM}" -B "${BUILD_DIR}" ${generator}
        -DCMAKE_BUILD_TYPE=Release -DBUILD_SHARED_LIBS=OFF -DHGDEFORM_BUILD_TOOLS=OFF
