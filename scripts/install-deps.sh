@@ -6,8 +6,10 @@ set -euo pipefail
 packages=(
   build-essential cmake ninja-build pkg-config git
   libpcl-dev libeigen3-dev libflann-dev libboost-dev
+  liblz4-dev                                # FLANN's headers call LZ4: libhgdeform links it
   libsuitesparse-dev libopenblas0-pthread   # CHOLMOD for the exact field solve; OpenBLAS ~3x faster than reference BLAS
   nlohmann-json3-dev                        # scenario JSON
+  libcli11-dev                              # the tools' command lines (header-only)
   libxxhash-dev                             # hgdeform batch: content hashes of the inputs (provenance)
   libopenmpi-dev openmpi-bin                # hgdeform batch under mpirun (already pulled in by VTK)
   libpng-dev                                # the viewer tests read screenshots

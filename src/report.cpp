@@ -9,6 +9,7 @@
 #include "hgdeform/colormap.h"
 #include "hgdeform/fields.h"
 #include "hgdeform/io.h"
+#include "hgdeform/version.h"
 
 namespace hgd {
 
@@ -62,6 +63,7 @@ void storeField(Shape& shape, const Geometry& geometry, const std::vector<float>
 
 std::string reportJson(const DeformReport& r) {
   nlohmann::json j;
+  j["version"] = version();
   j["points"] = r.points;
   j["sample"] = r.sample;
   j["clusters"] = r.clusters;

@@ -27,6 +27,7 @@
 #include "hgdeform/runner.h"
 #include "hgdeform/scenario.h"
 #include "hgdeform/shapes.h"
+#include "hgdeform/version.h"
 #include "test_util.h"
 
 namespace {
@@ -128,6 +129,15 @@ TEST(Cli, DeformHelpListsOptions) {
   for (const char* opt : {"--scenario", "--output", "--report", "--clusters", "--k", "--samples", "--solver",
                           "--ascii", "--quiet", "--help"})
     EXPECT_TRUE(contains(r.out, opt)) << opt << " missing from:\n" << r.out;
+}
+
+TEST(Cli, VersionOnEveryCommand) {
+  EXPECT_EQ(hgd::version(), std::string(HGDEFORM_VERSION));
+  for (const std::string cmd : {"", "field ", "deform ", "batch "}) {
+    const Result r = cli(cmd + "--version");
+    EXPECT_EQ(r.code, 0) << cmd << r.err;
+    EXPECT_EQ(r.out, "hgdeform " + cmd + HGDEFORM_VERSION + "\n") << cmd;
+  }
 }
 
 TEST(Cli, NoArgumentsIsUsageError) {
@@ -271,8 +281,9 @@ TEST(CliDeform, BunnyMatchesLibraryAndReports) {
   // The report.
   nlohmann::json j;
   ASSERT_NO_THROW(j = nlohmann::json::parse(slurp(report))) << slurp(report);
-  for (const char* key : {"points", "clusters", "iterations", "energy", "ms"})
+  for (const char* key : {"version", "points", "clusters", "iterations", "energy", "ms"})
     EXPECT_TRUE(j.contains(key)) << key << " missing from " << j.dump();
+  EXPECT_EQ(j.value("version", ""), HGDEFORM_VERSION);
   EXPECT_EQ(j.value("points", 0u), 1839u);
   EXPECT_GT(j.value("clusters", 0u), 0u);
   EXPECT_GT(j.value("iterations", 0), 0);

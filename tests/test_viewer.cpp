@@ -312,6 +312,24 @@ TEST(Viewer, DocumentedBunnyReplayRuns) {
 }
 
 // DISPLAY names an X server that is not there: a clear error and exit 1, not VTK's abort.
+// The CLI11 conventions of every tool: --version, and exit 2 for usage errors (no display needed).
+TEST(Viewer, VersionAndUsageErrors) {
+  std::string out;
+  struct Tool {
+    std::string path, name, args;  // args: enough for a run that would go on
+  };
+  for (const Tool& t :
+       {Tool{HGD_VIEW, "hgdeform-view", " x.ply"}, Tool{HGD_RENDER, "hgdeform-render", " x.ply -o x.png"}}) {
+    EXPECT_EQ(hgdtest::run(t.path + " --version", out), 0) << t.name;
+    EXPECT_EQ(out.rfind(t.name + " ", 0), 0u) << out;
+    EXPECT_EQ(hgdtest::run(t.path + t.args + " --bogus-option", out), 2) << t.name;
+    EXPECT_NE(out.find("--bogus-option"), std::string::npos) << out;
+    EXPECT_EQ(hgdtest::run(t.path, out), 2) << t.name << ": no input";
+  }
+  EXPECT_EQ(hgdtest::run(std::string(HGD_VIEW) + " x.ply --size 10x10", out), 2) << out;
+  EXPECT_EQ(hgdtest::run(std::string(HGD_RENDER) + " x.ply -o x.png --view 0,0,0", out), 2) << out;
+}
+
 TEST(Viewer, AbsentXServerIsAClearError) {
   hgdtest::TempDir dir;
   hgd::writeShape(dir.file("bar.ply"), hgd::shapes::bar(1.0f, 0.1f, 0.05f));
@@ -542,7 +560,7 @@ TEST(Render, CameraFrameScanIsTheRightWayUp) {
   EXPECT_EQ(
       hgdtest::run(
           std::string(HGD_RENDER) + " " + dir.file("scan.pcd") + " -o " + dir.file("x.png") + " --up w", out),
-      1);
+      2);  // a usage error
   EXPECT_NE(out.find("the up axis must be x, y, z, -x, -y, -z or auto, not 'w'"), std::string::npos) << out;
 }
 

@@ -33,6 +33,7 @@
 
 #include "batch_provenance.h"
 #include "batch_report.h"
+#include "cli_common.h"
 #include "hgdeform/deformer.h"
 #include "hgdeform/io.h"
 #include "hgdeform/runner.h"
@@ -52,9 +53,7 @@ namespace fs = std::filesystem;
 using batch::ScanResult;
 using Clock = std::chrono::steady_clock;
 
-const char* kBatchHelp =
-    "usage: hgdeform batch --scenario S.json INPUT_DIR -o OUTPUT_DIR [options]\n"
-    "\n"
+const char* kBatchDescription =
     "Deforms every PLY, PCD and OBJ file in INPUT_DIR as the scenario says and writes the results\n"
     "under OUTPUT_DIR with the same relative paths. A scenario beside a scan with the same base\n"
     "name (scan_017.json for scan_017.pcd) replaces S.json for that scan. Outputs are written\n"
@@ -65,23 +64,9 @@ const char* kBatchHelp =
     "why. A scan that fails is reported and the batch goes on. A second batch writing to the same\n"
     "OUTPUT_DIR at the same time refuses to start (exit 1); shards of one split may share it.\n"
     "FIFOs, devices, dangling links and (with --recursive) links to folders are skipped with a\n"
-    "warning; links to folders are not followed.\n"
-    "\n"
-    "options:\n"
-    "  -s, --scenario FILE   default scenario (README.md); required\n"
-    "  -o, --output DIR      output directory (created); neither INPUT_DIR nor inside it; required\n"
-    "  -j, --jobs N          scans processed in parallel (default 1); each scan gets\n"
-    "                        max(1, cores / N) OpenMP threads (at most OMP_NUM_THREADS)\n"
-    "      --recursive       every scan of the tree under INPUT_DIR, not only the top level\n"
-    "      --format FORMAT   ply, pcd or same (default same: the input's own format)\n"
-    "  -f, --force           also redo scans whose output is up to date (reason \"forced\")\n"
-    "      --report DIR      write DIR/summary.json, DIR/summary.csv and DIR/index.html, with\n"
-    "                        before/after thumbnails in DIR/thumbs/ (needs an X display)\n"
-    "      --shard K/N       process only shard K (0-based) of N: scan i of the list sorted by\n"
-    "                        relative path belongs to shard i % N\n"
-    "  -q, --quiet           print errors only\n"
-    "  -h, --help            this help\n"
-    "\n"
+    "warning; links to folders are not followed.";
+
+const char* kBatchFooter =
     "On a terminal a progress bar shows files done, the current file, the rate and the ETA;\n"
     "otherwise one line per scan is printed. SIGINT and SIGTERM stop the batch without leaving\n"
     "a partial file (exit status 130 / 143). Exit status: 0 when every scan was deformed or up\n"
@@ -89,18 +74,16 @@ const char* kBatchHelp =
     "\n"
     "MPI: when built with MPI and started by mpirun (or srun), the ranks share the scans\n"
     "dynamically, largest first, one scan at a time per rank; rank 0 prints the summary and\n"
-    "writes the report. See docs/batch.md.\n";
+    "writes the report. See docs/batch.md.";
 
-struct UsageError : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
+using hgdcli::UsageError;
 
 // --- options ---------------------------------------------------------------------------------
 
 struct Config {
   fs::path input_dir, output_dir, scenario_path, report_dir;
   int jobs = 1;
-  bool recursive = false, force = false, quiet = false, help = false;
+  bool recursive = false, force = false, quiet = false;
   std::string format = "same";  // "ply", "pcd" or "same"
   int shard_k = 0, shard_n = 1;
   bool sharded = false;
@@ -116,80 +99,60 @@ long parseInteger(const std::string& text, const std::string& what, long lo, lon
   return v;
 }
 
-Config parseArgs(int argc, char** argv) {
-  static const std::map<std::string, std::string> aliases = {{"-s", "--scenario"}, {"-o", "--output"},
-                                                             {"-j", "--jobs"},     {"-f", "--force"},
-                                                             {"-q", "--quiet"},    {"-h", "--help"}};
-  static const std::set<std::string> with_value = {"scenario", "output", "jobs", "format", "report", "shard"};
-  static const std::set<std::string> flag_names = {"recursive", "force", "quiet", "help"};
-  Config c;
-  std::vector<std::string> positional;
-  std::map<std::string, std::string> values;
-  std::set<std::string> flags;
-  for (int i = 0; i < argc; ++i) {
-    std::string s = argv[i];
-    if (s.size() > 1 && s[0] == '-') {
-      std::string value;
-      bool has_value = false;
-      const auto eq = s.find('=');
-      if (s.rfind("--", 0) == 0 && eq != std::string::npos) {
-        value = s.substr(eq + 1);
-        s = s.substr(0, eq);
-        has_value = true;
-      }
-      if (auto al = aliases.find(s); al != aliases.end()) s = al->second;
-      const std::string name = s.rfind("--", 0) == 0 ? s.substr(2) : s;
-      if (with_value.count(name)) {
-        if (!has_value) {
-          if (i + 1 >= argc) throw UsageError("option --" + name + " needs a value");
-          value = argv[++i];
-        }
-        values[name] = value;
-      } else if (flag_names.count(name) && !has_value) {
-        flags.insert(name);
-      } else {
-        throw UsageError("unknown option '" + std::string(argv[i]) + "'");
-      }
-    } else {
-      positional.push_back(s);
-    }
+/// Parses `batch ARGS` (argv[0] is the command) into `c`; returns -1 to go on, else the exit
+/// status. Only rank 0 (`print`) writes help, version and usage errors.
+int parseArgs(int argc, char** argv, Config& c, bool print) {
+  CLI::App app(kBatchDescription);
+  hgdcli::configureApp(app, "hgdeform batch");
+  app.footer(kBatchFooter);
+  std::string input, output, scenario, shard, report;
+  app.add_option("INPUT_DIR", input, "the folder of scans")->required()->type_name("");
+  app.add_option("-s,--scenario", scenario, "default scenario (docs/scenario.md); required")
+      ->required()
+      ->type_name("FILE");
+  app.add_option("-o,--output", output,
+                 "output directory (created); neither INPUT_DIR nor inside it; required")
+      ->required()
+      ->type_name("DIR");
+  app.add_option("-j,--jobs", c.jobs,
+                 "scans processed in parallel (default 1); each scan gets\n"
+                 "max(1, cores / N) OpenMP threads (at most OMP_NUM_THREADS)")
+      ->check(hgdcli::integerFrom(1, 1024))
+      ->type_name("N");
+  app.add_flag("--recursive", c.recursive, "every scan of the tree under INPUT_DIR, not only the top level");
+  app.add_option("--format", c.format, "ply, pcd or same (default same: the input's own format)")
+      ->check(hgdcli::oneOf({"ply", "pcd", "same"}))
+      ->type_name("FORMAT");
+  app.add_flag("-f,--force", c.force, "also redo scans whose output is up to date (reason \"forced\")");
+  CLI::Option* report_option =
+      app.add_option("--report", report,
+                     "write DIR/summary.json, DIR/summary.csv and DIR/index.html, with\n"
+                     "before/after thumbnails in DIR/thumbs/ (needs an X display)")
+          ->type_name("DIR");
+  app.add_option("--shard", shard,
+                 "process only shard K (0-based) of N: scan i of the list sorted by\n"
+                 "relative path belongs to shard i % N")
+      ->type_name("K/N");
+  app.add_flag("-q,--quiet", c.quiet, "print errors only");
+  const int status = hgdcli::parse(app, argc, argv, print);
+  if (status >= 0) return status;
+  c.input_dir = input;
+  if (scenario.empty()) throw UsageError("--scenario is required");
+  if (output.empty()) throw UsageError("--output is required");
+  c.scenario_path = scenario;
+  c.output_dir = output;
+  if (report_option->count() > 0) {
+    if (report.empty()) throw UsageError("--report needs a directory");
+    c.report_dir = report;
   }
-  c.help = flags.count("help") > 0;
-  if (c.help) return c;
-  c.recursive = flags.count("recursive") > 0;
-  c.force = flags.count("force") > 0;
-  c.quiet = flags.count("quiet") > 0;
-  if (positional.size() != 1)
-    throw UsageError(positional.empty() ? "missing INPUT_DIR"
-                                        : "expected one INPUT_DIR, got " + std::to_string(positional.size()));
-  c.input_dir = positional[0];
-  auto required = [&](const std::string& name) -> const std::string& {
-    auto it = values.find(name);
-    if (it == values.end() || it->second.empty()) throw UsageError("--" + name + " is required");
-    return it->second;
-  };
-  c.scenario_path = required("scenario");
-  c.output_dir = required("output");
-  if (auto it = values.find("jobs"); it != values.end())
-    c.jobs = static_cast<int>(parseInteger(it->second, "--jobs", 1, 1024));
-  if (auto it = values.find("format"); it != values.end()) {
-    if (it->second != "ply" && it->second != "pcd" && it->second != "same")
-      throw UsageError("--format must be ply, pcd or same (got '" + it->second + "')");
-    c.format = it->second;
-  }
-  if (auto it = values.find("report"); it != values.end()) {
-    if (it->second.empty()) throw UsageError("--report needs a directory");
-    c.report_dir = it->second;
-  }
-  if (auto it = values.find("shard"); it != values.end()) {
-    const std::string& v = it->second;
-    const auto slash = v.find('/');
-    if (slash == std::string::npos) throw UsageError("--shard must be K/N, e.g. 0/4 (got '" + v + "')");
-    c.shard_n = static_cast<int>(parseInteger(v.substr(slash + 1), "--shard N", 1, 1000000));
-    c.shard_k = static_cast<int>(parseInteger(v.substr(0, slash), "--shard K", 0, c.shard_n - 1));
+  if (!shard.empty()) {
+    const auto slash = shard.find('/');
+    if (slash == std::string::npos) throw UsageError("--shard must be K/N, e.g. 0/4 (got '" + shard + "')");
+    c.shard_n = static_cast<int>(parseInteger(shard.substr(slash + 1), "--shard N", 1, 1000000));
+    c.shard_k = static_cast<int>(parseInteger(shard.substr(0, slash), "--shard K", 0, c.shard_n - 1));
     c.sharded = true;
   }
-  return c;
+  return -1;
 }
 
 /// True when `child` is `parent` or lies under it (both absolute and normalised).
@@ -1151,11 +1114,7 @@ int runBatch(int argc, char** argv) {
   const bool root = mpi.rank == 0;
   Config cfg;
   try {
-    cfg = parseArgs(argc, argv);
-    if (cfg.help) {
-      if (root) std::fputs(kBatchHelp, stdout);
-      return 0;
-    }
+    if (const int status = parseArgs(argc, argv, cfg, root); status >= 0) return status;
     checkDirectories(cfg);
   } catch (const UsageError& e) {
     if (root) std::fprintf(stderr, "hgdeform batch: %s\n(see 'hgdeform batch --help')\n", e.what());

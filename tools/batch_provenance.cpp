@@ -18,9 +18,7 @@
 #include <thread>
 #include <vector>
 
-#ifndef HGD_VERSION
-#define HGD_VERSION "unknown"
-#endif
+#include "hgdeform/version.h"
 
 namespace hgdcli {
 namespace batch {
@@ -180,7 +178,7 @@ std::optional<Provenance> readRecord(const std::string& path) {
 }
 
 std::string toolVersion() {
-  return std::string("hgdeform ") + HGD_VERSION;
+  return std::string("hgdeform ") + hgd::version();
 }
 
 OutputLock::~OutputLock() {

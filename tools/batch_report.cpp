@@ -5,6 +5,8 @@
 #include <cstdio>
 #include <string>
 
+#include "hgdeform/version.h"
+
 namespace hgdcli {
 namespace batch {
 
@@ -118,6 +120,8 @@ ScanResult fromJson(const nlohmann::json& j) {
 std::string summaryJson(const std::vector<ScanResult>& results, const Totals& t) {
   nlohmann::json j;
   j["format"] = "hgdeform-batch-summary/1";
+  j["tool"] = "hgdeform batch";
+  j["version"] = hgd::version();
   j["scans"] = nlohmann::json::array();
   for (const auto& r : sorted(results)) j["scans"].push_back(toJson(r));
   j["totals"] = {{"scans", t.scans},

@@ -1,6 +1,4 @@
 // hgdeform: command-line front end. Thin: every stage lives in the library.
-#include <algorithm>
-#include <cctype>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -8,11 +6,11 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
-#include <map>
 #include <string>
 #include <vector>
 
 #include "blas_guard.h"
+#include "cli_common.h"
 #include "hgdeform/deformer.h"
 #include "hgdeform/fields.h"
 #include "hgdeform/geometry.h"
@@ -24,7 +22,7 @@
 #include "hgdeform/scenario.h"
 
 namespace hgdcli {
-/// `hgdeform batch` (tools/batch.cpp).
+/// `hgdeform batch` (tools/batch.cpp); argv[0] is "batch", the options follow.
 int runBatch(int argc, char** argv);
 }  // namespace hgdcli
 
@@ -38,148 +36,123 @@ const char* kUsage =
     "  deform  INPUT --scenario S.json -o OUT   deform the shape as the scenario's moves say\n"
     "  batch   --scenario S.json IN_DIR -o OUT_DIR   deform every scan in a folder\n"
     "\n"
-    "INPUT and OUT are PLY, PCD or OBJ files (by extension). 'hgdeform <command> --help' for options.\n";
-
-const char* kFieldHelp =
-    "usage: hgdeform field INPUT --scenario S.json -o OUT.ply|.pcd|.obj [options]\n"
-    "\n"
-    "Computes the harmonic field (1 on the manipulated handle, 0 on the fixed handles) and writes\n"
-    "the shape with it as the per-point scalar 'harmonic' (all other fields kept).\n"
+    "INPUT and OUT are PLY, PCD or OBJ files (by extension). 'hgdeform <command> --help' for options.\n"
     "\n"
     "options:\n"
-    "  -s, --scenario FILE   handles (README.md, section Scenarios); required\n"
-    "  -o, --output FILE     output file; required; never the input\n"
-    "  -k, --k N             neighbours per point for the Laplacian (default 10)\n"
-    "      --solver NAME     auto | exact | multilevel (default auto)\n"
-    "      --mesh-ring       on meshes, use the faces' 1-ring instead of kNN\n"
-    "      --color           also write the field as a colour map (red/green/blue or rgb)\n"
-    "      --ascii           write ascii instead of binary\n"
-    "  -q, --quiet           no summary line\n"
-    "  -h, --help            this help\n";
-
-const char* kDeformHelp =
-    "usage: hgdeform deform INPUT --scenario S.json -o OUT.ply|.pcd|.obj [options]\n"
+    "  -h, --help    this help\n"
+    "  --version     print \"hgdeform VERSION\" and exit (also after a command)\n"
     "\n"
-    "Replays the scenario's move(s) (drag or frame) and writes the deformed shape: positions and\n"
-    "normals change, every other field and the mesh faces are kept.\n"
-    "\n"
-    "options:\n"
-    "  -s, --scenario FILE   handles and moves (README.md); required\n"
-    "  -o, --output FILE     output file; required; never the input\n"
-    "  -r, --report FILE     write a JSON report (points, clusters, iterations, energy, ms);\n"
-    "                        - for stdout; a link is followed, a FIFO or device written to\n"
-    "  -c, --clusters N      isoclusters (default: the scenario's, else 16)\n"
-    "  -k, --k N             neighbours per point for the Laplacian (default 10)\n"
-    "      --samples N       surface sample size for clustering (default 4000)\n"
-    "      --blend MODE      rotation (default) | linear: how points blend cluster transforms\n"
-    "      --joint-clusters N  skeletal mode: isoclusters inside each joint (default 3)\n"
-    "      --solver NAME     field solver: auto | exact | multilevel (default auto)\n"
-    "      --ascii           write ascii instead of binary\n"
-    "  -q, --quiet           no summary line\n"
-    "  -h, --help            this help\n";
+    "Exit status: 0 on success, 1 when the work failed, 2 on usage errors.\n";
 
-struct Args {
-  std::vector<std::string> positional;
-  std::map<std::string, std::string> values;
-  std::map<std::string, bool> flags;
+// --- parsing: the command line into a struct, nothing else -------------------------------------
+
+/// `hgdeform field`'s command line.
+struct FieldArgs {
+  std::string input, scenario, output;
+  int k = hgd::FieldOptions().k_neighbors;
+  std::string solver = "auto";
+  bool mesh_ring = false, color = false, ascii = false, quiet = false;
 };
 
-struct UsageError : std::runtime_error {
-  using std::runtime_error::runtime_error;
+/// `hgdeform deform`'s command line (0 for the counts left to the scenario or the library).
+struct DeformArgs {
+  std::string input, scenario, output, report;
+  int clusters = 0;  // 0: the scenario's
+  int k = hgd::FieldOptions().k_neighbors;
+  int samples = hgd::DeformOptions().clusters.samples;
+  int joint_clusters = hgd::DeformOptions().clusters.joint_isoclusters;
+  std::string blend;  // empty: the scenario's
+  std::string solver = "auto";
+  bool ascii = false, quiet = false;
 };
 
-// Parses "-x VALUE", "--name VALUE", "--name=VALUE" and flags. `with_value` lists the long
-// names that take a value; `aliases` maps short to long names.
-Args parseArgs(int argc, char** argv, const std::vector<std::string>& with_value,
-               const std::vector<std::string>& flag_names,
-               const std::map<std::string, std::string>& aliases) {
-  Args a;
-  auto isIn = [](const std::vector<std::string>& v, const std::string& s) {
-    return std::find(v.begin(), v.end(), s) != v.end();
-  };
-  for (int i = 0; i < argc; ++i) {
-    std::string s = argv[i];
-    if (s.size() > 1 && s[0] == '-' &&
-        !(s.size() > 1 && (std::isdigit(static_cast<unsigned char>(s[1])) || s[1] == '.'))) {
-      std::string value;
-      bool has_value = false;
-      const auto eq = s.find('=');
-      if (s.rfind("--", 0) == 0 && eq != std::string::npos) {
-        value = s.substr(eq + 1);
-        s = s.substr(0, eq);
-        has_value = true;
-      }
-      if (auto al = aliases.find(s); al != aliases.end()) s = al->second;
-      const std::string name = s.rfind("--", 0) == 0 ? s.substr(2) : s;
-      if (isIn(with_value, name)) {
-        if (!has_value) {
-          if (i + 1 >= argc) throw UsageError("option --" + name + " needs a value");
-          value = argv[++i];
-        }
-        a.values[name] = value;
-      } else if (isIn(flag_names, name) && !has_value) {
-        a.flags[name] = true;
-      } else {
-        throw UsageError("unknown option '" + std::string(argv[i]) + "'");
-      }
-    } else {
-      a.positional.push_back(s);
-    }
-  }
-  return a;
+void addInputOutput(CLI::App& app, std::string& input, std::string& scenario, std::string& output,
+                    const std::string& scenario_help) {
+  app.add_option("INPUT", input, "the shape: a PLY, PCD or OBJ file (by extension)")
+      ->required()
+      ->type_name("");
+  app.add_option("-s,--scenario", scenario, scenario_help)->required()->type_name("FILE");
+  app.add_option("-o,--output", output, "output file; required; never the input")
+      ->required()
+      ->type_name("FILE");
 }
 
-int intOption(const Args& a, const std::string& name, int fallback, int lo, int hi) {
-  auto it = a.values.find(name);
-  if (it == a.values.end()) return fallback;
-  char* end = nullptr;
-  const long v = std::strtol(it->second.c_str(), &end, 10);
-  if (it->second.empty() || *end != '\0' || v < lo || v > hi)
-    throw UsageError("--" + name + " must be an integer from " + std::to_string(lo) + " to " +
-                     std::to_string(hi) + " (got '" + it->second + "')");
-  return static_cast<int>(v);
+void addSolver(CLI::App& app, std::string& solver, const std::string& what) {
+  app.add_option("--solver", solver, what + "auto | exact | multilevel (default auto)")
+      ->check(hgdcli::oneOf({"auto", "exact", "multilevel"}))
+      ->type_name("NAME");
 }
 
-hgd::FieldSolver solverOption(const Args& a) {
-  auto it = a.values.find("solver");
-  if (it == a.values.end() || it->second == "auto") return hgd::FieldSolver::Auto;
-  if (it->second == "exact") return hgd::FieldSolver::Exact;
-  if (it->second == "multilevel") return hgd::FieldSolver::Multilevel;
-  throw UsageError("--solver must be auto, exact or multilevel (got '" + it->second + "')");
+/// Parses `hgdeform field ARGS`; returns -1 to go on, else the exit status.
+int parseField(int argc, const char* const* argv, FieldArgs& a) {
+  CLI::App app(
+      "Computes the harmonic field (1 on the manipulated handle, 0 on the fixed handles) and writes\n"
+      "the shape with it as the per-point scalar 'harmonic' (all other fields kept).");
+  hgdcli::configureApp(app, "hgdeform field");
+  addInputOutput(app, a.input, a.scenario, a.output, "handles (docs/scenario.md); required");
+  app.add_option("-k,--k", a.k, "neighbours per point for the Laplacian (default 10)")
+      ->check(hgdcli::integerFrom(2, 100))
+      ->type_name("N");
+  addSolver(app, a.solver, "");
+  app.add_flag("--mesh-ring", a.mesh_ring, "on meshes, use the faces' 1-ring instead of kNN");
+  app.add_flag("--color", a.color, "also write the field as a colour map (red/green/blue or rgb)");
+  app.add_flag("--ascii", a.ascii, "write ascii instead of binary");
+  app.add_flag("-q,--quiet", a.quiet, "no summary line");
+  return hgdcli::parse(app, argc, argv);
 }
 
-const std::string& required(const Args& a, const std::string& name) {
-  auto it = a.values.find(name);
-  if (it == a.values.end()) throw UsageError("--" + name + " is required");
-  return it->second;
+/// Parses `hgdeform deform ARGS`; returns -1 to go on, else the exit status.
+int parseDeform(int argc, const char* const* argv, DeformArgs& a) {
+  CLI::App app(
+      "Replays the scenario's move(s) (drag or frame) and writes the deformed shape: positions and\n"
+      "normals change, every other field and the mesh faces are kept.");
+  hgdcli::configureApp(app, "hgdeform deform");
+  addInputOutput(app, a.input, a.scenario, a.output, "handles and moves (docs/scenario.md); required");
+  app.add_option("-r,--report", a.report,
+                 "write a JSON report (version, points, clusters, iterations, energy, ms);\n"
+                 "- for stdout; a link is followed, a FIFO or device written to")
+      ->type_name("FILE");
+  app.add_option("-c,--clusters", a.clusters, "isoclusters (default: the scenario's, else 16)")
+      ->check(hgdcli::integerFrom(1, 1000))
+      ->type_name("N");
+  app.add_option("-k,--k", a.k, "neighbours per point for the Laplacian (default 10)")
+      ->check(hgdcli::integerFrom(2, 100))
+      ->type_name("N");
+  app.add_option("--samples", a.samples, "surface sample size for clustering (default 4000)")
+      ->check(hgdcli::integerFrom(10, 10000000))
+      ->type_name("N");
+  app.add_option("--blend", a.blend, "rotation (default) | linear: how points blend cluster transforms")
+      ->check(hgdcli::oneOf({"linear", "rotation"}))
+      ->type_name("MODE");
+  app.add_option("--joint-clusters", a.joint_clusters,
+                 "skeletal mode: isoclusters inside each joint (default 3)")
+      ->check(hgdcli::integerFrom(1, 100))
+      ->type_name("N");
+  addSolver(app, a.solver, "field solver: ");
+  app.add_flag("--ascii", a.ascii, "write ascii instead of binary");
+  app.add_flag("-q,--quiet", a.quiet, "no summary line");
+  return hgdcli::parse(app, argc, argv);
 }
 
-std::string singleInput(const Args& a) {
-  if (a.positional.size() != 1)
-    throw UsageError(a.positional.empty()
-                         ? "missing INPUT file"
-                         : "expected one INPUT file, got " + std::to_string(a.positional.size()));
-  return a.positional[0];
+hgd::FieldSolver fieldSolver(const std::string& name) {
+  if (name == "exact") return hgd::FieldSolver::Exact;
+  if (name == "multilevel") return hgd::FieldSolver::Multilevel;
+  return hgd::FieldSolver::Auto;
 }
 
-int runField(int argc, char** argv) {
-  const Args a = parseArgs(
-      argc, argv, {"scenario", "output", "k", "solver"}, {"mesh-ring", "color", "ascii", "quiet", "help"},
-      {{"-s", "--scenario"}, {"-o", "--output"}, {"-k", "--k"}, {"-q", "--quiet"}, {"-h", "--help"}});
-  if (a.flags.count("help")) {
-    std::cout << kFieldHelp;
-    return 0;
-  }
-  const std::string input = singleInput(a);
-  const std::string& scenario_path = required(a, "scenario");
-  const std::string& output = required(a, "output");
+// --- the work ----------------------------------------------------------------------------------
+
+int runField(const FieldArgs& a) {
+  const std::string& input = a.input;
+  const std::string& scenario_path = a.scenario;
+  const std::string& output = a.output;
   hgd::formatFromPath(output);  // fail on a bad extension before any work
   hgd::refuseInputs(output, {input, scenario_path});
 
   hgd::FieldOptions opt;
-  opt.k_neighbors = intOption(a, "k", opt.k_neighbors, 2, 100);
-  opt.solver = solverOption(a);
-  opt.mesh_ring = a.flags.count("mesh-ring") > 0;
+  opt.k_neighbors = a.k;
+  opt.solver = fieldSolver(a.solver);
+  opt.mesh_ring = a.mesh_ring;
 
   const auto t0 = std::chrono::steady_clock::now();
   const hgd::Scenario scenario = hgd::readScenario(scenario_path);
@@ -200,14 +173,14 @@ int runField(int argc, char** argv) {
   std::vector<float> phi;
   field.compute(phi);
 
-  hgd::storeField(shape, geometry, phi, "harmonic", a.flags.count("color") > 0);
+  hgd::storeField(shape, geometry, phi, "harmonic", a.color);
   if (const std::string lost = hgd::extrasLost(shape, hgd::formatFromPath(output)); !lost.empty())
     std::fprintf(stderr, "hgdeform: warning: %s: %s\n", output.c_str(), lost.c_str());
   hgd::WriteOptions wo;
-  if (a.flags.count("ascii")) wo.encoding = hgd::Encoding::Ascii;
+  if (a.ascii) wo.encoding = hgd::Encoding::Ascii;
   hgd::writeShape(output, shape, wo);
 
-  if (!a.flags.count("quiet")) {
+  if (!a.quiet) {
     const auto& t = field.timings();
     std::size_t fixed_points = 0;
     for (const auto& f : handles.fixed) fixed_points += f.size();
@@ -228,55 +201,39 @@ int runField(int argc, char** argv) {
   return 0;
 }
 
-int runDeform(int argc, char** argv) {
-  const Args a = parseArgs(
-      argc, argv,
-      {"scenario", "output", "report", "clusters", "k", "samples", "solver", "blend", "joint-clusters"},
-      {"ascii", "quiet", "help"},
-      {{"-s", "--scenario"},
-       {"-o", "--output"},
-       {"-r", "--report"},
-       {"-c", "--clusters"},
-       {"-k", "--k"},
-       {"-q", "--quiet"},
-       {"-h", "--help"}});
-  if (a.flags.count("help")) {
-    std::cout << kDeformHelp;
-    return 0;
-  }
-  const std::string input = singleInput(a);
-  const std::string& scenario_path = required(a, "scenario");
-  const std::string& output = required(a, "output");
+int runDeform(const DeformArgs& a) {
+  const std::string& input = a.input;
+  const std::string& scenario_path = a.scenario;
+  const std::string& output = a.output;
   hgd::formatFromPath(output);
   // No output replaces an input, nor the report the output, however spelt; "-" is stdout.
   hgd::refuseInputs(output, {input, scenario_path});
-  const auto report_it = a.values.find("report");
-  const std::string report_path = report_it == a.values.end() ? "" : report_it->second;
+  const std::string& report_path = a.report;
   if (!report_path.empty() && report_path != "-") {
     hgd::refuseInputs(report_path, {input, scenario_path});
     if (hgd::samePath(report_path, output))
-      throw UsageError("--report " + report_path + " would replace the output " + output);
+      throw hgdcli::UsageError("--report " + report_path + " would replace the output " + output);
   }
 
   hgd::RunOptions ro;
   hgd::DeformOptions& opt = ro.deform;
-  opt.field.k_neighbors = intOption(a, "k", opt.field.k_neighbors, 2, 100);
-  opt.field.solver = solverOption(a);
-  opt.clusters.samples = intOption(a, "samples", opt.clusters.samples, 10, 10000000);
-  if (const int clusters = intOption(a, "clusters", 0, 1, 1000); clusters > 0) ro.clusters = clusters;
-  opt.clusters.joint_isoclusters = intOption(a, "joint-clusters", opt.clusters.joint_isoclusters, 1, 100);
-  if (auto it = a.values.find("blend"); it != a.values.end()) {
+  opt.field.k_neighbors = a.k;
+  opt.field.solver = fieldSolver(a.solver);
+  opt.clusters.samples = a.samples;
+  opt.clusters.joint_isoclusters = a.joint_clusters;
+  if (a.clusters > 0) ro.clusters = a.clusters;
+  if (!a.blend.empty()) {  // the command line wins over the scenario
     hgd::Blend blend;
-    if (!hgd::parseBlend(it->second, blend))
-      throw UsageError("--blend must be linear or rotation (got '" + it->second + "')");
-    ro.blend = blend;  // the command line wins over the scenario
+    if (!hgd::parseBlend(a.blend, blend))
+      throw hgdcli::UsageError("--blend must be linear or rotation (got '" + a.blend + "')");
+    ro.blend = blend;
   }
   const hgd::Scenario scenario = hgd::readScenario(scenario_path);
   hgd::ScenarioRunner run = hgd::ScenarioRunner::read(input, ro);
   run.setScenario(scenario);
   run.applyMoves();
   hgd::WriteOptions wo;
-  if (a.flags.count("ascii")) wo.encoding = hgd::Encoding::Ascii;
+  if (a.ascii) wo.encoding = hgd::Encoding::Ascii;
   run.write(output, wo, {scenario_path});
   const hgd::DeformReport report = run.report();
   // A failed run leaves no output: when the report cannot be written, the shape goes too.
@@ -297,7 +254,7 @@ int runDeform(int argc, char** argv) {
   for (const auto& note : report.notes) std::fprintf(stderr, "hgdeform: note: %s\n", note.c_str());
   for (const auto& w : report.warnings) std::fprintf(stderr, "hgdeform: warning: %s\n", w.c_str());
   // With the report on stdout, the summary goes to stderr so that stdout stays JSON.
-  if (!a.flags.count("quiet"))
+  if (!a.quiet)
     std::fprintf(report_path == "-" ? stderr : stdout, "%s -> %s: %s\n", input.c_str(), output.c_str(),
                  hgd::summaryLine(report).c_str());
   return 0;
@@ -321,13 +278,27 @@ int main(int argc, char** argv) {
     std::cout << kUsage;
     return 0;
   }
+  if (cmd == "--version") {
+    std::cout << hgdcli::versionLine("hgdeform") << "\n";
+    return 0;
+  }
   try {
-    if (cmd == "field") return runField(argc - 2, argv + 2);
-    if (cmd == "deform") return runDeform(argc - 2, argv + 2);
-    if (cmd == "batch") return hgdcli::runBatch(argc - 2, argv + 2);
+    // Each command parses its own options (argv[1], the command, stands for the program name),
+    // then does the work with the parsed struct.
+    if (cmd == "field") {
+      FieldArgs a;
+      const int status = parseField(argc - 1, argv + 1, a);
+      return status >= 0 ? status : runField(a);
+    }
+    if (cmd == "deform") {
+      DeformArgs a;
+      const int status = parseDeform(argc - 1, argv + 1, a);
+      return status >= 0 ? status : runDeform(a);
+    }
+    if (cmd == "batch") return hgdcli::runBatch(argc - 1, argv + 1);
     std::cerr << "hgdeform: unknown command '" << cmd << "'\n" << kUsage;
     return 2;
-  } catch (const UsageError& e) {
+  } catch (const hgdcli::UsageError& e) {
     std::cerr << "hgdeform " << cmd << ": " << e.what() << "\n(see 'hgdeform " << cmd << " --help')\n";
     return 2;
   } catch (const std::bad_alloc&) {

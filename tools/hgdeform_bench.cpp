@@ -19,15 +19,16 @@
 #include <filesystem>
 #include <iostream>
 #include <nlohmann/json.hpp>
-#include <sstream>
 #include <string>
 #include <vector>
 
 #include "blas_guard.h"
+#include "cli_common.h"
 #include "hgdeform/deformer.h"
 #include "hgdeform/io.h"
 #include "hgdeform/report.h"
 #include "hgdeform/shapes.h"
+#include "hgdeform/version.h"
 
 namespace {
 
@@ -36,14 +37,6 @@ double median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
   const std::size_t n = v.size();
   return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
-std::vector<long> parseList(const std::string& s) {
-  std::vector<long> out;
-  std::stringstream ss(s);
-  std::string item;
-  while (std::getline(ss, item, ',')) out.push_back(std::stol(item));
-  return out;
 }
 
 // The paper's Table 1 (Core 2 Duo, 2008), nearest model by size: build ms, GN ms/iteration
@@ -199,56 +192,60 @@ nlohmann::json runSize(const std::string& model, const std::string& armadillo, s
   return out;
 }
 
+/// hgdeform-bench's command line.
+struct BenchArgs {
+  std::vector<long> sizes{50000, 173000, 438000, 1000000};
+  std::vector<long> clusters{16, 100};
+  std::vector<std::string> models{"sphere", "armadillo"};
+  std::string armadillo = HGD_DEFAULT_ARMADILLO;
+  int repeat = 5;
+  std::string json;
+};
+
+/// Parses the command line into `a`; returns -1 to go on, else the exit status.
+int parseArgs(int argc, char** argv, BenchArgs& a) {
+  CLI::App app(
+      "Build, solve and interpolation timings against the paper's Table 1. Each (model, size) runs in\n"
+      "its own child process, so that the peak memory (RSS) reported is its own.");
+  hgdcli::configureApp(app, "hgdeform-bench");
+  app.add_option("--sizes", a.sizes, "point counts (default 50000,173000,438000,1000000)")
+      ->delimiter(',')
+      ->check(hgdcli::integerFrom(1, 1000000000))
+      ->type_name("N,N,...");
+  app.add_option("--clusters", a.clusters, "isocluster counts (default 16,100)")
+      ->delimiter(',')
+      ->check(hgdcli::integerFrom(1, 1000000000))
+      ->type_name("N,N");
+  app.add_option("--repeat", a.repeat, "runs per measurement, the median is shown (default 5)")
+      ->check(hgdcli::integerFrom(1, 1000))
+      ->type_name("R");
+  app.add_option("--models", a.models, "sphere and/or armadillo (default sphere,armadillo)")
+      ->delimiter(',')
+      ->check(hgdcli::oneOf({"sphere", "armadillo"}))
+      ->type_name("M,M");
+  app.add_option("--armadillo", a.armadillo,
+                 "the Armadillo mesh (default ../shared/datasets/meshes/armadillo_49990.ply)")
+      ->type_name("PATH");
+  app.add_option("--json", a.json, "also write every measurement (with the tool and its version) as JSON")
+      ->type_name("OUT");
+  // A list keeps all its values (the tools' default policy, the last value wins, would keep one).
+  for (const char* name : {"--sizes", "--clusters", "--models"})
+    app.get_option(name)->multi_option_policy(CLI::MultiOptionPolicy::TakeAll)->allow_extra_args(false);
+  return hgdcli::parse(app, argc, argv);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   hgdcli::singleThreadBlas();  // as hgdeform does (blas_guard.h)
-  std::vector<long> sizes{50000, 173000, 438000, 1000000};
-  std::string armadillo = HGD_DEFAULT_ARMADILLO;
-  std::vector<std::string> models{"sphere", "armadillo"};
-  std::vector<long> cluster_counts{16, 100};
-  int repeat = 5;
-  std::string json_path;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto next = [&]() -> std::string {
-      if (i + 1 >= argc) {
-        std::cerr << "hgdeform-bench: " << a << " needs a value\n";
-        std::exit(2);
-      }
-      return argv[++i];
-    };
-    if (a == "--sizes")
-      sizes = parseList(next());
-    else if (a == "--clusters")
-      cluster_counts = parseList(next());
-    else if (a == "--repeat")
-      repeat = std::max(1, std::atoi(next().c_str()));
-    else if (a == "--json")
-      json_path = next();
-    else if (a == "--armadillo")
-      armadillo = next();
-    else if (a == "--models") {
-      models.clear();
-      std::stringstream ss(next());
-      std::string item;
-      while (std::getline(ss, item, ',')) {
-        if (item != "sphere" && item != "armadillo") {
-          std::cerr << "hgdeform-bench: unknown model '" << item << "' (sphere, armadillo)\n";
-          return 2;
-        }
-        models.push_back(item);
-      }
-    } else if (a == "-h" || a == "--help") {
-      std::cout << "usage: hgdeform-bench [--sizes N,N,...] [--clusters N,N] [--repeat R] [--models "
-                   "sphere,armadillo]\n"
-                   "                      [--armadillo PATH] [--json OUT]\n";
-      return 0;
-    } else {
-      std::cerr << "hgdeform-bench: unknown option '" << a << "'\n";
-      return 2;
-    }
-  }
+  BenchArgs args;
+  if (const int status = parseArgs(argc, argv, args); status >= 0) return status;
+  const std::vector<long>& sizes = args.sizes;
+  const std::vector<long>& cluster_counts = args.clusters;
+  const std::string& armadillo = args.armadillo;
+  std::vector<std::string> models = args.models;
+  const int repeat = args.repeat;
+  const std::string& json_path = args.json;
   nlohmann::json all = nlohmann::json::array();
   if (std::find(models.begin(), models.end(), "armadillo") != models.end() &&
       !std::filesystem::exists(armadillo)) {
@@ -286,6 +283,8 @@ int main(int argc, char** argv) {
       }
       nlohmann::json r = nlohmann::json::parse(text);
       r["peak_rss_mb"] = static_cast<double>(ru.ru_maxrss) / 1024.0;
+      r["tool"] = "hgdeform-bench";
+      r["version"] = hgd::version();
       const auto& f = r["field"];
       for (const auto& d : r["deform"]) {
         std::printf(

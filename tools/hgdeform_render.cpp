@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "cli_common.h"
 #include "hgdeform/io.h"
 #include "hgdeform/render.h"
 
@@ -20,50 +21,61 @@ int main(int argc, char** argv) {
   std::vector<std::string> inputs;
   std::string output;
   hgd::RenderOptions opt;
+  CLI::App app(
+      "Off-screen pictures of shapes. Each input gets its own viewport, side by side, all seen from\n"
+      "the same direction. A mesh is drawn as a surface, a cloud as points; colours come from the\n"
+      "scalar field named by --field (blue to red), else from the file's colours, else a neutral\n"
+      "grey. Needs an X display (run under xvfb-run on a headless machine).");
+  hgdcli::configureApp(app, "hgdeform-render");
+  app.add_option("IN", inputs, "shapes to draw (PLY, PCD or OBJ), one viewport each")
+      ->required()
+      ->type_name("")
+      ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
+  app.add_option("-o,--output", output, "the PNG to write; never an input")->required()->type_name("OUT.png");
+  app.add_option("--field", opt.field, "colour by this per-point scalar (e.g. harmonic)")->type_name("NAME");
+  std::string size, view;
+  app.add_option("--size", size, "picture size, at least 16x16 (default 1200x600)")
+      ->check(CLI::Validator(
+          [&opt](std::string& s) -> std::string {
+            if (std::sscanf(s.c_str(), "%dx%d", &opt.width, &opt.height) != 2 || opt.width < 16 ||
+                opt.height < 16)
+              return "must be WIDTHxHEIGHT (got '" + s + "')";
+            return {};
+          },
+          "", "size"))
+      ->type_name("WxH");
+  app.add_option("--view", view, "direction from the target to the eye (default 1,0.6,1.4, turned with --up)")
+      ->check(CLI::Validator(
+          [&opt](std::string& s) -> std::string {
+            Eigen::Vector3f v;
+            if (std::sscanf(s.c_str(), "%f,%f,%f", &v.x(), &v.y(), &v.z()) != 3 || v.norm() == 0)
+              return "must be x,y,z (got '" + s + "')";
+            opt.view = v;
+            return {};
+          },
+          "", "direction"))
+      ->type_name("x,y,z");
+  app.add_option("--up", opt.up,
+                 "the axis that points up in the picture: x|y|z|-x|-y|-z|auto (default auto: -y when the "
+                 "first input is a camera-frame scan, i.e. organized (height > 1) or a PCD with a sensor "
+                 "pose; else y)")
+      ->check(CLI::Validator(
+          [](std::string& s) -> std::string {
+            try {
+              hgd::upAxis(s, {});
+            } catch (const std::exception& e) {
+              return e.what();
+            }
+            return {};
+          },
+          "", "axis"))
+      ->type_name("AXIS");
+  app.add_option("--title", opt.titles, "a title per viewport, in the inputs' order (repeat the option)")
+      ->type_name("T")
+      ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll)
+      ->allow_extra_args(false);  // one title per --title: what follows is an input again
+  if (const int status = hgdcli::parse(app, argc, argv); status >= 0) return status;
   try {
-    for (int i = 1; i < argc; ++i) {
-      const std::string a = argv[i];
-      auto next = [&]() -> std::string {
-        if (i + 1 >= argc) throw std::runtime_error(a + " needs a value");
-        return argv[++i];
-      };
-      if (a == "-o" || a == "--output") {
-        output = next();
-      } else if (a == "--field") {
-        opt.field = next();
-      } else if (a == "--title") {
-        opt.titles.push_back(next());
-      } else if (a == "--size") {
-        const std::string s = next();
-        if (std::sscanf(s.c_str(), "%dx%d", &opt.width, &opt.height) != 2 || opt.width < 16 ||
-            opt.height < 16)
-          throw std::runtime_error("--size must be WIDTHxHEIGHT");
-      } else if (a == "--view") {
-        const std::string s = next();
-        Eigen::Vector3f v;
-        if (std::sscanf(s.c_str(), "%f,%f,%f", &v.x(), &v.y(), &v.z()) != 3 || v.norm() == 0)
-          throw std::runtime_error("--view must be x,y,z");
-        opt.view = v;
-      } else if (a == "--up") {
-        opt.up = next();
-        hgd::upAxis(opt.up, {});  // a bad name fails here, before any work
-      } else if (a == "-h" || a == "--help") {
-        std::cout
-            << "usage: hgdeform-render IN [IN ...] -o OUT.png [--field NAME] [--size WxH] [--view x,y,z] "
-               "[--up AXIS] [--title T ...]\n"
-               "  --up x|y|z|-x|-y|-z|auto  the axis that points up in the picture (default auto: -y when\n"
-               "                            the first input is a camera-frame scan, i.e. organized (height > "
-               "1)\n"
-               "                            or a PCD with a sensor pose; else y). The default --view turns "
-               "with it.\n";
-        return 0;
-      } else if (!a.empty() && a[0] == '-') {
-        throw std::runtime_error("unknown option '" + a + "'");
-      } else {
-        inputs.push_back(a);
-      }
-    }
-    if (inputs.empty() || output.empty()) throw std::runtime_error("need at least one input and -o OUT.png");
     hgd::refuseInputs(output, inputs);
     if (const std::string problem = hgd::displayProblem(); !problem.empty())
       throw std::runtime_error(problem);

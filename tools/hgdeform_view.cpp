@@ -58,6 +58,7 @@
 #include <vector>
 
 #include "blas_guard.h"
+#include "cli_common.h"
 #include "hgdeform/colormap.h"
 #include "hgdeform/deformer.h"
 #include "hgdeform/fields.h"
@@ -932,57 +933,57 @@ void Style::OnLeftButtonUp() {
   Superclass::OnLeftButtonUp();
 }
 
-const char* kUsage =
-    "usage: hgdeform-view INPUT [--scenario S.json] [--replay EVENTS.json] [--screenshot OUT.png]\n"
-    "                     [--size WxH] [--stats] [--quiet]\n"
+const char* kDescription =
     "Opens a shape for interactive deformation; 'h' in the window lists the keys.\n"
     "--replay plays a script of events and exits (the whole file is checked first); with\n"
     "--screenshot it then saves a PNG, with --stats it prints frame timings. The replay format\n"
-    "and how the options combine: docs/replay.md.\n";
+    "and how the options combine: docs/replay.md.";
+
+/// hgdeform-view's command line.
+struct ViewArgs {
+  std::string input, scenario, replay, shot;
+  int width = 1100, height = 800;
+  bool stats = false, quiet = false;
+};
+
+/// Parses the command line into `a`; returns -1 to go on, else the exit status.
+int parseArgs(int argc, char** argv, ViewArgs& a) {
+  CLI::App app(kDescription);
+  hgdcli::configureApp(app, "hgdeform-view");
+  app.add_option("INPUT", a.input, "the shape: a PLY, PCD or OBJ file")->required()->type_name("");
+  app.add_option("-s,--scenario", a.scenario, "handles to load (docs/scenario.md)")->type_name("S.json");
+  app.add_option("--replay", a.replay, "play a script of events, then exit (docs/replay.md)")
+      ->type_name("EVENTS.json");
+  app.add_option("--screenshot", a.shot, "save a PNG (after the replay, if any) and exit")
+      ->type_name("OUT.png");
+  std::string size;
+  app.add_option("--size", size, "window size (default 1100x800)")
+      ->check(CLI::Validator(
+          [&a](std::string& text) -> std::string {
+            int w = 0, h = 0;
+            char rest = 0;
+            if (std::sscanf(text.c_str(), "%dx%d%c", &w, &h, &rest) != 2 || w < 64 || h < 64)
+              return "must be WIDTHxHEIGHT, each at least 64 (got '" + text + "')";
+            a.width = w;
+            a.height = h;
+            return {};
+          },
+          "", "size"))
+      ->type_name("WxH");
+  app.add_flag("--stats", a.stats, "print frame timings");
+  app.add_flag("-q,--quiet", a.quiet, "print nothing but errors");
+  return hgdcli::parse(app, argc, argv);
+}
 
 }  // namespace
 
 int main(int argc, char** argv) {
   hgdcli::singleThreadBlas();  // as hgdeform does (blas_guard.h)
-  std::string input, scenario, replay, shot;
-  int width = 1100, height = 800;
-  bool stats = false, quiet = false;
-  try {
-    for (int i = 1; i < argc; ++i) {
-      const std::string a = argv[i];
-      auto next = [&]() -> std::string {
-        if (i + 1 >= argc) throw std::invalid_argument(a + " needs a value");
-        return argv[++i];
-      };
-      if (a == "--scenario" || a == "-s")
-        scenario = next();
-      else if (a == "--replay")
-        replay = next();
-      else if (a == "--screenshot")
-        shot = next();
-      else if (a == "--size") {
-        const std::string s = next();
-        if (std::sscanf(s.c_str(), "%dx%d", &width, &height) != 2 || width < 64 || height < 64)
-          throw std::invalid_argument("--size must be WIDTHxHEIGHT");
-      } else if (a == "--stats")
-        stats = true;
-      else if (a == "--quiet" || a == "-q")
-        quiet = true;
-      else if (a == "-h" || a == "--help") {
-        std::cout << kUsage;
-        return 0;
-      } else if (!a.empty() && a[0] == '-')
-        throw std::invalid_argument("unknown option '" + a + "'");
-      else if (input.empty())
-        input = a;
-      else
-        throw std::invalid_argument("expected one INPUT file");
-    }
-    if (input.empty()) throw std::invalid_argument("missing INPUT file");
-  } catch (const std::invalid_argument& e) {
-    std::cerr << "hgdeform-view: " << e.what() << "\n" << kUsage;
-    return 2;
-  }
+  ViewArgs args;
+  if (const int status = parseArgs(argc, argv, args); status >= 0) return status;
+  const std::string &input = args.input, &scenario = args.scenario, &replay = args.replay, &shot = args.shot;
+  const int width = args.width, height = args.height;
+  const bool stats = args.stats, quiet = args.quiet;
   try {
     // No output of the viewer (screenshots, saved shapes and scenarios, from keys or replay
     // events) may replace one of its inputs.

@@ -8,19 +8,28 @@
 #include <filesystem>
 #include <string>
 
+#include "cli_common.h"
 #include "hgdeform/io.h"
 #include "hgdeform/shapes.h"
 
 int main(int argc, char** argv) {
-  if (argc != 4) {
-    std::fprintf(stderr, "usage: hgdeform-make-scans OUT_DIR COUNT POINTS\n");
-    return 2;
-  }
-  const std::filesystem::path dir = argv[1];
-  const long count = std::strtol(argv[2], nullptr, 10), points = std::strtol(argv[3], nullptr, 10);
-  if (count < 1 || points < 100) {
-    std::fprintf(stderr, "hgdeform-make-scans: COUNT must be >= 1 and POINTS >= 100\n");
-    return 2;
+  std::filesystem::path dir;
+  long count = 0, points = 0;
+  {
+    CLI::App app(
+        "Writes COUNT procedural scans (bumpy planes of about POINTS points, alternately PLY and\n"
+        "PCD) and scenario.json into OUT_DIR, for timing `hgdeform batch`.");
+    hgdcli::configureApp(app, "hgdeform-make-scans");
+    app.add_option("OUT_DIR", dir, "the folder to write (created)")->required()->type_name("");
+    app.add_option("COUNT", count, "number of scans, at least 1")
+        ->required()
+        ->check(hgdcli::integerFrom(1, 1000000))
+        ->type_name("");
+    app.add_option("POINTS", points, "points per scan, at least 100")
+        ->required()
+        ->check(hgdcli::integerFrom(100, 1000000000))
+        ->type_name("");
+    if (const int status = hgdcli::parse(app, argc, argv); status >= 0) return status;
   }
   // bumpyPlane samples (cells + 1)^2 points with cells = round(1 / h).
   const double cells = std::max(2.0, std::round(std::sqrt(static_cast<double>(points))) - 1);

@@ -17,7 +17,7 @@ void storeField(Shape& shape, const Geometry& geometry, const std::vector<float>
                 const std::string& name, bool color = false);
 
 /// The report as JSON text:
-/// {"points", "clusters", "iterations", "energy": {"detail", "prop", "manip", "length", "total"},
+/// {"version", "points", "clusters", "iterations", "energy": {"detail", "prop", "manip", "length", "total"},
 ///  "ms": {"build", "field", "sampling", "clusters", "solve", "solve_per_iteration",
 ///         "interpolation", "total"}, ...}
 std::string reportJson(const DeformReport& report);

@@ -1,6 +1,14 @@
 # Installs the hgdeform build in BUILD_DIR into WORK_DIR/prefix, then configures, builds and
 # runs the consumer project in SOURCE_DIR against it.
-#   cmake -DBUILD_DIR=... -DSOURCE_DIR=... -DWORK_DIR=... -P run.cmake
+#   cmake -DBUILD_DIR=... -DSOURCE_DIR=... -DWORK_DIR=... [options] -P run.cmake
+# Options:
+#   -DSTATIC_FROM=SRC   first configure and build a static libhgdeform (library only) from the
+#                       source tree SRC into BUILD_DIR, then install that (the static package)
+#   -DTOOLS_DATA=DIR    also run the installed tools (bin/hgdeform --version, and a deform of
+#                       DIR/bunny_1839.ply with DIR/bunny_ears.json) with LD_LIBRARY_PATH unset:
+#                       they must find libhgdeform through their RPATH, wherever the prefix is
+#   -DCOMPILER_LAUNCHER=ccache, -DCXX_COMPILER=..., -DC_COMPILER=...  for the static build (the
+#                       main build's, so that the library is built like the rest)
 foreach(var BUILD_DIR SOURCE_DIR WORK_DIR)
   if(NOT DEFINED ${var})
     message(FATAL_ERROR "run.cmake: ${var} is not set")
@@ -19,14 +27,70 @@ function(step what)
   endif()
 endfunction()
 
-step("install" "${CMAKE_COMMAND}" --install "${BUILD_DIR}" --prefix "${prefix}")
-
 find_program(NINJA ninja)
 if(NINJA)
   set(generator -G Ninja)
 else()
   set(generator)
 endif()
+
+if(DEFINED STATIC_FROM)
+  set(launcher)
+  if(COMPILER_LAUNCHER)
+    set(launcher "-DCMAKE_CXX_COMPILER_LAUNCHER=${COMPILER_LAUNCHER}"
+                 "-DCMAKE_C_COMPILER_LAUNCHER=${COMPILER_LAUNCHER}")
+  endif()
+  foreach(lang CXX C)
+    if(${lang}_COMPILER)
+      list(APPEND launcher "-DCMAKE_${lang}_COMPILER=${${lang}_COMPILER}")
+    endif()
+  endforeach()
+  # The library only: no tools, no tests (they would double the build time for nothing new).
+  step("static configure" "${CMAKE_COMMAND}" -S "${STATIC_FROM}" -B "${BUILD_DIR}" ${generator}
+       -DCMAKE_BUILD_TYPE=Release -DBUILD_SHARED_LIBS=OFF -DHGDEFORM_BUILD_TOOLS=OFF
+       -DHGDEFORM_BUILD_TESTS=OFF ${launcher})
+  step("static build" "${CMAKE_COMMAND}" --build "${BUILD_DIR}" --target hgdeform -j 2)
+endif()
+
+step("install" "${CMAKE_COMMAND}" --install "${BUILD_DIR}" --prefix "${prefix}")
+
+if(DEFINED STATIC_FROM)
+  file(GLOB_RECURSE shared_libs "${prefix}/*libhgdeform.so*")
+  file(GLOB_RECURSE static_libs "${prefix}/*libhgdeform.a")
+  if(shared_libs OR NOT static_libs)
+    message(FATAL_ERROR "install_consumer: expected only libhgdeform.a in ${prefix}")
+  endif()
+endif()
+if(EXISTS "${prefix}/include/hgdeform/render.h")
+  message(FATAL_ERROR "install_consumer: render.h is installed without its library")
+endif()
+
+if(DEFINED TOOLS_DATA)
+  # An installed program runs from the prefix alone: no LD_LIBRARY_PATH, and the build tree's
+  # RPATH must be gone (the prefix is not where the build put it).
+  set(tool "${prefix}/bin/hgdeform")
+  set(noenv "${CMAKE_COMMAND}" -E env --unset=LD_LIBRARY_PATH)
+  execute_process(COMMAND ${noenv} "${tool}" --version RESULT_VARIABLE rc OUTPUT_VARIABLE out
+                  ERROR_VARIABLE err)
+  if(NOT rc EQUAL 0 OR NOT out MATCHES "^hgdeform [0-9]+\\.[0-9]+\\.[0-9]+")
+    message(FATAL_ERROR "install_consumer: ${tool} --version: exit ${rc}, '${out}' ${err}")
+  endif()
+  message(STATUS "install_consumer: ${out}")
+  step("installed hgdeform deform" ${noenv} "${tool}" deform "${TOOLS_DATA}/bunny_1839.ply"
+       --scenario "${TOOLS_DATA}/bunny_ears.json" -o "${WORK_DIR}/bunny_deformed.ply"
+       --report "${WORK_DIR}/bunny_report.json")
+  foreach(f bunny_deformed.ply bunny_report.json)
+    file(SIZE "${WORK_DIR}/${f}" size)
+    if(NOT size GREATER 0)
+      message(FATAL_ERROR "install_consumer: the installed hgdeform wrote no ${f}")
+    endif()
+  endforeach()
+  file(READ "${WORK_DIR}/bunny_report.json" report)
+  if(NOT report MATCHES "\"version\"")
+    message(FATAL_ERROR "install_consumer: no version in the report: ${report}")
+  endif()
+endif()
+
 step("configure" "${CMAKE_COMMAND}" -S "${SOURCE_DIR}" -B "${build}" ${generator}
      "-DCMAKE_PREFIX_PATH=${prefix}" -DCMAKE_BUILD_TYPE=Release)
 step("build" "${CMAKE_COMMAND}" --build "${build}" -j 1)

@@ -1,0 +1,98 @@
+// Command-line parsing shared by every tool: CLI11 (Debian's libcli11-dev, header-only) with one
+// convention for all of them:
+//   --help     the options with their defaults and descriptions, on stdout, exit 0
+//   --version  "<tool> <version>" on stdout, exit 0
+//   usage errors (unknown option, missing required option or argument, bad value) go to stderr as
+//   "<tool>: <what>\n(see '<tool> --help')", exit 2; failures of the work itself exit 1.
+#pragma once
+
+#include <CLI/CLI.hpp>
+#include <cerrno>
+#include <cstdio>
+#include <cstdlib>
+#include <stdexcept>
+#include <string>
+
+#include "hgdeform/version.h"
+
+namespace hgdcli {
+
+/// A usage error found after parsing (options that contradict each other, a path that cannot be
+/// one): exit 2 like CLI11's own.
+struct UsageError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+/// `tool version`, e.g. "hgdeform deform 0.1.0".
+inline std::string versionLine(const std::string& tool) {
+  return tool + " " + hgd::version();
+}
+
+/// An app with the conventions above: `tool` is the name shown in usage lines and messages.
+inline void configureApp(CLI::App& app, const std::string& tool) {
+  app.name(tool);
+  app.set_help_flag("-h,--help", "this help");
+  app.set_version_flag("--version", versionLine(tool), "print \"" + tool + " VERSION\" and exit");
+  // A repeated option: the last one counts (as the hand-written parsers did).
+  app.option_defaults()->multi_option_policy(CLI::MultiOptionPolicy::TakeLast);
+  app.get_formatter()->column_width(32);
+  app.footer("Exit status: 0 on success, 1 when the work failed, 2 on usage errors.");
+}
+
+/// Writes a usage error the way every tool does; returns 2.
+inline int usageError(const std::string& tool, const std::string& what) {
+  std::fprintf(stderr, "%s: %s\n(see '%s --help')\n", tool.c_str(), what.c_str(), tool.c_str());
+  return 2;
+}
+
+/// Parses; returns -1 when the program should go on, else the exit status (0 after --help or
+/// --version, 2 after a usage error). With `print` false nothing is printed (MPI ranks other
+/// than 0).
+inline int parse(CLI::App& app, int argc, const char* const* argv, bool print = true) {
+  try {
+    app.parse(argc, argv);
+    return -1;
+  } catch (const CLI::CallForHelp&) {
+    if (print) std::fputs(app.help().c_str(), stdout);
+    return 0;
+  } catch (const CLI::CallForAllHelp&) {
+    if (print) std::fputs(app.help("", CLI::AppFormatMode::All).c_str(), stdout);
+    return 0;
+  } catch (const CLI::CallForVersion& e) {
+    if (print) std::printf("%s\n", e.what());
+    return 0;
+  } catch (const CLI::ParseError& e) {
+    return print ? usageError(app.get_name(), e.what()) : 2;
+  }
+}
+
+/// A validator for integer options: the value must be an integer from lo to hi.
+inline CLI::Validator integerFrom(long lo, long hi) {
+  return CLI::Validator(
+      [lo, hi](std::string& text) -> std::string {
+        char* end = nullptr;
+        errno = 0;
+        const long v = std::strtol(text.c_str(), &end, 10);
+        if (text.empty() || *end != '\0' || errno != 0 || v < lo || v > hi)
+          return "must be an integer from " + std::to_string(lo) + " to " + std::to_string(hi) + " (got '" +
+                 text + "')";
+        return {};
+      },
+      "", "integer");
+}
+
+/// A validator for words from a fixed list.
+inline CLI::Validator oneOf(const std::vector<std::string>& words) {
+  std::string list;
+  for (std::size_t i = 0; i < words.size(); ++i)
+    list += (i == 0 ? "" : i + 1 == words.size() ? " or " : ", ") + words[i];
+  return CLI::Validator(
+      [words, list](std::string& text) -> std::string {
+        for (const auto& w : words)
+          if (text == w) return {};
+        return "must be " + list + " (got '" + text + "')";
+      },
+      "", "word");
+}
+
+}  // namespace hgdcli
