@@ -55,6 +55,19 @@ std::vector<std::string_view> splitWords(std::string_view s) {
   return words;
 }
 
+std::vector<std::string_view> splitColumns(std::string_view s) {
+  std::vector<std::string_view> words;
+  std::size_t i = 0;
+  const auto sep = [](char c) { return isSpace(c) || c == ','; };
+  while (i < s.size()) {
+    while (i < s.size() && sep(s[i])) ++i;
+    const std::size_t b = i;
+    while (i < s.size() && !sep(s[i])) ++i;
+    if (i > b) words.push_back(s.substr(b, i - b));
+  }
+  return words;
+}
+
 std::string lower(std::string_view s) {
   std::string out(s);
   for (char& c : out) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
@@ -94,6 +107,34 @@ bool computeDense(const pcl::PCLPointCloud2& cloud) {
       if (!std::isfinite(readValue(cloud, i, f))) return false;
   }
   return true;
+}
+
+pcl::PCLPointCloud2 makeCloud(std::size_t n, const std::vector<std::pair<std::string, std::uint8_t>>& fields,
+                              const std::vector<double>& values) {
+  pcl::PCLPointCloud2 cloud;
+  std::uint32_t step = 0;
+  for (const auto& [name, type] : fields) {
+    Field f;
+    f.name = name;
+    f.offset = step;
+    f.datatype = type;
+    f.count = 1;
+    step += static_cast<std::uint32_t>(datatypeSize(type));
+    cloud.fields.push_back(f);
+  }
+  cloud.width = static_cast<std::uint32_t>(n);
+  cloud.height = 1;
+  cloud.point_step = step;
+  cloud.row_step = step * cloud.width;
+  cloud.is_bigendian = false;
+  cloud.data.resize(n * step);
+  const std::size_t nf = fields.size();
+  for (std::size_t i = 0; i < n; ++i)
+    for (std::size_t k = 0; k < nf; ++k)
+      encodeValue(cloud.data.data() + i * step + cloud.fields[k].offset, cloud.fields[k].datatype,
+                  values[i * nf + k]);
+  cloud.is_dense = computeDense(cloud);
+  return cloud;
 }
 
 // ------------------------------------------------------------------------------------------

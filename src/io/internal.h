@@ -14,6 +14,7 @@
 #include <string_view>
 #include <system_error>
 #include <type_traits>
+#include <utility>
 #include <vector>
 
 #include "field_codec.h"
@@ -39,6 +40,8 @@ std::string num(std::uint64_t v);
 std::string excerpt(std::string_view s);
 bool isSpace(char c);
 std::vector<std::string_view> splitWords(std::string_view s);
+/// The values of an XYZ row: split at blanks and commas.
+std::vector<std::string_view> splitColumns(std::string_view s);
 std::string lower(std::string_view s);
 bool parseU64(std::string_view s, std::uint64_t* v);
 
@@ -94,6 +97,11 @@ void appendFloat(std::string& out, T v) {
     out.append(buf, r.ptr);
   }
 }
+
+/// A cloud of `n` points (height 1) with scalar fields of these names and types, packed in
+/// order, filled from `values` (point by point, field by field) converted to each type.
+pcl::PCLPointCloud2 makeCloud(std::size_t n, const std::vector<std::pair<std::string, std::uint8_t>>& fields,
+                              const std::vector<double>& values);
 
 /// False if any x, y or z value is NaN or infinite.
 bool computeDense(const pcl::PCLPointCloud2& cloud);
@@ -247,7 +255,7 @@ void writeAsciiPoints(AtomicWriter& w, const pcl::PCLPointCloud2& c, std::size_t
                       const std::vector<const Field*>& fields);
 
 // ------------------------------------------------------------------------------------------
-// The formats (ply.cpp, pcd.cpp, obj.cpp)
+// The formats (ply.cpp, pcd.cpp, obj.cpp, xyz.cpp, off.cpp, stl.cpp)
 
 Shape readPly(const std::string& path);
 Shape readPcd(const std::string& path);
@@ -255,5 +263,11 @@ Shape readObj(const std::string& path);
 void writePly(const std::string& path, const Shape& shape, bool ascii);
 void writePcd(const std::string& path, const Shape& shape, bool ascii);
 void writeObj(const std::string& path, const Shape& shape);
+Shape readXyz(const std::string& path);
+Shape readOff(const std::string& path);
+Shape readStl(const std::string& path);
+void writeXyz(const std::string& path, const Shape& shape);
+void writeOff(const std::string& path, const Shape& shape);
+void writeStl(const std::string& path, const Shape& shape, bool ascii);
 
 }  // namespace hgd::io_internal
