@@ -37,10 +37,11 @@ const char* kUsage =
     "  deform  INPUT --scenario S.json -o OUT   deform the shape as the scenario's moves say\n"
     "  batch   --scenario S.json IN_DIR -o OUT_DIR   deform every scan in a folder\n"
     "\n"
-    "INPUT and OUT are PLY, PCD or OBJ files (by extension). 'hgdeform <command> --help' for options.\n";
+    "INPUT and OUT are PLY, PCD, OBJ, XYZ/TXT, OFF or STL files: OUT by extension, INPUT by its\n"
+    "content (a note says when that differs from the extension). 'hgdeform <command> --help' for options.\n";
 
 const char* kFieldHelp =
-    "usage: hgdeform field INPUT --scenario S.json -o OUT.ply|.pcd|.obj [options]\n"
+    "usage: hgdeform field INPUT --scenario S.json -o OUT.ply|.pcd|.obj|.xyz|.txt|.off|.stl [options]\n"
     "\n"
     "Computes the harmonic field (1 on the manipulated handle, 0 on the fixed handles) and writes\n"
     "the shape with it as the per-point scalar 'harmonic' (all other fields kept).\n"
@@ -57,7 +58,7 @@ const char* kFieldHelp =
     "  -h, --help            this help\n";
 
 const char* kDeformHelp =
-    "usage: hgdeform deform INPUT --scenario S.json -o OUT.ply|.pcd|.obj [options]\n"
+    "usage: hgdeform deform INPUT --scenario S.json -o OUT.ply|.pcd|.obj|.xyz|.txt|.off|.stl [options]\n"
     "\n"
     "Replays the scenario's move(s) (drag or frame) and writes the deformed shape: positions and\n"
     "normals change, every other field and the mesh faces are kept.\n"
@@ -183,6 +184,7 @@ int runField(int argc, char** argv) {
   const auto t0 = std::chrono::steady_clock::now();
   const hgd::Scenario scenario = hgd::readScenario(scenario_path);
   hgd::Shape shape = hgd::readShape(input);
+  for (const std::string& w : shape.warnings) std::fprintf(stderr, "hgdeform: warning: %s\n", w.c_str());
   const hgd::Geometry geometry = hgd::extractGeometry(shape);
   const hgd::Handles handles = hgd::resolveHandles(scenario, geometry);
   const double read_ms =
@@ -278,6 +280,7 @@ int runDeform(int argc, char** argv) {
   hgd::WriteOptions wo;
   if (a.flags.count("ascii")) wo.encoding = hgd::Encoding::Ascii;
   hgd::DeformReport report = hgd::deformShape(shape, scenario, opt);
+  report.warnings.insert(report.warnings.begin(), shape.warnings.begin(), shape.warnings.end());
   if (const std::string lost = hgd::extrasLost(shape, hgd::formatFromPath(output)); !lost.empty())
     report.warnings.push_back(output + ": " + lost);
   report.read_ms = read_ms;  // reading is part of everything before the first solve
