@@ -367,6 +367,16 @@ TEST(Stl, RoundTripsAsciiAndBinary) {
   }
 }
 
+TEST(Stl, FieldsItCannotHoldAreNamed) {
+  TempDir dir;
+  const std::string p = dir.file("c.xyz");
+  hgdtest::writeText(p, "x y z intensity\n0 0 0 1\n");
+  const Shape s = hgd::readShape(p);
+  EXPECT_EQ(hgd::extrasLost(s, hgd::FileFormat::Stl), "STL cannot hold the fields intensity");
+  EXPECT_EQ(hgd::extrasLost(s, hgd::FileFormat::Off), "OFF cannot hold the fields intensity");
+  EXPECT_EQ(hgd::extrasLost(s, hgd::FileFormat::Xyz), "");
+}
+
 TEST(Stl, CloudWithoutFacesIsNotWrittenAndLeavesNothing) {
   TempDir dir;
   const std::string in = dir.file("c.xyz");

@@ -48,7 +48,9 @@ void writeShape(const std::string& path, const Shape& shape, const WriteOptions&
 
 /// What writing `shape` in `format` would lose of what its file held beyond points and faces
 /// (FileExtras: an OBJ's texture coordinates and groups, a PLY's other elements), as a warning
-/// to print; "" when nothing is lost. A shape is written back whole in its own format.
+/// to print; "" when nothing is lost. A shape is written back whole in its own format. For STL
+/// and OFF, also the per-point fields they cannot hold (STL: all but x/y/z; OFF: all but
+/// x/y/z, normals and red/green/blue/alpha).
 std::string extrasLost(const Shape& shape, FileFormat format);
 
 /// Writes bytes to `path` the same way: temporary file in the same directory, then rename.

@@ -155,6 +155,22 @@ std::string extrasLost(const Shape& shape, FileFormat format) {
            "writing OBJ";
   if (!x.ply_elements.empty() && format != FileFormat::Ply)
     return "the PLY's other elements, face properties and list properties are kept only when writing PLY";
+  if (format == FileFormat::Stl || format == FileFormat::Off) {
+    // STL holds positions and triangles only; OFF also normals and colours.
+    const XyzFields xyz = findXyzFields(shape.cloud);
+    std::string lost;
+    for (std::size_t k = 0; k < shape.cloud.fields.size(); ++k) {
+      const std::string& name = shape.cloud.fields[k].name;
+      const int i = static_cast<int>(k);
+      const bool kept =
+          i == xyz.x || i == xyz.y || i == xyz.z || name == "_" ||
+          (format == FileFormat::Off && (i == xyz.nx || i == xyz.ny || i == xyz.nz || name == "red" ||
+                                         name == "green" || name == "blue" || name == "alpha"));
+      if (!kept) lost += (lost.empty() ? "" : ", ") + name;
+    }
+    if (!lost.empty())
+      return std::string(format == FileFormat::Stl ? "STL" : "OFF") + " cannot hold the fields " + lost;
+  }
   return "";
 }
 
