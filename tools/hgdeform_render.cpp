@@ -59,7 +59,11 @@ int main(int argc, char** argv) {
     if (const std::string problem = hgd::displayProblem(); !problem.empty())
       throw std::runtime_error(problem);
     std::vector<hgd::Shape> shapes;
-    for (const auto& in : inputs) shapes.push_back(hgd::readShape(in));
+    for (const auto& in : inputs) {
+      shapes.push_back(hgd::readShape(in));
+      for (const std::string& w : shapes.back().warnings)
+        std::cerr << "hgdeform-render: warning: " << w << "\n";
+    }
     std::vector<const hgd::Shape*> ptrs;
     for (const auto& s : shapes) ptrs.push_back(&s);
     hgd::renderPng(ptrs, output, opt);

@@ -113,6 +113,8 @@ class Viewer {
  public:
   Viewer(const std::string& input, int width, int height) : input_(input), width_(width), height_(height) {
     shape_ = hgd::readShape(input);
+    for (const std::string& w : shape_.warnings)
+      std::fprintf(stderr, "hgdeform-view: warning: %s\n", w.c_str());
     geometry_ = hgd::extractGeometry(shape_);
     diagonal_ = hgd::boundingBoxDiagonal(geometry_);
     radius_ = 0.03 * diagonal_;
