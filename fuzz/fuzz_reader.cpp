@@ -1,4 +1,4 @@
-// libFuzzer target: one shape reader (HGD_FUZZ_EXTENSION picks PLY, PCD or OBJ). The input is
+// libFuzzer target: one shape reader (HGD_FUZZ_EXTENSION picks PLY, PCD, OBJ, XYZ, OFF or STL). The input is
 // written to a temporary file with that extension and read with hgd::readShape. It must give a
 // consistent shape or throw hgd::IoError; a crash, a sanitizer report or any other exception is
 // a bug. A shape that reads is also written back and read again.
@@ -15,7 +15,7 @@
 #include "hgdeform/io.h"
 
 #ifndef HGD_FUZZ_EXTENSION
-#error "define HGD_FUZZ_EXTENSION (\".ply\", \".pcd\" or \".obj\")"
+#error "define HGD_FUZZ_EXTENSION (\".ply\", \".pcd\", \".obj\", \".xyz\", \".off\" or \".stl\")"
 #endif
 
 namespace {

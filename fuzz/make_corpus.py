@@ -110,6 +110,25 @@ out("obj", "colours.obj", "".join("v %g %g %g 0.5 0.25 1\n" % p for p in PTS) + 
 out("obj", "cloud.obj", "v 1 2 3\nv 4 5 6\nv nan 0 0\nv 7 8 9 1.0\n")
 out("obj", "bad_face.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n")
 
+# --- XYZ, OFF, STL ----------------------------------------------------------------------------
+
+out("xyz", "plain.xyz", "# seed\n" + "".join("%g %g %g\n" % p for p in PTS))
+out("xyz", "normals.xyz", "".join("%g,%g,%g,%g,%g,%g\n" % (p + n) for p, n in zip(PTS, NRM)))
+out("xyz", "header.xyz", "//X Y Z intensity\n\n" + "".join("%g %g %g 7\n" % p for p in PTS))
+out("xyz", "ragged.xyz", "1 2 3\n4 5 6 7\n")
+out("off", "mesh.off", "OFF\n# seed\n%d %d 0\n" % (len(PTS), len(FACES)) + "".join("%g %g %g\n" % p for p in PTS) +
+    "".join("%d %s\n" % (len(f), " ".join(map(str, f))) for f in FACES))
+out("off", "cnoff.off", "CNOFF %d 1 0\n" % len(PTS) +
+    "".join("%g %g %g %g %g %g 255 0 0 255\n" % (p + n) for p, n in zip(PTS, NRM)) + "3 0 1 2 1 0 0\n")
+out("off", "truncated.off", "OFF\n5 2 0\n0 0 0\n1 0 0\n")
+TRIS = [(PTS[a], PTS[b], PTS[c]) for a, b, c in [(0, 1, 2), (0, 2, 3), (0, 1, 4)]]
+out("stl", "ascii.stl", "solid seed\n" + "".join(
+    "facet normal 0 0 1\nouter loop\n" + "".join("vertex %g %g %g\n" % v for v in t) + "endloop\nendfacet\n"
+    for t in TRIS) + "endsolid seed\n")
+out("stl", "binary.stl", b" " * 80 + struct.pack("<I", len(TRIS)) + b"".join(
+    struct.pack("<3f", 0, 0, 1) + b"".join(struct.pack("<3f", *v) for v in t) + struct.pack("<H", 0) for t in TRIS))
+out("stl", "bad_count.stl", b" " * 80 + struct.pack("<I", 9) + b"\0" * 50)
+
 # --- scenario --------------------------------------------------------------------------------
 
 F = "hgdeform-scenario/1"

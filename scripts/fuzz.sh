@@ -8,7 +8,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 secs=${1:-60}
 build=build-fuzz
-targets=(fuzz_scenario fuzz_ply fuzz_pcd fuzz_obj)
+targets=(fuzz_scenario fuzz_ply fuzz_pcd fuzz_obj fuzz_xyz fuzz_off fuzz_stl)
 
 cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_C_COMPILER=clang -DHGDEFORM_FUZZ=ON \

@@ -5,21 +5,11 @@
 #include <cstring>
 #include <limits>
 
+#include "io/field_codec.h"
+
 namespace hgd {
 
-std::size_t datatypeSize(std::uint8_t datatype) {
-  switch (datatype) {
-    case pcl::PCLPointField::INT8:
-    case pcl::PCLPointField::UINT8: return 1;
-    case pcl::PCLPointField::INT16:
-    case pcl::PCLPointField::UINT16: return 2;
-    case pcl::PCLPointField::INT32:
-    case pcl::PCLPointField::UINT32:
-    case pcl::PCLPointField::FLOAT32: return 4;
-    case pcl::PCLPointField::FLOAT64: return 8;
-    default: return 0;
-  }
-}
+// datatypeSize is defined with the rest of the datatype codec (io/field_codec.cpp).
 
 int findField(const pcl::PCLPointCloud2& cloud, const std::string& name) {
   for (std::size_t i = 0; i < cloud.fields.size(); ++i)
@@ -27,59 +17,18 @@ int findField(const pcl::PCLPointCloud2& cloud, const std::string& name) {
   return -1;
 }
 
-namespace {
-template <typename T>
-T load(const std::uint8_t* p) {
-  T v;
-  std::memcpy(&v, p, sizeof(T));
-  return v;
-}
-template <typename T>
-void storeInteger(std::uint8_t* p, double value) {
-  if (std::isnan(value)) value = 0;
-  value = std::clamp(std::round(value), static_cast<double>(std::numeric_limits<T>::lowest()),
-                     static_cast<double>(std::numeric_limits<T>::max()));
-  const T v = static_cast<T>(value);
-  std::memcpy(p, &v, sizeof(T));
-}
-}  // namespace
-
 double readValue(const pcl::PCLPointCloud2& cloud, std::size_t point, const pcl::PCLPointField& field,
                  std::size_t element) {
   const std::uint8_t* p =
       cloud.data.data() + point * cloud.point_step + field.offset + element * datatypeSize(field.datatype);
-  switch (field.datatype) {
-    case pcl::PCLPointField::INT8: return load<std::int8_t>(p);
-    case pcl::PCLPointField::UINT8: return load<std::uint8_t>(p);
-    case pcl::PCLPointField::INT16: return load<std::int16_t>(p);
-    case pcl::PCLPointField::UINT16: return load<std::uint16_t>(p);
-    case pcl::PCLPointField::INT32: return load<std::int32_t>(p);
-    case pcl::PCLPointField::UINT32: return load<std::uint32_t>(p);
-    case pcl::PCLPointField::FLOAT32: return load<float>(p);
-    case pcl::PCLPointField::FLOAT64: return load<double>(p);
-    default: return std::numeric_limits<double>::quiet_NaN();
-  }
+  return io_internal::decodeValue(p, field.datatype);
 }
 
 void writeValue(pcl::PCLPointCloud2& cloud, std::size_t point, const pcl::PCLPointField& field, double value,
                 std::size_t element) {
   std::uint8_t* p =
       cloud.data.data() + point * cloud.point_step + field.offset + element * datatypeSize(field.datatype);
-  switch (field.datatype) {
-    case pcl::PCLPointField::INT8: storeInteger<std::int8_t>(p, value); break;
-    case pcl::PCLPointField::UINT8: storeInteger<std::uint8_t>(p, value); break;
-    case pcl::PCLPointField::INT16: storeInteger<std::int16_t>(p, value); break;
-    case pcl::PCLPointField::UINT16: storeInteger<std::uint16_t>(p, value); break;
-    case pcl::PCLPointField::INT32: storeInteger<std::int32_t>(p, value); break;
-    case pcl::PCLPointField::UINT32: storeInteger<std::uint32_t>(p, value); break;
-    case pcl::PCLPointField::FLOAT32: {
-      const float v = static_cast<float>(value);
-      std::memcpy(p, &v, sizeof v);
-      break;
-    }
-    case pcl::PCLPointField::FLOAT64: std::memcpy(p, &value, sizeof value); break;
-    default: break;
-  }
+  io_internal::encodeValue(p, field.datatype, value);
 }
 
 int addFloatField(pcl::PCLPointCloud2& cloud, const std::string& name) {

@@ -40,6 +40,7 @@ ScenarioRunner ScenarioRunner::read(const std::string& path, const RunOptions& o
 ScenarioRunner::ScenarioRunner(Shape shape, const RunOptions& options)
     : shape_(std::move(shape)), options_(options) {
   Stopwatch t;
+  read_warnings_ = shape_.warnings;  // what reading noted (a format told by content, ...)
   geometry_ = extractGeometry(shape_);
   build_ms_ = t.ms();
 }
@@ -247,6 +248,7 @@ DeformReport ScenarioRunner::report() const {
     rep.surface = d.surfaceStretch();
     if (const std::string w = stretchWarning(rep.surface); !w.empty()) rep.warnings.push_back(w);
   }
+  rep.warnings.insert(rep.warnings.begin(), read_warnings_.begin(), read_warnings_.end());
   rep.warnings.insert(rep.warnings.end(), write_warnings_.begin(), write_warnings_.end());
   rep.total_ms = rep.build_ms + rep.solve_ms + rep.interpolation_ms + rep.write_ms;
   return rep;

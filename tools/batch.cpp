@@ -54,7 +54,8 @@ using batch::ScanResult;
 using Clock = std::chrono::steady_clock;
 
 const char* kBatchDescription =
-    "Deforms every PLY, PCD and OBJ file in INPUT_DIR as the scenario says and writes the results\n"
+    "Deforms every PLY, PCD, OBJ, XYZ, OFF and STL file in INPUT_DIR as the scenario says and writes the "
+    "results\n"
     "under OUTPUT_DIR with the same relative paths. A scenario beside a scan with the same base\n"
     "name (scan_017.json for scan_017.pcd) replaces S.json for that scan. Outputs are written\n"
     "atomically and inputs are never modified. Each output's provenance (its input's size, time\n"
@@ -210,7 +211,8 @@ std::string lowerExtension(const fs::path& p) {
 
 bool isScanFile(const fs::path& p) {
   const std::string e = lowerExtension(p);
-  return e == ".ply" || e == ".pcd" || e == ".obj";
+  // Not .txt: too common a name for notes and logs in a folder of scans.
+  return e == ".ply" || e == ".pcd" || e == ".obj" || e == ".xyz" || e == ".off" || e == ".stl";
 }
 
 bool hidden(const fs::path& p) {
@@ -990,8 +992,8 @@ int run(const Config& cfg, MpiSession& mpi) {
   for (std::size_t i = 0; i < all.size(); ++i)
     if (static_cast<int>(i % static_cast<std::size_t>(cfg.shard_n)) == cfg.shard_k) scans.push_back(all[i]);
   if (all.empty() && root)
-    std::fprintf(stderr, "hgdeform batch: warning: no PLY, PCD or OBJ file in %s%s\n", cfg.input_dir.c_str(),
-                 cfg.recursive ? "" : " (subfolders are searched with --recursive)");
+    std::fprintf(stderr, "hgdeform batch: warning: no PLY, PCD, OBJ, XYZ, OFF or STL file in %s%s\n",
+                 cfg.input_dir.c_str(), cfg.recursive ? "" : " (subfolders are searched with --recursive)");
   if (root)
     for (const auto& e : skipped_entries)
       std::fprintf(stderr, "hgdeform batch: warning: skipped %s: %s\n", e.path.c_str(), e.why.c_str());

@@ -36,7 +36,8 @@ const char* kUsage =
     "  deform  INPUT --scenario S.json -o OUT   deform the shape as the scenario's moves say\n"
     "  batch   --scenario S.json IN_DIR -o OUT_DIR   deform every scan in a folder\n"
     "\n"
-    "INPUT and OUT are PLY, PCD or OBJ files (by extension). 'hgdeform <command> --help' for options.\n"
+    "INPUT and OUT are PLY, PCD, OBJ, XYZ/TXT, OFF or STL files: OUT by extension, INPUT by its\n"
+    "content (a note says when that differs from the extension). 'hgdeform <command> --help' for options.\n"
     "\n"
     "options:\n"
     "  -h, --help    this help\n"
@@ -68,11 +69,12 @@ struct DeformArgs {
 
 void addInputOutput(CLI::App& app, std::string& input, std::string& scenario, std::string& output,
                     const std::string& scenario_help) {
-  app.add_option("INPUT", input, "the shape: a PLY, PCD or OBJ file (by extension)")
+  app.add_option("INPUT", input, "the shape: PLY, PCD, OBJ, XYZ/TXT, OFF or STL (read by its content)")
       ->required()
       ->type_name("");
   app.add_option("-s,--scenario", scenario, scenario_help)->required()->type_name("FILE");
-  app.add_option("-o,--output", output, "output file; required; never the input")
+  app.add_option("-o,--output", output,
+                 "output file (.ply, .pcd, .obj, .xyz, .txt, .off, .stl); required; never the input")
       ->required()
       ->type_name("FILE");
 }
@@ -157,6 +159,7 @@ int runField(const FieldArgs& a) {
   const auto t0 = std::chrono::steady_clock::now();
   const hgd::Scenario scenario = hgd::readScenario(scenario_path);
   hgd::Shape shape = hgd::readShape(input);
+  for (const std::string& w : shape.warnings) std::fprintf(stderr, "hgdeform: warning: %s\n", w.c_str());
   const hgd::Geometry geometry = hgd::extractGeometry(shape);
   const hgd::Handles handles = hgd::resolveHandles(scenario, geometry, shape);
   const double read_ms =

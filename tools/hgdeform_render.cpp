@@ -27,7 +27,7 @@ int main(int argc, char** argv) {
       "scalar field named by --field (blue to red), else from the file's colours, else a neutral\n"
       "grey. Needs an X display (run under xvfb-run on a headless machine).");
   hgdcli::configureApp(app, "hgdeform-render");
-  app.add_option("IN", inputs, "shapes to draw (PLY, PCD or OBJ), one viewport each")
+  app.add_option("IN", inputs, "shapes to draw (PLY, PCD, OBJ, XYZ/TXT, OFF or STL), one viewport each")
       ->required()
       ->type_name("")
       ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
@@ -80,7 +80,11 @@ int main(int argc, char** argv) {
     if (const std::string problem = hgd::displayProblem(); !problem.empty())
       throw std::runtime_error(problem);
     std::vector<hgd::Shape> shapes;
-    for (const auto& in : inputs) shapes.push_back(hgd::readShape(in));
+    for (const auto& in : inputs) {
+      shapes.push_back(hgd::readShape(in));
+      for (const std::string& w : shapes.back().warnings)
+        std::cerr << "hgdeform-render: warning: " << w << "\n";
+    }
     std::vector<const hgd::Shape*> ptrs;
     for (const auto& s : shapes) ptrs.push_back(&s);
     hgd::renderPng(ptrs, output, opt);

@@ -116,6 +116,8 @@ class Viewer {
   Viewer(const std::string& input, int width, int height)
       : input_(input), width_(width), height_(height), run_(hgd::ScenarioRunner::read(input)) {
     diagonal_ = hgd::boundingBoxDiagonal(run_.geometry());
+    for (const std::string& w : run_.shape().warnings)
+      std::fprintf(stderr, "hgdeform-view: warning: %s\n", w.c_str());
     radius_ = 0.03 * diagonal_;
     display_.reset(new pcl::PointCloud<pcl::PointXYZRGB>);
     display_->resize(run_.geometry().size());
@@ -950,7 +952,9 @@ struct ViewArgs {
 int parseArgs(int argc, char** argv, ViewArgs& a) {
   CLI::App app(kDescription);
   hgdcli::configureApp(app, "hgdeform-view");
-  app.add_option("INPUT", a.input, "the shape: a PLY, PCD or OBJ file")->required()->type_name("");
+  app.add_option("INPUT", a.input, "the shape: PLY, PCD, OBJ, XYZ/TXT, OFF or STL")
+      ->required()
+      ->type_name("");
   app.add_option("-s,--scenario", a.scenario, "handles to load (docs/scenario.md)")->type_name("S.json");
   app.add_option("--replay", a.replay, "play a script of events, then exit (docs/replay.md)")
       ->type_name("EVENTS.json");

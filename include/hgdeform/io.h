@@ -1,5 +1,6 @@
 // Reading and writing shapes: PLY (ascii, binary LE/BE), PCD (ascii, binary,
-// binary_compressed) and OBJ, with errors that name the file and the problem.
+// binary_compressed), OBJ, ASCII XYZ/TXT point lists, OFF and STL (ascii, binary), with errors
+// that name the file and the problem.
 #pragma once
 
 #include <stdexcept>
@@ -18,14 +19,20 @@ class IoError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-/// The format named by a path's extension (case-insensitive .ply/.pcd/.obj); throws IoError
-/// naming the path for any other extension.
+/// The format named by a path's extension (case-insensitive .ply/.pcd/.obj/.xyz/.txt/.off/
+/// .stl); throws IoError naming the path for any other extension.
 FileFormat formatFromPath(const std::string& path);
 
-/// Reads a PLY, PCD or OBJ file (chosen by extension). Throws IoError when the file is
-/// missing, unreadable, empty, has a malformed header, truncated or non-numeric data, no
-/// points, or no x/y/z fields. Sizes declared in headers are checked against the file's size
-/// before anything is allocated.
+/// The format of a file's content (PLY magic, a PCD header, an OFF header, an ascii or binary
+/// STL, OBJ 'v' lines, rows of numbers), whatever its name; throws IoError naming the file
+/// when it cannot be read or its content matches no format.
+FileFormat sniffFormat(const std::string& path);
+
+/// Reads a shape file. The format is the content's (sniffFormat): when the extension names
+/// another format, or none, the shape's `warnings` say which format the content was read as.
+/// Throws IoError when the file is missing, unreadable, empty, matches no format, has a
+/// malformed header, truncated or non-numeric data, no points, or no x/y/z fields. Sizes
+/// declared in headers are checked against the file's size before anything is allocated.
 Shape readShape(const std::string& path);
 
 /// Options for writeShape.
@@ -33,14 +40,17 @@ struct WriteOptions {
   Encoding encoding = Encoding::Binary;
 };
 
-/// Writes a shape as PLY, PCD or OBJ (by the extension of `path`), atomically: the data goes
+/// Writes a shape as PLY, PCD, OBJ, XYZ/TXT, OFF or STL (by the extension of `path`; XYZ, OFF
+/// and OBJ are text whatever the encoding; STL needs faces), atomically: the data goes
 /// to a temporary file in the same directory which is renamed over `path` only when complete.
 /// Refuses (IoError) to write over `shape.path`, the file the shape was read from.
 void writeShape(const std::string& path, const Shape& shape, const WriteOptions& options = {});
 
 /// What writing `shape` in `format` would lose of what its file held beyond points and faces
 /// (FileExtras: an OBJ's texture coordinates and groups, a PLY's other elements), as a warning
-/// to print; "" when nothing is lost. A shape is written back whole in its own format.
+/// to print; "" when nothing is lost. A shape is written back whole in its own format. For STL
+/// and OFF, also the per-point fields they cannot hold (STL: all but x/y/z; OFF: all but
+/// x/y/z, normals and red/green/blue/alpha).
 std::string extrasLost(const Shape& shape, FileFormat format);
 
 /// Writes bytes to `path` the same way: temporary file in the same directory, then rename.

@@ -166,7 +166,7 @@ class ScenarioRunner {
   std::vector<std::pair<Move, MoveResult>> undone_;
   std::vector<DeformerState> history_, redo_states_;
   std::vector<MoveResult> results_;  // one per applied move
-  std::vector<std::string> write_warnings_;
+  std::vector<std::string> read_warnings_, write_warnings_;
   bool live_ = false;
   double read_ms_ = 0, build_ms_ = 0, write_ms_ = 0;
 };

@@ -12,8 +12,9 @@
 
 namespace hgd {
 
-/// File formats hgdeform reads and writes.
-enum class FileFormat { Ply, Pcd, Obj };
+/// File formats hgdeform reads and writes: PLY, PCD, OBJ, ASCII XYZ/TXT point lists, OFF
+/// and STL (ascii or binary).
+enum class FileFormat { Ply, Pcd, Obj, Xyz, Off, Stl };
 
 /// Encoding of a written file. Binary is the default, as in PCL.
 enum class Encoding { Binary, Ascii };
@@ -50,6 +51,10 @@ struct FileExtras {
   std::vector<Eigen::Vector3f> obj_normals_out;  ///< turned with the shape (else written as read)
   std::vector<int> obj_normal_vertex;            ///< per 'vn': the first vertex a face pairs it with, or -1
   bool pcd_compressed = false;                   ///< PCD read as binary_compressed
+  /// XYZ/TXT without a line of column names: the names its columns were given (written back
+  /// without such a line while the fields are these). And the separator of its values.
+  std::vector<std::string> xyz_names;
+  char xyz_separator = ' ';
   bool empty() const { return ply_elements.empty() && obj_lines.empty() && !pcd_compressed; }
 };
 
@@ -70,6 +75,9 @@ struct Shape {
   FileFormat format = FileFormat::Ply;
   /// Everything else the file held (see FileExtras).
   FileExtras extras;
+  /// What reading noticed that a front end should print as a warning: the content was read as
+  /// another format than the extension says, or data the shape cannot hold was dropped.
+  std::vector<std::string> warnings;
 
   std::size_t size() const { return static_cast<std::size_t>(cloud.width) * cloud.height; }
   bool isMesh() const { return !polygons.empty(); }

@@ -1,0 +1,173 @@
+// Atomic writes (a temporary file beside the output, renamed over it when complete), the
+// signal-safe registry of temporary files in progress, and the checks that keep a tool from
+// writing over its input or leaving a failed output behind.
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cerrno>
+#include <filesystem>
+#include <random>
+
+#include "internal.h"
+
+namespace hgd {
+namespace io_internal {
+namespace {
+
+namespace fs = std::filesystem;
+
+// Temporary files being written, so that a signal handler can remove them
+// (removeTemporaryFiles). Fixed slots and atomics only: readable from a signal handler.
+struct TempSlot {
+  std::atomic<int> state{0};  // 0 free, 1 claimed, 2 holds a live path
+  char path[4096];
+};
+TempSlot g_temp_slots[64];
+
+int registerTemp(const std::string& path) {
+  if (path.size() >= sizeof(TempSlot::path)) return -1;
+  for (int i = 0; i < 64; ++i) {
+    int expected = 0;
+    if (g_temp_slots[i].state.compare_exchange_strong(expected, 1)) {
+      std::memcpy(g_temp_slots[i].path, path.c_str(), path.size() + 1);
+      g_temp_slots[i].state.store(2);
+      return i;
+    }
+  }
+  return -1;
+}
+
+void unregisterTemp(int slot) {
+  if (slot >= 0) g_temp_slots[slot].state.store(0);
+}
+
+}  // namespace
+
+AtomicWriter::AtomicWriter(const std::string& target) : target_(target) {
+  struct stat st {};
+  if (::stat(target.c_str(), &st) == 0 && !S_ISREG(st.st_mode) && !S_ISDIR(st.st_mode)) {
+    const int fd = ::open(target.c_str(), O_WRONLY | O_CLOEXEC);
+    if (fd < 0) fail(target_, "cannot write: " + errnoText(errno));
+    file_ = ::fdopen(fd, "wb");
+    if (!file_) {
+      const int e = errno;
+      ::close(fd);
+      fail(target_, "cannot write: " + errnoText(e));
+    }
+    return;  // direct: commit only flushes
+  }
+  if (struct stat lst{}; ::lstat(target.c_str(), &lst) == 0 && S_ISLNK(lst.st_mode)) {
+    // Follow the link (and links to links) to the file it names, existing or not.
+    fs::path t(target);
+    for (int hops = 0; hops < 40 && fs::is_symlink(t); ++hops) {
+      std::error_code ec;
+      const fs::path to = fs::read_symlink(t, ec);
+      if (ec) fail(target_, "cannot write: cannot read the symbolic link: " + ec.message());
+      t = to.is_absolute() ? to : t.parent_path() / to;
+    }
+    rename_to_ = t.string();
+  } else {
+    rename_to_ = target;
+  }
+  const fs::path t(rename_to_);
+  fs::path dir = t.parent_path();
+  if (dir.empty()) dir = ".";
+  std::random_device rd;
+  for (int attempt = 0; attempt < 16; ++attempt) {
+    char suffix[64];
+    std::snprintf(suffix, sizeof suffix, ".tmp-%ld-%08x%08x", static_cast<long>(::getpid()), rd(), rd());
+    const fs::path tmp = dir / ("." + t.filename().string() + suffix);
+    const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+    if (fd < 0) {
+      if (errno == EEXIST) continue;
+      fail(target_,
+           "cannot write: cannot create a temporary file in " + dir.string() + ": " + errnoText(errno));
+    }
+    tmp_ = tmp.string();
+    slot_ = registerTemp(tmp_);
+    file_ = ::fdopen(fd, "wb");
+    if (!file_) {
+      const int e = errno;
+      ::close(fd);
+      ::unlink(tmp_.c_str());
+      tmp_.clear();
+      fail(target_, "cannot write: " + errnoText(e));
+    }
+    return;
+  }
+  fail(target_, "cannot write: cannot create a unique temporary file");
+}
+
+AtomicWriter::~AtomicWriter() {
+  if (file_) std::fclose(file_);
+  if (!tmp_.empty()) ::unlink(tmp_.c_str());
+  unregisterTemp(slot_);
+}
+
+void AtomicWriter::write(const void* p, std::size_t n) {
+  if (n && std::fwrite(p, 1, n, file_) != n) failWrite(errno);
+}
+
+void AtomicWriter::commit() {
+  if (std::fflush(file_) != 0 || std::ferror(file_)) failWrite(errno);
+  std::FILE* f = file_;
+  file_ = nullptr;
+  if (std::fclose(f) != 0) failWrite(errno);
+  if (tmp_.empty()) return;  // written directly
+  if (std::rename(tmp_.c_str(), rename_to_.c_str()) != 0) failWrite(errno);
+  tmp_.clear();
+  unregisterTemp(slot_);
+  slot_ = -1;
+}
+
+void AtomicWriter::failWrite(int e) {
+  fail(target_, "cannot write: " + errnoText(e));
+}
+
+}  // namespace io_internal
+
+using namespace io_internal;
+namespace fs = std::filesystem;
+
+bool samePath(const std::string& a, const std::string& b) {
+  std::error_code ea, eb, ee;
+  if (fs::exists(a, ea) && fs::exists(b, eb)) return fs::equivalent(a, b, ee) && !ee;
+  // Not both there: the same when they resolve to the same place (links followed as far as
+  // they exist, "." and ".." folded).
+  const fs::path ca = fs::weakly_canonical(fs::absolute(a, ea), ea),
+                 cb = fs::weakly_canonical(fs::absolute(b, eb), eb);
+  return !ea && !eb && ca == cb;
+}
+
+void refuseInputs(const std::string& output, const std::vector<std::string>& inputs) {
+  for (const std::string& in : inputs)
+    if (!in.empty() && in != "-" && samePath(output, in))
+      fail(output, "refusing to overwrite the input " + in);
+}
+
+void removeOutput(const std::string& path) noexcept {
+  struct stat st {};
+  if (::lstat(path.c_str(), &st) != 0) return;
+  if (S_ISLNK(st.st_mode)) {  // what the writer wrote is the link's target
+    std::error_code ec;
+    const fs::path target = fs::canonical(path, ec);
+    if (!ec && fs::is_regular_file(target, ec)) fs::remove(target, ec);
+    return;
+  }
+  if (S_ISREG(st.st_mode)) ::unlink(path.c_str());
+}
+
+void removeTemporaryFiles() noexcept {
+  for (auto& slot : g_temp_slots)
+    if (slot.state.load() == 2) ::unlink(slot.path);
+}
+
+void writeFileAtomically(const std::string& path, std::string_view bytes) {
+  AtomicWriter w(path);
+  w.write(bytes);
+  w.commit();
+}
+
+}  // namespace hgd

@@ -1,0 +1,328 @@
+// What the readers and writers of every format share: small text helpers, the bounds-checked
+// input file, and the checks and packing of a shape about to be written.
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <limits>
+
+#include "internal.h"
+
+namespace hgd::io_internal {
+
+// ------------------------------------------------------------------------------------------
+// Small helpers
+
+void fail(const std::string& path, const std::string& problem) {
+  throw IoError(path + ": " + problem);
+}
+
+std::string errnoText(int e) {
+  return std::strerror(e);
+}
+
+std::string num(std::uint64_t v) {
+  return std::to_string(v);
+}
+
+std::string excerpt(std::string_view s) {
+  std::string out = "'";
+  const std::size_t n = std::min<std::size_t>(s.size(), 60);
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto c = static_cast<unsigned char>(s[i]);
+    out += (c >= 0x20 && c < 0x7f) ? static_cast<char>(c) : '?';
+  }
+  if (s.size() > n) out += "...";
+  return out + "'";
+}
+
+bool isSpace(char c) {
+  return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f';
+}
+
+std::vector<std::string_view> splitWords(std::string_view s) {
+  std::vector<std::string_view> words;
+  std::size_t i = 0;
+  while (i < s.size()) {
+    while (i < s.size() && isSpace(s[i])) ++i;
+    const std::size_t b = i;
+    while (i < s.size() && !isSpace(s[i])) ++i;
+    if (i > b) words.push_back(s.substr(b, i - b));
+  }
+  return words;
+}
+
+std::vector<std::string_view> splitColumns(std::string_view s) {
+  std::vector<std::string_view> words;
+  std::size_t i = 0;
+  const auto sep = [](char c) { return isSpace(c) || c == ','; };
+  while (i < s.size()) {
+    while (i < s.size() && sep(s[i])) ++i;
+    const std::size_t b = i;
+    while (i < s.size() && !sep(s[i])) ++i;
+    if (i > b) words.push_back(s.substr(b, i - b));
+  }
+  return words;
+}
+
+std::string lower(std::string_view s) {
+  std::string out(s);
+  for (char& c : out) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return out;
+}
+
+bool parseU64(std::string_view s, std::uint64_t* v) {
+  if (!s.empty() && s[0] == '+') s.remove_prefix(1);
+  if (s.empty()) return false;
+  const char* e = s.data() + s.size();
+  const auto r = std::from_chars(s.data(), e, *v);
+  return r.ec == std::errc() && r.ptr == e;
+}
+
+Parse parseInteger(std::string_view s, long long* v) {
+  std::string_view t = s;
+  if (!t.empty() && t[0] == '+') t.remove_prefix(1);
+  if (t.empty()) return Parse::Bad;
+  const char* e = t.data() + t.size();
+  const auto r = std::from_chars(t.data(), e, *v);
+  if (r.ptr == e && r.ec == std::errc()) return Parse::Ok;
+  if (r.ptr == e && r.ec == std::errc::result_out_of_range) return Parse::Range;
+  double d = 0;
+  if (!parseFloating(s, &d) || !std::isfinite(d) || d != std::floor(d)) return Parse::Bad;
+  if (d < -9.2e18 || d > 9.2e18) return Parse::Range;
+  *v = static_cast<long long>(d);
+  return Parse::Ok;
+}
+bool computeDense(const pcl::PCLPointCloud2& cloud) {
+  const XyzFields xyz = findXyzFields(cloud);
+  if (!xyz.hasXyz()) return true;
+  const std::size_t n = static_cast<std::size_t>(cloud.width) * cloud.height;
+  for (const int idx : {xyz.x, xyz.y, xyz.z}) {
+    const Field& f = cloud.fields[idx];
+    if (f.datatype != Field::FLOAT32 && f.datatype != Field::FLOAT64) continue;
+    for (std::size_t i = 0; i < n; ++i)
+      if (!std::isfinite(readValue(cloud, i, f))) return false;
+  }
+  return true;
+}
+
+pcl::PCLPointCloud2 makeCloud(std::size_t n, const std::vector<std::pair<std::string, std::uint8_t>>& fields,
+                              const std::vector<double>& values) {
+  pcl::PCLPointCloud2 cloud;
+  std::uint32_t step = 0;
+  for (const auto& [name, type] : fields) {
+    Field f;
+    f.name = name;
+    f.offset = step;
+    f.datatype = type;
+    f.count = 1;
+    step += static_cast<std::uint32_t>(datatypeSize(type));
+    cloud.fields.push_back(f);
+  }
+  cloud.width = static_cast<std::uint32_t>(n);
+  cloud.height = 1;
+  cloud.point_step = step;
+  cloud.row_step = step * cloud.width;
+  cloud.is_bigendian = false;
+  cloud.data.resize(n * step);
+  const std::size_t nf = fields.size();
+  for (std::size_t i = 0; i < n; ++i)
+    for (std::size_t k = 0; k < nf; ++k)
+      encodeValue(cloud.data.data() + i * step + cloud.fields[k].offset, cloud.fields[k].datatype,
+                  values[i * nf + k]);
+  cloud.is_dense = computeDense(cloud);
+  return cloud;
+}
+
+// ------------------------------------------------------------------------------------------
+// Input
+
+InputFile::InputFile(std::string path) : path_(std::move(path)) {
+  // Non-blocking, so that a FIFO (or a device) given as input is refused instead of waiting
+  // for a writer; regular files ignore the flag.
+  const int fd = ::open(path_.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);
+  if (fd < 0) fail(path_, "cannot open: " + errnoText(errno));
+  std::FILE* f = ::fdopen(fd, "rb");
+  if (!f) {
+    const int e = errno;
+    ::close(fd);
+    fail(path_, "cannot open: " + errnoText(e));
+  }
+  file_.reset(f);
+  struct stat st {};
+  if (::fstat(fd, &st) != 0) fail(path_, "cannot open: " + errnoText(errno));
+  if (S_ISDIR(st.st_mode)) fail(path_, "cannot open: " + errnoText(EISDIR));
+  if (!S_ISREG(st.st_mode)) fail(path_, "cannot open: not a regular file");
+  size_ = static_cast<std::uint64_t>(st.st_size);
+  if (size_ == 0) fail(path_, "empty file");
+  // A UTF-8 byte-order mark (editors on Windows add one) is not part of any format: skip it,
+  // so that an OBJ's first vertex is not lost and a PLY's magic line is found.
+  unsigned char bom[3] = {0, 0, 0};
+  if (size_ >= 3 && std::fread(bom, 1, 3, f) == 3 && bom[0] == 0xEF && bom[1] == 0xBB && bom[2] == 0xBF)
+    pos_ = skipped_ = 3;
+  else if (::fseeko(f, 0, SEEK_SET) != 0)
+    fail(path_, "cannot read: " + errnoText(errno));
+}
+
+bool InputFile::readLine(std::string* line, std::size_t max_len) {
+  line->clear();
+  if (pos_ >= size_) return false;
+  std::FILE* f = file_.get();
+  for (;;) {
+    const int c = std::getc(f);
+    if (c == EOF) {
+      if (std::ferror(f)) fail(path_, "cannot read: " + errnoText(errno));
+      break;
+    }
+    ++pos_;
+    if (c == '\n') break;
+    if (line->size() >= max_len) fail(path_, "malformed header: line " + num(lines_ + 1) + " is too long");
+    line->push_back(static_cast<char>(c));
+  }
+  ++lines_;
+  if (!line->empty() && line->back() == '\r') line->pop_back();
+  return true;
+}
+
+void InputFile::require(std::uint64_t n, const char* what) const {
+  if (n > remaining())
+    fail(path_, std::string("truncated data: ") + what + " needs " + num(n) + " more bytes, the file holds " +
+                    num(remaining()));
+}
+
+void InputFile::read(void* dst, std::size_t n, const char* what) {
+  require(n, what);
+  if (n == 0) return;
+  if (buffered_) {
+    std::memcpy(dst, buf_.data() + bpos_, n);
+    bpos_ += n;
+    return;
+  }
+  const std::size_t got = std::fread(dst, 1, n, file_.get());
+  pos_ += got;
+  if (got != n)
+    fail(path_, std::string("truncated data: ") + what + ": expected " + num(n) + " bytes, read " + num(got));
+}
+
+void InputFile::skip(std::uint64_t n, const char* what) {
+  require(n, what);
+  if (buffered_) {
+    bpos_ += n;
+    return;
+  }
+  if (::fseeko(file_.get(), static_cast<off_t>(n), SEEK_CUR) != 0)
+    fail(path_, "cannot read: " + errnoText(errno));
+  pos_ += n;
+}
+
+const std::uint8_t* InputFile::take(std::size_t n, const char* what) {
+  loadRest();
+  require(n, what);
+  const auto* p = reinterpret_cast<const std::uint8_t*>(buf_.data() + bpos_);
+  bpos_ += n;
+  return p;
+}
+
+std::string_view InputFile::rest() {
+  loadRest();
+  return std::string_view(buf_).substr(bpos_);
+}
+
+void InputFile::loadRest() {
+  if (buffered_) return;
+  const std::uint64_t n = remaining();
+  buf_.resize(n);
+  const std::size_t got = n ? std::fread(buf_.data(), 1, n, file_.get()) : 0;
+  if (got != n) fail(path_, "truncated data: expected " + num(n) + " bytes, read " + num(got));
+  pos_ += got;
+  buffered_ = true;
+  bpos_ = 0;
+}
+
+// ------------------------------------------------------------------------------------------
+// Output
+
+std::vector<const Field*> checkShape(const std::string& path, const Shape& shape, bool keep_padding) {
+  const pcl::PCLPointCloud2& c = shape.cloud;
+  const std::size_t n = shape.size();
+  std::uint64_t need = 0;
+  if (!mulOk(n, c.point_step, &need) || c.data.size() < need)
+    fail(path, "cannot write: invalid shape: " + num(c.data.size()) + " data bytes for " + num(n) +
+                   " points of " + num(c.point_step) + " bytes");
+  std::vector<const Field*> out;
+  for (const auto& f : c.fields) {
+    const std::size_t sz = datatypeSize(f.datatype);
+    if (sz == 0) fail(path, "cannot write: unsupported datatype of field '" + f.name + "'");
+    if (std::uint64_t{f.offset} + sz * fieldCount(f) > c.point_step)
+      fail(path, "cannot write: invalid shape: field '" + f.name + "' lies outside the point");
+    if (f.name.empty() || std::any_of(f.name.begin(), f.name.end(),
+                                      [](char ch) { return isSpace(ch) || ch == '\n' || ch == '\0'; }))
+      fail(path, "cannot write: invalid field name " + excerpt(f.name));
+    if (f.name == "_" && !keep_padding) continue;
+    out.push_back(&f);
+  }
+  if (out.empty()) fail(path, "cannot write: the shape has no fields");
+  for (const auto& poly : shape.polygons)
+    for (const auto idx : poly.vertices)
+      if (idx < 0 || static_cast<std::uint64_t>(idx) >= n)
+        fail(path, "cannot write: bad face index " + std::to_string(idx) + " (" + num(n) + " points)");
+  return out;
+}
+
+bool isPacked(const std::vector<const Field*>& fields, std::uint32_t point_step) {
+  std::uint64_t off = 0;
+  for (const Field* f : fields) {
+    if (f->offset != off) return false;
+    off += datatypeSize(f->datatype) * fieldCount(*f);
+  }
+  return off == point_step;
+}
+
+void writePackedBinary(AtomicWriter& w, const pcl::PCLPointCloud2& c, std::size_t n,
+                       const std::vector<const Field*>& fields) {
+  if (isPacked(fields, c.point_step)) {
+    w.write(c.data.data(), n * c.point_step);
+    return;
+  }
+  std::vector<std::uint8_t> buf;
+  buf.reserve(kFlushBytes + c.point_step);
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::uint8_t* pt = c.data.data() + i * c.point_step;
+    for (const Field* f : fields)
+      buf.insert(buf.end(), pt + f->offset, pt + f->offset + datatypeSize(f->datatype) * fieldCount(*f));
+    if (buf.size() >= kFlushBytes) {
+      w.write(buf.data(), buf.size());
+      buf.clear();
+    }
+  }
+  w.write(buf.data(), buf.size());
+}
+
+void writeAsciiPoints(AtomicWriter& w, const pcl::PCLPointCloud2& c, std::size_t n,
+                      const std::vector<const Field*>& fields, bool colour_bits) {
+  std::string buf;
+  buf.reserve(kFlushBytes + 1024);
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::uint8_t* pt = c.data.data() + i * c.point_step;
+    bool first = true;
+    for (const Field* f : fields) {
+      const std::size_t sz = datatypeSize(f->datatype);
+      const std::uint8_t type = colour_bits && packedColour(*f) ? std::uint8_t{Field::UINT32} : f->datatype;
+      for (std::size_t k = 0; k < fieldCount(*f); ++k) {
+        if (!first) buf += ' ';
+        first = false;
+        appendValue(buf, pt + f->offset + k * sz, type);
+      }
+    }
+    buf += '\n';
+    if (buf.size() >= kFlushBytes) {
+      w.write(buf);
+      buf.clear();
+    }
+  }
+  w.write(buf);
+}
+}  // namespace hgd::io_internal

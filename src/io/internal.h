@@ -1,0 +1,287 @@
+// Private to src/io/ (not installed): what the readers and writers of the formats share. The
+// input file and lexer, the atomic writer, the checks of a shape about to be written, the
+// small text helpers; the datatype codec is io/field_codec.h.
+#pragma once
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <memory>
+#include <string>
+#include <string_view>
+#include <system_error>
+#include <type_traits>
+#include <utility>
+#include <vector>
+
+#include "field_codec.h"
+#include "hgdeform/fields.h"
+#include "hgdeform/io.h"
+
+namespace hgd::io_internal {
+
+using Field = pcl::PCLPointField;
+
+constexpr bool kHostBigEndian = __BYTE_ORDER__ == __ORDER_BIG_ENDIAN__;
+constexpr std::size_t kMaxHeaderLine = std::size_t{1} << 20;
+constexpr std::size_t kFlushBytes = std::size_t{1} << 16;
+
+// ------------------------------------------------------------------------------------------
+// Small helpers (common.cpp)
+
+/// Throws IoError("<path>: <problem>").
+[[noreturn]] void fail(const std::string& path, const std::string& problem);
+std::string errnoText(int e);
+std::string num(std::uint64_t v);
+/// A short, printable excerpt of untrusted text for messages.
+std::string excerpt(std::string_view s);
+bool isSpace(char c);
+std::vector<std::string_view> splitWords(std::string_view s);
+/// The values of an XYZ row: split at blanks and commas.
+std::vector<std::string_view> splitColumns(std::string_view s);
+std::string lower(std::string_view s);
+bool parseU64(std::string_view s, std::uint64_t* v);
+
+inline bool mulOk(std::uint64_t a, std::uint64_t b, std::uint64_t* r) {
+  return !__builtin_mul_overflow(a, b, r);
+}
+inline bool addOk(std::uint64_t a, std::uint64_t b, std::uint64_t* r) {
+  return !__builtin_add_overflow(a, b, r);
+}
+
+inline std::size_t fieldCount(const Field& f) {
+  return f.count > 1 ? f.count : 1;
+}
+
+template <typename T>
+bool parseFloating(std::string_view s, T* v) {
+  if (!s.empty() && s[0] == '+') s.remove_prefix(1);
+  if (s.empty()) return false;
+  const char* e = s.data() + s.size();
+  const auto r = std::from_chars(s.data(), e, *v);
+  if (r.ptr != e) return false;
+  if (r.ec == std::errc()) return true;
+  if (r.ec == std::errc::result_out_of_range) {  // overflow to ±inf or underflow to 0, as strtod
+    const std::string copy(s);
+    if constexpr (std::is_same_v<T, float>)
+      *v = std::strtof(copy.c_str(), nullptr);
+    else
+      *v = std::strtod(copy.c_str(), nullptr);
+    return true;
+  }
+  return false;
+}
+
+/// An integer token; integral floating-point spellings ("255.0", "1e3") are accepted too.
+Parse parseInteger(std::string_view s, long long* v);
+
+template <typename T>
+void appendInt(std::string& out, T v) {
+  char buf[32];
+  const auto r = std::to_chars(buf, buf + sizeof buf, v);
+  out.append(buf, r.ptr);
+}
+
+template <typename T>
+void appendFloat(std::string& out, T v) {
+  if (std::isnan(v)) {
+    out += "nan";
+  } else if (std::isinf(v)) {
+    out += v > 0 ? "inf" : "-inf";
+  } else {
+    char buf[64];
+    const auto r = std::to_chars(buf, buf + sizeof buf, v);  // shortest representation that round-trips
+    out.append(buf, r.ptr);
+  }
+}
+
+/// A cloud of `n` points (height 1) with scalar fields of these names and types, packed in
+/// order, filled from `values` (point by point, field by field) converted to each type.
+pcl::PCLPointCloud2 makeCloud(std::size_t n, const std::vector<std::pair<std::string, std::uint8_t>>& fields,
+                              const std::vector<double>& values);
+
+/// False if any x, y or z value is NaN or infinite.
+bool computeDense(const pcl::PCLPointCloud2& cloud);
+
+// ------------------------------------------------------------------------------------------
+// Input (common.cpp)
+
+/// A file opened for reading: header lines through stdio, then the body either read straight
+/// into its destination or loaded once into memory. Every read is bounds-checked against the
+/// file's size.
+class InputFile {
+ public:
+  explicit InputFile(std::string path);
+
+  const std::string& path() const { return path_; }
+  std::size_t linesRead() const { return lines_; }
+
+  std::uint64_t remaining() const {
+    if (buffered_) return buf_.size() - bpos_;
+    return pos_ < size_ ? size_ - pos_ : 0;
+  }
+  /// The file's size (without a skipped UTF-8 byte-order mark).
+  std::uint64_t size() const { return size_ - skipped_; }
+
+  /// Reads one header line without its "\n" or "\r\n"; false at the end of the file.
+  bool readLine(std::string* line, std::size_t max_len);
+  void require(std::uint64_t n, const char* what) const;
+  void read(void* dst, std::size_t n, const char* what);
+  void skip(std::uint64_t n, const char* what);
+  /// The next `n` bytes of the (in-memory) body.
+  const std::uint8_t* take(std::size_t n, const char* what);
+  /// The rest of the file, loaded in memory.
+  std::string_view rest();
+
+ private:
+  void loadRest();
+
+  struct Closer {
+    void operator()(std::FILE* f) const { std::fclose(f); }
+  };
+  std::string path_;
+  std::unique_ptr<std::FILE, Closer> file_;
+  std::uint64_t size_ = 0, pos_ = 0, skipped_ = 0;
+  std::size_t lines_ = 0;
+  bool buffered_ = false;
+  std::string buf_;
+  std::size_t bpos_ = 0;
+};
+
+/// Whitespace-separated tokens of ascii data, line by line (blank lines skipped).
+class Lexer {
+ public:
+  Lexer(std::string_view text, std::size_t lines_before)
+      : p_(text.data()), end_(text.data() + text.size()), line_(lines_before) {}
+
+  bool nextLine() {
+    while (p_ < end_) {
+      const auto* nl = static_cast<const char*>(std::memchr(p_, '\n', static_cast<std::size_t>(end_ - p_)));
+      cur_ = p_;
+      lend_ = nl ? nl : end_;
+      p_ = nl ? nl + 1 : end_;
+      ++line_;
+      while (cur_ < lend_ && isSpace(*cur_)) ++cur_;
+      lbeg_ = cur_;
+      if (cur_ < lend_) return true;
+    }
+    cur_ = lend_ = end_;
+    return false;
+  }
+
+  /// The next token of the current line; empty at its end.
+  std::string_view token() {
+    while (cur_ < lend_ && isSpace(*cur_)) ++cur_;
+    const char* b = cur_;
+    while (cur_ < lend_ && !isSpace(*cur_)) ++cur_;
+    return {b, static_cast<std::size_t>(cur_ - b)};
+  }
+
+  bool atLineEnd() {
+    while (cur_ < lend_ && isSpace(*cur_)) ++cur_;
+    return cur_ == lend_;
+  }
+
+  std::size_t countTokens() const {
+    std::size_t n = 0;
+    for (const char* c = cur_; c < lend_;) {
+      while (c < lend_ && isSpace(*c)) ++c;
+      if (c == lend_) break;
+      ++n;
+      while (c < lend_ && !isSpace(*c)) ++c;
+    }
+    return n;
+  }
+
+  char peek() const { return cur_ < lend_ ? *cur_ : '\0'; }
+  std::size_t line() const { return line_; }
+  /// The current line from its first non-blank character, without the line end.
+  std::string_view lineText() const {
+    const char* e = lend_;
+    if (e > lbeg_ && e[-1] == '\r') --e;
+    return {lbeg_, static_cast<std::size_t>(e - lbeg_)};
+  }
+
+ private:
+  const char* p_;
+  const char* end_;
+  const char* cur_ = nullptr;
+  const char* lend_ = nullptr;
+  const char* lbeg_ = nullptr;
+  std::size_t line_;
+};
+
+// ------------------------------------------------------------------------------------------
+// Output
+
+/// Writes a file so that no reader ever sees it half written, and no path is replaced by
+/// something else: a regular file (or a new one) is written to a temporary file beside it and
+/// renamed over it; a symbolic link is followed (the temporary file goes beside its target, and
+/// the link stays); a FIFO, a character or block device or a socket (/dev/stdout, a pipe) is
+/// written to directly, as no rename could replace it. Destroyed without commit(), it removes
+/// the temporary file: a failed write leaves no output. (atomic_file.cpp)
+class AtomicWriter {
+ public:
+  explicit AtomicWriter(const std::string& target);
+  AtomicWriter(const AtomicWriter&) = delete;
+  AtomicWriter& operator=(const AtomicWriter&) = delete;
+  ~AtomicWriter();
+
+  void write(const void* p, std::size_t n);
+  void write(std::string_view s) { write(s.data(), s.size()); }
+  void commit();
+
+ private:
+  [[noreturn]] void failWrite(int e);
+  std::string target_;     ///< as given (for messages)
+  std::string rename_to_;  ///< the file the temporary one replaces (a link's target)
+  std::string tmp_;
+  std::FILE* file_ = nullptr;
+  int slot_ = -1;
+};
+
+/// Checks that the shape's cloud is self-consistent and returns the fields to write.
+std::vector<const Field*> checkShape(const std::string& path, const Shape& shape, bool keep_padding);
+/// True if the fields, in order, tile the point exactly (then the data can be written as is).
+bool isPacked(const std::vector<const Field*>& fields, std::uint32_t point_step);
+/// Writes the points' values of `fields` in binary, packed in field order.
+void writePackedBinary(AtomicWriter& w, const pcl::PCLPointCloud2& c, std::size_t n,
+                       const std::vector<const Field*>& fields);
+/// Writes the points' values of `fields` as text, one point per line. With `colour_bits`, a
+/// packed colour declared float (see packedColour) is written as its bits, an unsigned integer,
+/// as PCL's ascii PCD writer does: fully opaque colours are NaNs as floats, and "nan" loses them.
+void writeAsciiPoints(AtomicWriter& w, const pcl::PCLPointCloud2& c, std::size_t n,
+                      const std::vector<const Field*>& fields, bool colour_bits = false);
+
+/// A FLOAT32 field called rgb or rgba: a colour packed into a float's bytes, which PCL's ascii
+/// PCD writer stores as an unsigned integer (the bits), not as a float.
+inline bool packedColour(const Field& f) {
+  return f.datatype == Field::FLOAT32 && (f.name == "rgb" || f.name == "rgba");
+}
+
+/// An ascii token of nothing but decimal digits.
+inline bool plainUnsigned(std::string_view tok) {
+  return !tok.empty() && std::all_of(tok.begin(), tok.end(), [](char ch) { return ch >= '0' && ch <= '9'; });
+}
+
+// ------------------------------------------------------------------------------------------
+// The formats (ply.cpp, pcd.cpp, obj.cpp, xyz.cpp, off.cpp, stl.cpp)
+
+Shape readPly(const std::string& path);
+Shape readPcd(const std::string& path);
+Shape readObj(const std::string& path);
+void writePly(const std::string& path, const Shape& shape, bool ascii);
+void writePcd(const std::string& path, const Shape& shape, bool ascii);
+void writeObj(const std::string& path, const Shape& shape);
+Shape readXyz(const std::string& path);
+Shape readOff(const std::string& path);
+Shape readStl(const std::string& path);
+void writeXyz(const std::string& path, const Shape& shape);
+void writeOff(const std::string& path, const Shape& shape);
+void writeStl(const std::string& path, const Shape& shape, bool ascii);
+
+}  // namespace hgd::io_internal

@@ -1,0 +1,191 @@
+// The public entry points: a shape's format from its path or its content, and reading and
+// writing a shape in any of the formats.
+#include <algorithm>
+#include <cstring>
+#include <filesystem>
+#include <optional>
+
+#include "internal.h"
+
+namespace hgd {
+
+using namespace io_internal;
+namespace fs = std::filesystem;
+
+namespace {
+
+const char* formatName(FileFormat f) {
+  switch (f) {
+    case FileFormat::Ply: return "PLY";
+    case FileFormat::Pcd: return "PCD";
+    case FileFormat::Obj: return "OBJ";
+    case FileFormat::Xyz: return "XYZ";
+    case FileFormat::Off: return "OFF";
+    case FileFormat::Stl: return "STL";
+  }
+  return "?";
+}
+
+std::optional<FileFormat> formatOfExtension(const std::string& ext) {
+  if (ext == ".ply") return FileFormat::Ply;
+  if (ext == ".pcd") return FileFormat::Pcd;
+  if (ext == ".obj") return FileFormat::Obj;
+  if (ext == ".xyz" || ext == ".txt") return FileFormat::Xyz;
+  if (ext == ".off") return FileFormat::Off;
+  if (ext == ".stl") return FileFormat::Stl;
+  return std::nullopt;
+}
+
+bool isOffKeyword(std::string_view w) {
+  return w == "OFF" || w == "COFF" || w == "NOFF" || w == "CNOFF" || w == "NCOFF";
+}
+
+/// Whether every value of a row (split at blanks and commas) is a number, and how many.
+std::size_t numericColumns(std::string_view line) {
+  const std::vector<std::string_view> words = splitColumns(line);
+  for (const auto w : words) {
+    double d = 0;
+    if (!parseFloating(w, &d)) return 0;
+  }
+  return words.size();
+}
+
+/// The format of a file's first bytes (`size`: the whole file's); nullopt if none matches.
+std::optional<FileFormat> sniff(std::string_view head, std::uint64_t size) {
+  if (head.rfind("ply\n", 0) == 0 || head.rfind("ply\r\n", 0) == 0) return FileFormat::Ply;
+  if (head.rfind("# .PCD", 0) == 0) return FileFormat::Pcd;
+  // Binary STL: an 80-byte header, a triangle count, 50 bytes per triangle, nothing else.
+  if (size >= 84 && head.size() >= 84) {
+    std::uint32_t n = 0;
+    std::memcpy(&n, head.data() + 80, 4);
+    if (kHostBigEndian) n = __builtin_bswap32(n);
+    if (84 + 50 * std::uint64_t{n} == size) return FileFormat::Stl;
+  }
+  Lexer lex(head, 0);
+  std::size_t header_columns = 0;  // XYZ: a first line of names, then rows of as many numbers
+  bool first = true;
+  while (lex.nextLine()) {
+    if (lex.peek() == '#') continue;
+    const std::string_view line = lex.lineText();
+    const std::string_view w = lex.token();
+    if (first) {
+      first = false;
+      const std::string up = lower(w);
+      if (up == "version" || up == "fields") return FileFormat::Pcd;
+      if (isOffKeyword(w)) return FileFormat::Off;
+      if (w == "solid") return FileFormat::Stl;
+      if (w == "v" || w == "vn" || w == "vt" || w == "f" || w == "o" || w == "g" || w == "mtllib" ||
+          w == "usemtl")
+        return FileFormat::Obj;
+      const std::size_t cols = numericColumns(line);
+      if (cols >= 3) return FileFormat::Xyz;
+      if (cols == 0) {
+        header_columns = splitColumns(line.substr(line.rfind("//", 0) == 0 ? 2 : 0)).size();
+        if (header_columns >= 3) continue;
+      }
+      return std::nullopt;
+    }
+    // The line after an XYZ header: as many numbers as names.
+    if (numericColumns(line) == header_columns) return FileFormat::Xyz;
+    return std::nullopt;
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
+FileFormat formatFromPath(const std::string& path) {
+  const std::string ext = lower(fs::path(path).extension().string());
+  if (const auto f = formatOfExtension(ext)) return *f;
+  fail(path, "unsupported file extension " + excerpt(ext) +
+                 " (expected .ply, .pcd, .obj, .xyz, .txt, .off or .stl)");
+}
+
+FileFormat sniffFormat(const std::string& path) {
+  InputFile in(path);
+  const std::uint64_t size = in.size();
+  std::string head(static_cast<std::size_t>(std::min<std::uint64_t>(in.remaining(), 4096)), '\0');
+  in.read(head.data(), head.size(), "the first bytes");
+  if (const auto f = sniff(head, size)) return *f;
+  fail(path, "the content matches no format hgdeform reads (PLY, PCD, OBJ, XYZ/TXT, OFF, STL)");
+}
+
+Shape readShape(const std::string& path) {
+  const std::string ext = lower(fs::path(path).extension().string());
+  const std::optional<FileFormat> by_ext = formatOfExtension(ext);
+  std::optional<FileFormat> by_content;
+  {
+    InputFile in(path);  // missing, unreadable, a folder, empty: said here
+    const std::uint64_t size = in.size();
+    std::string head(static_cast<std::size_t>(std::min<std::uint64_t>(in.remaining(), 4096)), '\0');
+    in.read(head.data(), head.size(), "the first bytes");
+    by_content = sniff(head, size);
+  }
+  // A file named for its format is read as such when its content shows no other (a damaged
+  // file gets that format's own, precise error); content of a known format wins over the name.
+  if (!by_content && !by_ext)
+    fail(path,
+         "the content matches no format hgdeform reads (PLY, PCD, OBJ, XYZ/TXT, OFF, STL), and the "
+         "extension " +
+             excerpt(ext) + " names none");
+  const FileFormat format = by_content ? *by_content : *by_ext;
+  Shape shape;
+  switch (format) {
+    case FileFormat::Ply: shape = readPly(path); break;
+    case FileFormat::Pcd: shape = readPcd(path); break;
+    case FileFormat::Obj: shape = readObj(path); break;
+    case FileFormat::Xyz: shape = readXyz(path); break;
+    case FileFormat::Off: shape = readOff(path); break;
+    case FileFormat::Stl: shape = readStl(path); break;
+  }
+  if (by_ext != format)
+    shape.warnings.insert(shape.warnings.begin(), path + ": the content was read as " + formatName(format) +
+                                                      " although the extension " +
+                                                      (ext.empty() ? std::string("(none)") : excerpt(ext)) +
+                                                      " says " + (by_ext ? formatName(*by_ext) : "nothing"));
+  shape.path = path;
+  shape.format = format;
+  return shape;
+}
+
+std::string extrasLost(const Shape& shape, FileFormat format) {
+  const FileExtras& x = shape.extras;
+  if (!x.obj_lines.empty() && format != FileFormat::Obj)
+    return "the OBJ's texture coordinates, normals, groups, materials and face corners are kept only when "
+           "writing OBJ";
+  if (!x.ply_elements.empty() && format != FileFormat::Ply)
+    return "the PLY's other elements, face properties and list properties are kept only when writing PLY";
+  if (format == FileFormat::Stl || format == FileFormat::Off) {
+    // STL holds positions and triangles only; OFF also normals and colours.
+    const XyzFields xyz = findXyzFields(shape.cloud);
+    std::string lost;
+    for (std::size_t k = 0; k < shape.cloud.fields.size(); ++k) {
+      const std::string& name = shape.cloud.fields[k].name;
+      const int i = static_cast<int>(k);
+      const bool kept =
+          i == xyz.x || i == xyz.y || i == xyz.z || name == "_" ||
+          (format == FileFormat::Off && (i == xyz.nx || i == xyz.ny || i == xyz.nz || name == "red" ||
+                                         name == "green" || name == "blue" || name == "alpha"));
+      if (!kept) lost += (lost.empty() ? "" : ", ") + name;
+    }
+    if (!lost.empty())
+      return std::string(format == FileFormat::Stl ? "STL" : "OFF") + " cannot hold the fields " + lost;
+  }
+  return "";
+}
+
+void writeShape(const std::string& path, const Shape& shape, const WriteOptions& options) {
+  const FileFormat format = formatFromPath(path);
+  refuseInputs(path, {shape.path});
+  const bool ascii = options.encoding == Encoding::Ascii;
+  switch (format) {
+    case FileFormat::Ply: writePly(path, shape, ascii); break;
+    case FileFormat::Pcd: writePcd(path, shape, ascii); break;
+    case FileFormat::Obj: writeObj(path, shape); break;
+    case FileFormat::Xyz: writeXyz(path, shape); break;
+    case FileFormat::Off: writeOff(path, shape); break;
+    case FileFormat::Stl: writeStl(path, shape, ascii); break;
+  }
+}
+
+}  // namespace hgd

@@ -1,0 +1,262 @@
+// OBJ reading and writing: 'v' and 'f' lines, per-vertex colours, and every other line
+// (texture coordinates, normals, groups, materials, face corners) kept to be written back.
+#include <charconv>
+#include <cstring>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "internal.h"
+
+namespace hgd::io_internal {
+
+Shape readObj(const std::string& path) {
+  InputFile in(path);
+  Lexer lex(in.rest(), 0);
+  std::vector<double> xyz, rgb;
+  bool all_rgb = true;
+  Shape shape;
+  struct PendingIndex {
+    std::size_t line;
+    long long value;
+  };
+  PendingIndex worst{0, 0};             // the largest positive index, checked once all vertices are known
+  std::vector<std::string_view> lines;  // every line, kept when the file has more than v and f
+  bool extras = false;
+  std::vector<Eigen::Vector3f> normals;
+  std::vector<int> normal_vertex;
+  while (lex.nextLine()) {
+    lines.push_back(lex.lineText());
+    if (lex.peek() == '#') {
+      extras = true;
+      continue;
+    }
+    const std::string_view kw = lex.token();
+    if (kw == "v") {
+      double vals[7];
+      std::size_t n = 0;
+      for (std::string_view tok = lex.token(); !tok.empty(); tok = lex.token()) {
+        double v = 0;
+        if (!parseFloating(tok, &v))
+          fail(path, "non-numeric value " + excerpt(tok) + " at line " + num(lex.line()));
+        if (n < 7) vals[n] = v;
+        ++n;
+      }
+      if (n < 3)
+        fail(path,
+             "malformed data: line " + num(lex.line()) + ": a vertex needs 3 coordinates, found " + num(n));
+      xyz.insert(xyz.end(), vals, vals + 3);
+      if (n == 6)
+        rgb.insert(rgb.end(), vals + 3, vals + 6);
+      else
+        all_rgb = false;
+    } else if (kw == "f") {
+      pcl::Vertices poly;
+      for (std::string_view tok = lex.token(); !tok.empty(); tok = lex.token()) {
+        const std::string_view head = tok.substr(0, tok.find('/'));
+        if (head.size() != tok.size()) extras = true;  // v/vt/vn corners: kept as written
+        long long v = 0;
+        const auto r = std::from_chars(head.data(), head.data() + head.size(), v);
+        const std::size_t nv = xyz.size() / 3;
+        if (r.ec != std::errc() || r.ptr != head.data() + head.size() || v == 0 ||
+            (v < 0 && v < -static_cast<long long>(nv)) || v > std::numeric_limits<pcl::index_t>::max())
+          fail(path, "bad face index " + excerpt(tok) + " at line " + num(lex.line()) + " (" + num(nv) +
+                         " vertices so far)");
+        const long long idx = v > 0 ? v - 1 : static_cast<long long>(nv) + v;
+        if (v > 0 && v > worst.value) worst = {lex.line(), v};
+        poly.vertices.push_back(static_cast<pcl::index_t>(idx));
+        // The corner's normal (v/vt/vn or v//vn): the first vertex it is paired with turns it.
+        const auto s2 = head.size() < tok.size() ? tok.find('/', head.size() + 1) : std::string_view::npos;
+        if (s2 != std::string_view::npos) {
+          const std::string_view vn = tok.substr(s2 + 1);
+          long long k = 0;
+          const auto rk = std::from_chars(vn.data(), vn.data() + vn.size(), k);
+          const long long nn = static_cast<long long>(normals.size());
+          const long long j = k > 0 ? k - 1 : nn + k;
+          if (rk.ec == std::errc() && k != 0 && j >= 0 && j < nn &&
+              normal_vertex[static_cast<std::size_t>(j)] < 0)
+            normal_vertex[static_cast<std::size_t>(j)] = static_cast<int>(idx);
+        }
+      }
+      if (poly.vertices.size() < 3)
+        fail(path, "bad face: line " + num(lex.line()) + " has " + num(poly.vertices.size()) +
+                       " vertices, at least 3 needed");
+      shape.polygons.push_back(std::move(poly));
+    } else {
+      // vn, vt, vp, o, g, s, l, usemtl, mtllib and anything else: kept as lines (FileExtras);
+      // normals are also read, to be turned with the shape.
+      extras = true;
+      if (kw == "vn") {
+        float vals[3] = {0, 0, 0};
+        for (float& v : vals) {
+          double d = 0;
+          const std::string_view tok = lex.token();
+          if (!parseFloating(tok, &d))
+            fail(path,
+                 "non-numeric value " + excerpt(tok) + " at line " + num(lex.line()) + " (a 'vn' line)");
+          v = static_cast<float>(d);
+        }
+        normals.emplace_back(vals[0], vals[1], vals[2]);
+        normal_vertex.push_back(-1);
+      }
+    }
+  }
+  const std::size_t nverts = xyz.size() / 3;
+  if (nverts == 0) fail(path, "no points: the file has no 'v' lines");
+  if (static_cast<unsigned long long>(worst.value) > nverts)
+    fail(path, "bad face index " + std::to_string(worst.value) + " at line " + num(worst.line) + " (" +
+                   num(nverts) + " vertices)");
+  if (nverts > std::numeric_limits<std::uint32_t>::max())
+    fail(path, "unsupported: more than 4294967295 vertices");
+
+  pcl::PCLPointCloud2& cloud = shape.cloud;
+  const bool colour = all_rgb && rgb.size() == xyz.size();
+  std::uint32_t step = 0;
+  const auto add = [&](const char* name, std::uint8_t type) {
+    Field f;
+    f.name = name;
+    f.offset = step;
+    f.datatype = type;
+    f.count = 1;
+    step += static_cast<std::uint32_t>(datatypeSize(type));
+    cloud.fields.push_back(f);
+  };
+  add("x", Field::FLOAT64);
+  add("y", Field::FLOAT64);
+  add("z", Field::FLOAT64);
+  if (colour) {
+    add("red", Field::FLOAT32);
+    add("green", Field::FLOAT32);
+    add("blue", Field::FLOAT32);
+  }
+  cloud.width = static_cast<std::uint32_t>(nverts);
+  cloud.height = 1;
+  cloud.point_step = step;
+  cloud.row_step = step * cloud.width;
+  cloud.is_bigendian = false;
+  cloud.data.resize(nverts * step);
+  for (std::size_t i = 0; i < nverts; ++i) {
+    std::uint8_t* pt = cloud.data.data() + i * step;
+    std::memcpy(pt, &xyz[3 * i], 3 * sizeof(double));
+    if (colour) {
+      const float c[3] = {static_cast<float>(rgb[3 * i]), static_cast<float>(rgb[3 * i + 1]),
+                          static_cast<float>(rgb[3 * i + 2])};
+      std::memcpy(pt + 24, c, sizeof c);
+    }
+  }
+  cloud.is_dense = computeDense(cloud);
+  if (extras) {
+    shape.extras.obj_lines.assign(lines.begin(), lines.end());
+    shape.extras.obj_normals = std::move(normals);
+    shape.extras.obj_normal_vertex = std::move(normal_vertex);
+  }
+  return shape;
+}
+
+namespace {
+
+/// " x y z" of the point at `pt`, each at its declared type (an OBJ vertex's coordinates).
+void appendXyz(std::string& buf, const pcl::PCLPointCloud2& c, const std::uint8_t* pt, const XyzFields& xyz) {
+  for (const int idx : {xyz.x, xyz.y, xyz.z}) {
+    buf += ' ';
+    appendValue(buf, pt + c.fields[idx].offset, c.fields[idx].datatype);
+  }
+}
+
+/// An OBJ written line by line as it was read: 'v' lines with the cloud's x/y/z (the rest of
+/// the line, colours or a weight, as it was), 'vn' lines with the turned normals, every other
+/// line (vt, g, o, usemtl, mtllib, s, l, comments, faces with their v/vt/vn corners) unchanged.
+bool writeObjLines(const std::string& path, const Shape& shape, const XyzFields& xyz) {
+  const FileExtras& x = shape.extras;
+  const std::vector<Eigen::Vector3f>& vn = x.obj_normals_out.empty() ? x.obj_normals : x.obj_normals_out;
+  std::size_t nv = 0, nn = 0;
+  for (const auto& line : x.obj_lines) {
+    nv += line.rfind("v ", 0) == 0 || line.rfind("v\t", 0) == 0;
+    nn += line.rfind("vn ", 0) == 0 || line.rfind("vn\t", 0) == 0;
+  }
+  if (nv != shape.size() || nn != vn.size()) return false;  // the shape no longer fits its lines
+  const pcl::PCLPointCloud2& c = shape.cloud;
+  AtomicWriter w(path);
+  std::string buf;
+  std::size_t i = 0, j = 0;
+  for (const auto& line : x.obj_lines) {
+    const std::vector<std::string_view> words = splitWords(line);
+    if (!words.empty() && words[0] == "v") {
+      buf += 'v';
+      appendXyz(buf, c, c.data.data() + i++ * c.point_step, xyz);
+      for (std::size_t k = 4; k < words.size(); ++k) {
+        buf += ' ';
+        buf += words[k];
+      }
+    } else if (!words.empty() && words[0] == "vn") {
+      buf += "vn";
+      for (int a = 0; a < 3; ++a) {
+        buf += ' ';
+        appendFloat(buf, vn[j][a]);
+      }
+      ++j;
+    } else {
+      buf += line;
+    }
+    buf += '\n';
+    if (buf.size() >= kFlushBytes) {
+      w.write(buf);
+      buf.clear();
+    }
+  }
+  w.write(buf);
+  w.commit();
+  return true;
+}
+
+}  // namespace
+
+void writeObj(const std::string& path, const Shape& shape) {
+  checkShape(path, shape, false);
+  const pcl::PCLPointCloud2& c = shape.cloud;
+  const XyzFields xyz = findXyzFields(c);
+  if (!xyz.hasXyz()) fail(path, "cannot write: no x/y/z fields");
+  if (!shape.extras.obj_lines.empty() && writeObjLines(path, shape, xyz)) return;
+  const int r = findField(c, "red"), g = findField(c, "green"), b = findField(c, "blue");
+  const bool colour = r >= 0 && g >= 0 && b >= 0;
+  const std::size_t n = shape.size();
+
+  AtomicWriter w(path);
+  std::string buf = "# written by hgdeform\n";
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::uint8_t* pt = c.data.data() + i * c.point_step;
+    buf += 'v';
+    appendXyz(buf, c, pt, xyz);
+    if (colour) {
+      for (const int idx : {r, g, b}) {
+        const Field& f = c.fields[idx];
+        buf += ' ';
+        if (f.datatype == Field::FLOAT32 || f.datatype == Field::FLOAT64)
+          appendValue(buf, pt + f.offset, f.datatype);
+        else
+          appendFloat(buf, static_cast<float>(readValue(c, i, f) / 255.0));
+      }
+    }
+    buf += '\n';
+    if (buf.size() >= kFlushBytes) {
+      w.write(buf);
+      buf.clear();
+    }
+  }
+  for (const auto& poly : shape.polygons) {
+    buf += 'f';
+    for (const auto idx : poly.vertices) {
+      buf += ' ';
+      appendInt(buf, static_cast<long long>(idx) + 1);
+    }
+    buf += '\n';
+    if (buf.size() >= kFlushBytes) {
+      w.write(buf);
+      buf.clear();
+    }
+  }
+  w.write(buf);
+  w.commit();
+}
+
+}  // namespace hgd::io_internal

@@ -1,0 +1,574 @@
+// PLY reading and writing: ascii, binary little and big endian, with every element, property
+// and comment of the file kept (FileExtras) so that a shape written back loses nothing.
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "internal.h"
+
+namespace hgd::io_internal {
+namespace {
+
+struct PlyProperty {
+  std::string name;
+  std::uint8_t type = 0;  // value type (list items for lists)
+  bool list = false;
+  std::uint8_t count_type = 0;
+};
+
+struct PlyElement {
+  std::string name;
+  std::uint64_t count = 0;
+  std::vector<PlyProperty> props;
+  bool allScalar() const {
+    return std::none_of(props.begin(), props.end(), [](const PlyProperty& p) { return p.list; });
+  }
+  /// Bytes of one binary record without list items.
+  std::uint64_t minBytes() const {
+    std::uint64_t n = 0;
+    for (const auto& p : props) n += datatypeSize(p.list ? p.count_type : p.type);
+    return n;
+  }
+};
+
+enum class PlyFormat { Ascii, BinaryLE, BinaryBE };
+
+}  // namespace
+
+Shape readPly(const std::string& path) {
+  InputFile in(path);
+  std::string line;
+  if (!in.readLine(&line, 64) || splitWords(line).size() != 1 || splitWords(line)[0] != "ply")
+    fail(path, "malformed header: first line is " + excerpt(line) + ", expected 'ply'");
+
+  PlyFormat format = PlyFormat::Ascii;
+  bool have_format = false, ended = false;
+  std::vector<PlyElement> elements;
+  std::vector<std::string> comments;
+  while (in.readLine(&line, kMaxHeaderLine)) {
+    const auto bad = [&](const std::string& why) {
+      fail(path, "malformed header: line " + num(in.linesRead()) + ": " + why + " (" + excerpt(line) + ")");
+    };
+    const auto words = splitWords(line);
+    if (words.empty()) continue;
+    const std::string_view kw = words[0];
+    if (kw == "comment" || kw == "obj_info") {
+      if (line.rfind("comment written by hgdeform", 0) != 0) comments.push_back(line);
+      continue;
+    }
+    if (kw == "end_header") {
+      ended = true;
+      break;
+    }
+    if (kw == "format") {
+      if (words.size() != 3) bad("expected 'format <type> 1.0'");
+      if (have_format) bad("second format line");
+      if (words[1] == "ascii")
+        format = PlyFormat::Ascii;
+      else if (words[1] == "binary_little_endian")
+        format = PlyFormat::BinaryLE;
+      else if (words[1] == "binary_big_endian")
+        format = PlyFormat::BinaryBE;
+      else
+        fail(path, "unsupported PLY format " + excerpt(words[1]));
+      if (words[2] != "1.0" && words[2] != "1") fail(path, "unsupported PLY version " + excerpt(words[2]));
+      have_format = true;
+    } else if (kw == "element") {
+      PlyElement el;
+      if (words.size() != 3 || !parseU64(words[2], &el.count)) bad("expected 'element <name> <count>'");
+      el.name = std::string(words[1]);
+      for (const auto& e : elements)
+        if (e.name == el.name) bad("second element '" + el.name + "'");
+      elements.push_back(std::move(el));
+    } else if (kw == "property") {
+      if (elements.empty()) bad("property before any element");
+      PlyProperty p;
+      if (words.size() == 5 && words[1] == "list") {
+        p.list = true;
+        if (!plyTypeFromName(words[2], &p.count_type) || !plyTypeFromName(words[3], &p.type))
+          fail(path, "unsupported PLY property type in line " + num(in.linesRead()) + " " + excerpt(line));
+        if (!isIntegerType(p.count_type))
+          fail(path, "unsupported PLY list count type in line " + num(in.linesRead()) + " " + excerpt(line));
+        p.name = std::string(words[4]);
+      } else if (words.size() == 3 && words[1] != "list") {
+        if (!plyTypeFromName(words[1], &p.type))
+          fail(path, "unsupported PLY property type in line " + num(in.linesRead()) + " " + excerpt(line));
+        p.name = std::string(words[2]);
+      } else {
+        bad("expected 'property <type> <name>' or 'property list <type> <type> <name>'");
+      }
+      for (const auto& q : elements.back().props)
+        if (q.name == p.name) bad("second property '" + p.name + "'");
+      elements.back().props.push_back(std::move(p));
+    } else {
+      bad("unknown keyword");
+    }
+  }
+  if (!ended) fail(path, "malformed header: no end_header line");
+  if (!have_format) fail(path, "malformed header: no format line");
+
+  int vertex_el = -1, face_el = -1, face_prop = -1;
+  for (std::size_t e = 0; e < elements.size(); ++e) {
+    if (elements[e].name == "vertex") vertex_el = static_cast<int>(e);
+    if (elements[e].name == "face") {
+      for (std::size_t k = 0; k < elements[e].props.size(); ++k) {
+        const auto& p = elements[e].props[k];
+        if (p.list && (p.name == "vertex_indices" || p.name == "vertex_index")) {
+          face_el = static_cast<int>(e);
+          face_prop = static_cast<int>(k);
+          break;
+        }
+      }
+    }
+  }
+  if (vertex_el < 0) fail(path, "no points: the file has no vertex element");
+  const PlyElement& vel = elements[vertex_el];
+  const auto hasScalar = [&](const char* name) {
+    return std::any_of(vel.props.begin(), vel.props.end(),
+                       [&](const PlyProperty& p) { return !p.list && p.name == name; });
+  };
+  if (!hasScalar("x") || !hasScalar("y") || !hasScalar("z"))
+    fail(path, "no x/y/z fields: the vertex element has no scalar x, y and z properties");
+  if (vel.count == 0) fail(path, "no points: the vertex element is empty");
+
+  // Check the declared counts against the data actually present, before allocating anything.
+  const bool binary = format != PlyFormat::Ascii;
+  const std::uint64_t avail = in.remaining();
+  std::uint64_t total = 0;
+  for (const auto& el : elements) {
+    const std::uint64_t per = binary ? el.minBytes() : el.props.size();
+    std::uint64_t need = 0;
+    if (!mulOk(el.count, binary ? per : 2 * per, &need) || !addOk(total, need, &total))
+      fail(path, "truncated data: header declares " + num(el.count) + " '" + el.name +
+                     "' records, more than any file can hold");
+    if ((binary && total > avail) || (!binary && total > avail + 1))
+      fail(path, "truncated data: header declares " + num(el.count) + " '" + el.name +
+                     "' records (at least " + num(need) + " bytes" + (binary ? "" : " of text") +
+                     "), the file holds " + num(avail) + " bytes of data");
+  }
+  if (vel.count > std::numeric_limits<std::uint32_t>::max())
+    fail(path, "unsupported: " + num(vel.count) + " vertices (at most 4294967295)");
+
+  Shape shape;
+  pcl::PCLPointCloud2& cloud = shape.cloud;
+  // Everything not held in the cloud's fields or the polygons is kept aside (FileExtras).
+  std::vector<FileExtras::Element> extra(elements.size());
+  bool any_extra = false;
+  for (std::size_t e = 0; e < elements.size(); ++e) {
+    FileExtras::Element& x = extra[e];
+    x.name = elements[e].name;
+    x.count = elements[e].count;
+    for (std::size_t k = 0; k < elements[e].props.size(); ++k) {
+      const PlyProperty& p = elements[e].props[k];
+      x.props.push_back({p.name, p.type, p.list, p.count_type});
+      const bool held = (static_cast<int>(e) == vertex_el && !p.list) ||
+                        (static_cast<int>(e) == face_el && static_cast<int>(k) == face_prop);
+      x.kept.push_back(held ? 0 : 1);
+      any_extra = any_extra || !held;
+    }
+    any_extra = any_extra || (static_cast<int>(e) != vertex_el && static_cast<int>(e) != face_el);
+  }
+  std::vector<std::uint32_t> offsets(vel.props.size(), 0);
+  std::uint32_t step = 0;
+  for (std::size_t k = 0; k < vel.props.size(); ++k) {
+    const auto& p = vel.props[k];
+    if (p.list) continue;
+    Field f;
+    f.name = p.name;
+    f.offset = step;
+    f.datatype = p.type;
+    f.count = 1;
+    offsets[k] = step;
+    step += static_cast<std::uint32_t>(datatypeSize(p.type));
+    cloud.fields.push_back(f);
+  }
+  const std::uint32_t nverts = static_cast<std::uint32_t>(vel.count);
+  cloud.width = nverts;
+  cloud.height = 1;
+  cloud.point_step = step;
+  cloud.row_step = step * nverts;
+  cloud.is_bigendian = false;
+  cloud.data.resize(static_cast<std::size_t>(nverts) * step);
+
+  if (binary) {
+    const bool swap = (format == PlyFormat::BinaryBE) != kHostBigEndian;
+    for (std::size_t e = 0; e < elements.size(); ++e) {
+      const PlyElement& el = elements[e];
+      if (el.props.empty() || el.count == 0) continue;
+      const bool is_vertex = static_cast<int>(e) == vertex_el;
+      std::vector<double>& kept_values = extra[e].values;
+      if (el.allScalar()) {
+        if (is_vertex) {
+          in.read(cloud.data.data(), cloud.data.size(), "vertex data");
+        } else {
+          const std::uint8_t* d = in.take(el.count * el.minBytes(), "element data");
+          kept_values.reserve(el.count * el.props.size());
+          for (std::uint64_t r = 0; r < el.count; ++r)
+            for (const PlyProperty& p : el.props) {
+              kept_values.push_back(decodeValue(d, p.type, swap));
+              d += datatypeSize(p.type);
+            }
+        }
+        continue;
+      }
+      // Each face takes at least a count and three indices: reserve no more than the data can hold.
+      if (static_cast<int>(e) == face_el)
+        shape.polygons.reserve(std::min<std::uint64_t>(el.count, in.remaining() / 4));
+      for (std::uint64_t r = 0; r < el.count; ++r) {
+        std::uint8_t* out = is_vertex ? cloud.data.data() + r * step : nullptr;
+        for (std::size_t k = 0; k < el.props.size(); ++k) {
+          const PlyProperty& p = el.props[k];
+          const std::size_t isz = datatypeSize(p.type);
+          if (!p.list) {
+            const std::uint8_t* src = in.take(isz, "element data");
+            if (out)
+              std::memcpy(out + offsets[k], src, isz);
+            else if (extra[e].kept[k])
+              kept_values.push_back(decodeValue(src, p.type, swap));
+            continue;
+          }
+          const double n =
+              decodeValue(in.take(datatypeSize(p.count_type), "list length"), p.count_type, swap);
+          if (n < 0) fail(path, "malformed data: negative list length in '" + el.name + "' record " + num(r));
+          const auto len = static_cast<std::uint64_t>(n);
+          if (static_cast<int>(e) != face_el || static_cast<int>(k) != face_prop) {
+            const std::uint8_t* items = in.take(len * isz, "list data");
+            kept_values.push_back(n);
+            for (std::uint64_t j = 0; j < len; ++j)
+              kept_values.push_back(decodeValue(items + j * isz, p.type, swap));
+            continue;
+          }
+          if (len < 3)
+            fail(path, "bad face: face " + num(r) + " has " + num(len) + " vertices, at least 3 needed");
+          const std::uint8_t* items = in.take(len * isz, "face data");
+          pcl::Vertices poly;
+          poly.vertices.resize(len);
+          for (std::uint64_t j = 0; j < len; ++j) {
+            const double idx = decodeValue(items + j * isz, p.type, swap);
+            if (!(idx >= 0 && idx < nverts && idx == std::floor(idx)))
+              fail(path, "bad face index " + std::to_string(idx) + " in face " + num(r) + " (" + num(nverts) +
+                             " vertices)");
+            poly.vertices[j] = static_cast<pcl::index_t>(idx);
+          }
+          shape.polygons.push_back(std::move(poly));
+        }
+      }
+    }
+    if (swap) swapCloud(cloud);
+    // Data beyond the last element that could hold another vertex: the header's counts are
+    // wrong, and reading on would silently drop points.
+    if (in.remaining() > 1 && in.remaining() >= vel.minBytes())
+      fail(path, "malformed data: " + num(in.remaining()) +
+                     " bytes after the last element: more data than the header declares (" + num(vel.count) +
+                     " vertices)");
+  } else {
+    Lexer lex(in.rest(), in.linesRead());
+    for (std::size_t e = 0; e < elements.size(); ++e) {
+      const PlyElement& el = elements[e];
+      if (el.props.empty()) continue;
+      const bool is_vertex = static_cast<int>(e) == vertex_el;
+      for (std::uint64_t r = 0; r < el.count; ++r) {
+        if (!lex.nextLine())
+          fail(path,
+               "truncated data: expected " + num(el.count) + " '" + el.name + "' records, found " + num(r));
+        std::uint8_t* out = is_vertex ? cloud.data.data() + r * step : nullptr;
+        const auto next = [&](const PlyProperty& p) {
+          const std::string_view tok = lex.token();
+          if (tok.empty())
+            fail(path, "truncated data: line " + num(lex.line()) + " has too few values for property '" +
+                           p.name + "' of element '" + el.name + "'");
+          return tok;
+        };
+        const auto nonNumeric = [&](std::string_view tok, const PlyProperty& p) {
+          fail(path, "non-numeric value " + excerpt(tok) + " at line " + num(lex.line()) + " (property '" +
+                         p.name + "' of element '" + el.name + "')");
+        };
+        for (std::size_t k = 0; k < el.props.size(); ++k) {
+          const PlyProperty& p = el.props[k];
+          std::uint8_t scratch[8];
+          if (!p.list) {
+            const std::string_view tok = next(p);
+            const Parse st = parseValue(tok, p.type, out ? out + offsets[k] : scratch);
+            if (st == Parse::Bad) nonNumeric(tok, p);
+            if (st == Parse::Range)
+              fail(path, "value out of range " + excerpt(tok) + " at line " + num(lex.line()) +
+                             " for property '" + p.name + "' of type " + plyTypeName(p.type));
+            if (!out && extra[e].kept[k]) extra[e].values.push_back(decodeValue(scratch, p.type, false));
+            continue;
+          }
+          const std::string_view ctok = next(p);
+          long long len = 0;
+          if (parseInteger(ctok, &len) != Parse::Ok) nonNumeric(ctok, p);
+          if (len < 0)
+            fail(path, "malformed data: negative list length at line " + num(lex.line()) + " (element '" +
+                           el.name + "')");
+          const bool is_face = static_cast<int>(e) == face_el && static_cast<int>(k) == face_prop;
+          if (is_face && len < 3)
+            fail(path, "bad face: face " + num(r) + " at line " + num(lex.line()) + " has " +
+                           std::to_string(len) + " vertices, at least 3 needed");
+          pcl::Vertices poly;
+          if (!is_face) extra[e].values.push_back(static_cast<double>(len));
+          for (long long j = 0; j < len; ++j) {
+            const std::string_view tok = next(p);
+            if (!is_face) {  // as the declared type holds it (in range; text may carry more digits)
+              std::uint8_t item[8];
+              const Parse st = parseValue(tok, p.type, item);
+              if (st == Parse::Bad) nonNumeric(tok, p);
+              if (st == Parse::Range)
+                fail(path, "value out of range " + excerpt(tok) + " at line " + num(lex.line()) +
+                               " for property '" + p.name + "' of type " + plyTypeName(p.type));
+              extra[e].values.push_back(decodeValue(item, p.type, false));
+              continue;
+            }
+            double v = 0;
+            if (!parseFloating(tok, &v)) nonNumeric(tok, p);
+            if (!(v >= 0 && v < nverts && v == std::floor(v)))
+              fail(path, "bad face index " + excerpt(tok) + " at line " + num(lex.line()) + " (" +
+                             num(nverts) + " vertices)");
+            poly.vertices.push_back(static_cast<pcl::index_t>(v));
+          }
+          if (is_face) shape.polygons.push_back(std::move(poly));
+        }
+        if (!lex.atLineEnd())
+          fail(path, "malformed data: line " + num(lex.line()) +
+                         " has more values than the header declares for " + "element '" + el.name + "'");
+      }
+    }
+    if (lex.nextLine())
+      fail(path, "malformed data: line " + num(lex.line()) + ": more data than the header declares (" +
+                     num(vel.count) + " vertices)");
+  }
+
+  cloud.is_dense = computeDense(cloud);
+  shape.extras.ply_comments = std::move(comments);
+  if (any_extra) shape.extras.ply_elements = std::move(extra);
+  return shape;
+}
+
+namespace {
+
+/// Whether a shape's kept PLY elements still fit it (the same vertex and face counts).
+bool plyExtrasFit(const Shape& shape) {
+  const auto& els = shape.extras.ply_elements;
+  if (els.empty()) return false;
+  bool vertex = false;
+  for (const auto& el : els) {
+    if (el.name == "vertex") {
+      vertex = true;
+      if (el.count != shape.size()) return false;
+    }
+    const bool indices = std::any_of(el.kept.begin(), el.kept.end(), [](char k) { return !k; });
+    if (el.name == "face" && indices && el.count != shape.polygons.size()) return false;
+  }
+  return vertex;
+}
+
+/// A PLY written with every element, property and comment the file it was read from had, in
+/// their order: the vertex element's scalars from the cloud (fields added since go last), the
+/// faces' vertex lists from the polygons, the rest from FileExtras.
+void writePlyWithExtras(const std::string& path, const Shape& shape, bool ascii,
+                        const std::vector<const Field*>& fields) {
+  const pcl::PCLPointCloud2& c = shape.cloud;
+  const std::size_t n = shape.size();
+  std::string h = "ply\nformat ";
+  h += ascii ? "ascii" : (kHostBigEndian ? "binary_big_endian" : "binary_little_endian");
+  h += " 1.0\n";
+  for (const auto& line : shape.extras.ply_comments) h += line + "\n";
+  h += "comment written by hgdeform\n";
+  // What each property of each element is written from.
+  struct Source {
+    const FileExtras::Property* prop = nullptr;
+    const Field* field = nullptr;  // a cloud field (vertex scalars)
+    bool indices = false;          // the face's vertex list
+    bool kept = false;             // FileExtras values
+    std::uint8_t count_type = 0;   // the face lists' length type (widened if a face needs it)
+  };
+  std::size_t max_face = 0;
+  for (const auto& poly : shape.polygons) max_face = std::max(max_face, poly.vertices.size());
+  std::vector<std::vector<Source>> sources;
+  std::vector<char> used(fields.size(), 0);
+  for (const auto& el : shape.extras.ply_elements) {
+    const bool is_vertex = el.name == "vertex";
+    h += "element " + el.name + " " + num(is_vertex ? n : el.count) + "\n";
+    std::vector<Source> src;
+    for (std::size_t k = 0; k < el.props.size(); ++k) {
+      const FileExtras::Property& p = el.props[k];
+      Source so;
+      so.prop = &p;
+      if (el.kept[k]) {
+        so.kept = true;
+      } else if (is_vertex) {
+        for (std::size_t f = 0; f < fields.size() && !so.field; ++f)
+          if (!used[f] && fields[f]->name == p.name && fieldCount(*fields[f]) == 1) {
+            so.field = fields[f];
+            used[f] = 1;
+          }
+        if (!so.field) continue;  // the field is gone from the cloud
+      } else {
+        so.indices = true;
+        so.count_type = max_face > 127 ? static_cast<std::uint8_t>(Field::UINT32) : p.count_type;
+      }
+      if (so.field)
+        h += std::string("property ") + plyTypeName(so.field->datatype) + " " + p.name + "\n";
+      else if (p.list)
+        h += std::string("property list ") + plyTypeName(so.indices ? so.count_type : p.count_type) + " " +
+             plyTypeName(p.type) + " " + p.name + "\n";
+      else
+        h += std::string("property ") + plyTypeName(p.type) + " " + p.name + "\n";
+      src.push_back(so);
+    }
+    if (is_vertex)  // fields the file did not have (a computed field), after its own
+      for (std::size_t f = 0; f < fields.size(); ++f) {
+        if (used[f]) continue;
+        Source so;
+        so.field = fields[f];
+        src.push_back(so);
+        const std::size_t cnt = fieldCount(*fields[f]);
+        for (std::size_t k = 0; k < cnt; ++k)
+          h += std::string("property ") + plyTypeName(fields[f]->datatype) + " " + fields[f]->name +
+               (cnt > 1 ? "_" + num(k) : std::string()) + "\n";
+      }
+    sources.push_back(std::move(src));
+  }
+  h += "end_header\n";
+
+  AtomicWriter w(path);
+  w.write(h);
+  std::vector<std::uint8_t> bin;
+  std::string txt;
+  std::vector<std::uint8_t>* b = ascii ? nullptr : &bin;
+  std::string* t = ascii ? &txt : nullptr;
+  for (std::size_t e = 0; e < shape.extras.ply_elements.size(); ++e) {
+    const auto& el = shape.extras.ply_elements[e];
+    const bool is_vertex = el.name == "vertex";
+    const std::uint64_t records = is_vertex ? n : el.count;
+    std::size_t at = 0;  // into el.values
+    for (std::uint64_t r = 0; r < records; ++r) {
+      bool first = true;
+      const auto sep = [&] {
+        if (t && !first) *t += ' ';
+        first = false;
+      };
+      for (const Source& so : sources[e]) {
+        if (so.field) {
+          const std::uint8_t* pt = c.data.data() + r * c.point_step + so.field->offset;
+          const std::size_t sz = datatypeSize(so.field->datatype);
+          for (std::size_t k = 0; k < fieldCount(*so.field); ++k) {
+            sep();
+            if (t)
+              appendValue(*t, pt + k * sz, so.field->datatype);
+            else
+              b->insert(b->end(), pt + k * sz, pt + (k + 1) * sz);
+          }
+        } else if (so.indices) {
+          const auto& poly = shape.polygons[r];
+          sep();
+          putValue(static_cast<double>(poly.vertices.size()), so.count_type, b, t);
+          for (const auto idx : poly.vertices) {
+            sep();
+            putValue(static_cast<double>(idx), so.prop->type, b, t);
+          }
+        } else if (so.prop->list) {
+          const auto len = static_cast<std::size_t>(el.values.at(at++));
+          sep();
+          putValue(static_cast<double>(len), so.prop->count_type, b, t);
+          for (std::size_t j = 0; j < len; ++j) {
+            sep();
+            putValue(el.values.at(at++), so.prop->type, b, t);
+          }
+        } else {
+          sep();
+          putValue(el.values.at(at++), so.prop->type, b, t);
+        }
+      }
+      if (t) *t += '\n';
+      if (bin.size() >= kFlushBytes || txt.size() >= kFlushBytes) {
+        w.write(bin.data(), bin.size());
+        w.write(txt);
+        bin.clear();
+        txt.clear();
+      }
+    }
+  }
+  w.write(bin.data(), bin.size());
+  w.write(txt);
+  w.commit();
+}
+
+}  // namespace
+
+void writePly(const std::string& path, const Shape& shape, bool ascii) {
+  const auto fields = checkShape(path, shape, false);
+  if (plyExtrasFit(shape)) return writePlyWithExtras(path, shape, ascii, fields);
+  const pcl::PCLPointCloud2& c = shape.cloud;
+  const std::size_t n = shape.size();
+  if (n > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max()) && !shape.polygons.empty())
+    fail(path, "cannot write: too many points for int face indices");
+  std::size_t max_face = 0;
+  for (const auto& poly : shape.polygons) max_face = std::max(max_face, poly.vertices.size());
+  const bool wide_count = max_face > 255;
+
+  std::string h = "ply\nformat ";
+  h += ascii ? "ascii" : (kHostBigEndian ? "binary_big_endian" : "binary_little_endian");
+  h += " 1.0\ncomment written by hgdeform\nelement vertex " + num(n) + "\n";
+  for (const Field* f : fields) {
+    const std::size_t cnt = fieldCount(*f);
+    for (std::size_t k = 0; k < cnt; ++k) {
+      h += std::string("property ") + plyTypeName(f->datatype) + " " + f->name;
+      if (cnt > 1) h += "_" + num(k);
+      h += "\n";
+    }
+  }
+  if (!shape.polygons.empty()) {
+    h += "element face " + num(shape.polygons.size()) + "\n";
+    h += wide_count ? "property list uint int vertex_indices\n" : "property list uchar int vertex_indices\n";
+  }
+  h += "end_header\n";
+
+  AtomicWriter w(path);
+  w.write(h);
+  if (ascii) {
+    writeAsciiPoints(w, c, n, fields);
+    std::string buf;
+    for (const auto& poly : shape.polygons) {
+      appendInt(buf, poly.vertices.size());
+      for (const auto idx : poly.vertices) {
+        buf += ' ';
+        appendInt(buf, idx);
+      }
+      buf += '\n';
+      if (buf.size() >= kFlushBytes) {
+        w.write(buf);
+        buf.clear();
+      }
+    }
+    w.write(buf);
+  } else {
+    writePackedBinary(w, c, n, fields);
+    std::vector<std::uint8_t> buf;
+    for (const auto& poly : shape.polygons) {
+      if (wide_count) {
+        const auto cnt = static_cast<std::uint32_t>(poly.vertices.size());
+        const auto* b = reinterpret_cast<const std::uint8_t*>(&cnt);
+        buf.insert(buf.end(), b, b + sizeof cnt);
+      } else {
+        buf.push_back(static_cast<std::uint8_t>(poly.vertices.size()));
+      }
+      for (const auto idx : poly.vertices) {
+        const auto v = static_cast<std::int32_t>(idx);
+        const auto* b = reinterpret_cast<const std::uint8_t*>(&v);
+        buf.insert(buf.end(), b, b + sizeof v);
+      }
+      if (buf.size() >= kFlushBytes) {
+        w.write(buf.data(), buf.size());
+        buf.clear();
+      }
+    }
+    w.write(buf.data(), buf.size());
+  }
+  w.commit();
+}
+}  // namespace hgd::io_internal

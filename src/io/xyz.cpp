@@ -1,0 +1,179 @@
+// ASCII point lists (.xyz, .txt): one point per row, `x y z` and any further columns, separated
+// by blanks or commas; '#' comments and blank lines skipped.
+//
+// Column names, conservatively:
+//   - a first row that is not all numbers names the columns (a leading "//", as CloudCompare
+//     writes, is dropped). Columns named x, y and z (any case) are the coordinates; if it names
+//     no x, y and z the first three columns are. The others keep their names, as float fields.
+//   - without such a row the first three columns are x, y, z. With exactly 6 columns, columns
+//     4-6 are normals nx ny nz when every row's is a unit vector (within 1e-3); else colours
+//     red green blue when every row's are integers 0..255 (stored as uchar, as in PLY) or numbers
+//     in 0..1 (floats, as in OBJ). Any other column k (counted from 0) is the float field
+//     "field<k>".
+// Written back with the same columns in the same order (and the same separator).
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "internal.h"
+
+namespace hgd::io_internal {
+namespace {
+
+/// Names and types of the columns of a file without a row of names (see the top of the file).
+std::vector<std::pair<std::string, std::uint8_t>> inferColumns(std::size_t cols,
+                                                               const std::vector<double>& v) {
+  std::vector<std::pair<std::string, std::uint8_t>> out = {
+      {"x", Field::FLOAT64}, {"y", Field::FLOAT64}, {"z", Field::FLOAT64}};
+  const std::size_t n = v.size() / cols;
+  bool unit = cols == 6, bytes = cols == 6, unit_range = cols == 6;
+  for (std::size_t i = 0; i < n && (unit || bytes || unit_range); ++i) {
+    const double* c = &v[i * cols + 3];
+    if (unit) unit = std::abs(std::sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]) - 1.0) <= 1e-3;
+    for (int k = 0; k < 3; ++k) {
+      bytes = bytes && c[k] >= 0 && c[k] <= 255 && c[k] == std::floor(c[k]);
+      unit_range = unit_range && c[k] >= 0 && c[k] <= 1;
+    }
+  }
+  if (unit) {
+    for (const char* name : {"nx", "ny", "nz"}) out.emplace_back(name, Field::FLOAT32);
+  } else if (bytes || unit_range) {
+    for (const char* name : {"red", "green", "blue"})
+      out.emplace_back(name, static_cast<std::uint8_t>(bytes ? Field::UINT8 : Field::FLOAT32));
+  }
+  for (std::size_t k = out.size(); k < cols; ++k) out.emplace_back("field" + num(k), Field::FLOAT32);
+  return out;
+}
+
+}  // namespace
+
+Shape readXyz(const std::string& path) {
+  InputFile in(path);
+  Lexer lex(in.rest(), 0);
+  std::vector<std::string> names;
+  std::vector<double> values;
+  std::size_t cols = 0, first_row = 0;
+  char separator = ' ';
+  while (lex.nextLine()) {
+    if (lex.peek() == '#') continue;
+    std::string_view line = lex.lineText();
+    if (line.find(',') != std::string_view::npos) separator = ',';
+    const std::vector<std::string_view> words = splitColumns(line);
+    const bool numeric = std::all_of(words.begin(), words.end(), [](std::string_view w) {
+      double d = 0;
+      return parseFloating(w, &d);
+    });
+    if (!numeric && cols == 0 && names.empty()) {  // a row of names
+      if (line.rfind("//", 0) == 0) line.remove_prefix(2);
+      for (const auto w : splitColumns(line)) names.emplace_back(w);
+      if (names.size() < 3)
+        fail(path, "malformed header: line " + num(lex.line()) + " names " + num(names.size()) +
+                       " columns, at least 3 (x y z) needed");
+      for (std::size_t k = 0; k < names.size(); ++k)
+        for (std::size_t j = 0; j < k; ++j)
+          if (names[j] == names[k])
+            fail(path,
+                 "malformed header: line " + num(lex.line()) + " names column '" + names[k] + "' twice");
+      cols = names.size();
+      first_row = lex.line();
+      continue;
+    }
+    if (cols == 0) {
+      cols = words.size();
+      first_row = lex.line();
+      if (cols < 3)
+        fail(path,
+             "malformed data: line " + num(lex.line()) + ": a point needs 3 coordinates, found " + num(cols));
+    }
+    if (words.size() != cols)
+      fail(path, "malformed data: line " + num(lex.line()) + " has " + num(words.size()) +
+                     " values, expected " + num(cols) +
+                     (names.empty() ? " (as line " : " (as named on line ") + num(first_row) + ")");
+    for (const auto w : words) {
+      double d = 0;
+      if (!parseFloating(w, &d))
+        fail(path, "non-numeric value " + excerpt(w) + " at line " + num(lex.line()));
+      values.push_back(d);
+    }
+  }
+  if (values.empty()) fail(path, "no points: the file has no rows of numbers");
+  const std::size_t n = values.size() / cols;
+  if (n > std::numeric_limits<std::uint32_t>::max()) fail(path, "unsupported: more than 4294967295 points");
+
+  std::vector<std::pair<std::string, std::uint8_t>> fields;
+  if (names.empty()) {
+    fields = inferColumns(cols, values);
+  } else {
+    std::vector<std::string> low(names.size());
+    std::transform(names.begin(), names.end(), low.begin(), [](const std::string& s) { return lower(s); });
+    const auto at = [&](const char* c) { return std::find(low.begin(), low.end(), c) - low.begin(); };
+    const bool named_xyz = at("x") < static_cast<long>(cols) && at("y") < static_cast<long>(cols) &&
+                           at("z") < static_cast<long>(cols);
+    for (std::size_t k = 0; k < cols; ++k) {
+      const bool coord = named_xyz ? (low[k] == "x" || low[k] == "y" || low[k] == "z") : k < 3;
+      if (coord)
+        fields.emplace_back(named_xyz ? low[k] : std::string(1, "xyz"[k]), Field::FLOAT64);
+      else
+        fields.emplace_back(names[k], Field::FLOAT32);
+    }
+    for (std::size_t k = 0; k < cols; ++k)  // "x" renamed from "X" may meet another column "x"
+      for (std::size_t j = 0; j < k; ++j)
+        if (fields[j].first == fields[k].first)
+          fail(path,
+               "malformed header: line " + num(first_row) + " names column '" + fields[k].first + "' twice");
+  }
+  Shape shape;
+  shape.cloud = makeCloud(n, fields, values);
+  if (names.empty())
+    for (const auto& f : fields) shape.extras.xyz_names.push_back(f.first);
+  shape.extras.xyz_separator = separator;
+  return shape;
+}
+
+void writeXyz(const std::string& path, const Shape& shape) {
+  const std::vector<const Field*> fields = checkShape(path, shape, false);
+  const pcl::PCLPointCloud2& c = shape.cloud;
+  if (!findXyzFields(c).hasXyz()) fail(path, "cannot write: no x/y/z fields");
+  const char sep = shape.extras.xyz_separator == ',' ? ',' : ' ';
+  std::vector<std::string> names;
+  for (const Field* f : fields)
+    for (std::size_t k = 0; k < fieldCount(*f); ++k)
+      names.push_back(fieldCount(*f) > 1 ? f->name + "_" + num(k) : f->name);
+  for (const std::string& name : names)
+    if (name.find(',') != std::string::npos || name[0] == '#' || name.rfind("//", 0) == 0)
+      fail(path, "cannot write: field name " + excerpt(name) + " cannot name an XYZ column");
+  // A row of names unless the reader would give the columns these names without one.
+  const bool plain = names == std::vector<std::string>{"x", "y", "z"};
+  std::string buf;
+  if (!plain && names != shape.extras.xyz_names) {
+    for (std::size_t k = 0; k < names.size(); ++k) {
+      if (k) buf += sep;
+      buf += names[k];
+    }
+    buf += '\n';
+  }
+  AtomicWriter w(path);
+  const std::size_t n = shape.size();
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::uint8_t* pt = c.data.data() + i * c.point_step;
+    bool first = true;
+    for (const Field* f : fields) {
+      const std::size_t sz = datatypeSize(f->datatype);
+      for (std::size_t k = 0; k < fieldCount(*f); ++k) {
+        if (!first) buf += sep;
+        first = false;
+        appendValue(buf, pt + f->offset + k * sz, f->datatype);
+      }
+    }
+    buf += '\n';
+    if (buf.size() >= kFlushBytes) {
+      w.write(buf);
+      buf.clear();
+    }
+  }
+  w.write(buf);
+  w.commit();
+}
+
+}  // namespace hgd::io_internal

@@ -1,0 +1,446 @@
+// XYZ/TXT, OFF and STL reading and writing, and reading by content (tests for issue 15 item 5).
+// Every file is written by hand here from arrays of this test; what is read is compared against
+// those arrays, not against another reader.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "hgdeform/fields.h"
+#include "hgdeform/io.h"
+#include "test_util.h"
+
+namespace {
+
+using hgd::IoError;
+using hgd::Shape;
+using hgdtest::TempDir;
+using Field = pcl::PCLPointField;
+using Tri = std::array<std::array<float, 3>, 3>;
+
+std::string g17(double v) {
+  char b[40];
+  std::snprintf(b, sizeof b, "%.17g", v);
+  return b;
+}
+
+void expectIoError(const std::function<void()>& f, const std::string& path, const std::string& phrase) {
+  try {
+    f();
+    ADD_FAILURE() << "no IoError thrown; expected '" << phrase << "' for " << path;
+  } catch (const IoError& e) {
+    const std::string m = e.what();
+    EXPECT_NE(m.find(path), std::string::npos) << m;
+    EXPECT_NE(m.find(phrase), std::string::npos) << "expected '" << phrase << "' in: " << m;
+  }
+}
+
+void expectReadError(const std::string& path, const std::string& phrase) {
+  expectIoError([&] { hgd::readShape(path); }, path, phrase);
+}
+
+double value(const Shape& s, std::size_t i, const std::string& name) {
+  const int f = hgd::findField(s.cloud, name);
+  EXPECT_GE(f, 0) << "no field " << name;
+  return f < 0 ? NAN : hgd::readValue(s.cloud, i, s.cloud.fields[static_cast<std::size_t>(f)]);
+}
+
+std::vector<std::string> names(const Shape& s) {
+  std::vector<std::string> out;
+  for (const auto& f : s.cloud.fields) out.push_back(f.name);
+  return out;
+}
+
+/// Random rows of `cols` values: x y z with noise in random order, then other columns.
+std::vector<std::vector<double>> randomRows(std::mt19937& rng, std::size_t n, std::size_t cols) {
+  std::normal_distribution<double> noise(0.0, 0.01);
+  std::uniform_real_distribution<double> u(-5, 5);
+  std::vector<std::vector<double>> rows(n, std::vector<double>(cols));
+  for (std::size_t i = 0; i < n; ++i) {
+    rows[i][0] = std::cos(0.3 * static_cast<double>(i)) + noise(rng);
+    rows[i][1] = std::sin(0.3 * static_cast<double>(i)) + noise(rng);
+    rows[i][2] = 0.1 * static_cast<double>(i) + noise(rng);
+    for (std::size_t k = 3; k < cols; ++k) rows[i][k] = u(rng);
+  }
+  std::shuffle(rows.begin(), rows.end(), rng);
+  return rows;
+}
+
+/// Corner positions of a face, as read.
+Tri corners(const Shape& s, std::size_t face) {
+  Tri t{};
+  for (std::size_t c = 0; c < 3; ++c) {
+    const auto v = static_cast<std::size_t>(s.polygons.at(face).vertices.at(c));
+    t[c] = {static_cast<float>(value(s, v, "x")), static_cast<float>(value(s, v, "y")),
+            static_cast<float>(value(s, v, "z"))};
+  }
+  return t;
+}
+
+/// A mesh in several pieces: `pieces` tetrahedra far apart, faces in random order.
+std::vector<Tri> tetrahedra(std::mt19937& rng, int pieces) {
+  std::uniform_real_distribution<float> u(-1, 1);
+  std::vector<Tri> tris;
+  for (int p = 0; p < pieces; ++p) {
+    std::array<std::array<float, 3>, 4> v;
+    for (auto& c : v) c = {10.0f * static_cast<float>(p) + u(rng), u(rng), u(rng)};
+    for (const auto& f : {std::array<int, 3>{0, 1, 2}, {0, 3, 1}, {1, 3, 2}, {2, 3, 0}})
+      tris.push_back({v[static_cast<std::size_t>(f[0])], v[static_cast<std::size_t>(f[1])],
+                      v[static_cast<std::size_t>(f[2])]});
+  }
+  std::shuffle(tris.begin(), tris.end(), rng);
+  return tris;
+}
+
+std::string asciiStl(const std::vector<Tri>& tris) {
+  std::string s = "solid test\n";
+  for (const auto& t : tris) {
+    s += "  facet normal 0 0 1\n    outer loop\n";
+    for (const auto& c : t) s += "      vertex " + g17(c[0]) + " " + g17(c[1]) + " " + g17(c[2]) + "\n";
+    s += "    endloop\n  endfacet\n";
+  }
+  return s + "endsolid test\n";
+}
+
+std::string binaryStl(const std::vector<Tri>& tris, std::uint32_t declared, std::uint16_t attribute = 0) {
+  std::string s(80, ' ');
+  hgdtest::put(s, declared);
+  for (const auto& t : tris) {
+    for (int k = 0; k < 3; ++k) hgdtest::put(s, 0.0f);
+    for (const auto& c : t)
+      for (const float v : c) hgdtest::put(s, v);
+    hgdtest::put(s, attribute);
+  }
+  return s;
+}
+
+void expectTriangles(const Shape& s, const std::vector<Tri>& tris) {
+  ASSERT_EQ(s.polygons.size(), tris.size());
+  for (std::size_t f = 0; f < tris.size(); ++f) EXPECT_EQ(corners(s, f), tris[f]) << "face " << f;
+}
+
+// --- XYZ -----------------------------------------------------------------------------------
+
+TEST(Xyz, ReadsEveryColumnWithCommentsAndBlankLines) {
+  TempDir dir;
+  std::mt19937 rng(11);
+  const auto rows = randomRows(rng, 60, 5);
+  for (const char* sep : {" ", ",", " \t, "}) {
+    std::string text = "# a scan\n\n";
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+      for (std::size_t k = 0; k < 5; ++k) text += (k ? sep : "") + g17(rows[i][k]);
+      text += i % 7 == 3 ? "\n\n# noise\n" : "\n";
+    }
+    const std::string p = dir.file("scan.xyz");
+    hgdtest::writeText(p, text);
+    const Shape s = hgd::readShape(p);
+    EXPECT_EQ(s.format, hgd::FileFormat::Xyz);
+    EXPECT_TRUE(s.warnings.empty());
+    EXPECT_EQ(names(s), (std::vector<std::string>{"x", "y", "z", "field3", "field4"}));
+    ASSERT_EQ(s.size(), rows.size());
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+      EXPECT_EQ(value(s, i, "x"), rows[i][0]);
+      EXPECT_EQ(value(s, i, "y"), rows[i][1]);
+      EXPECT_EQ(value(s, i, "z"), rows[i][2]);
+      EXPECT_EQ(value(s, i, "field3"), static_cast<float>(rows[i][3]));
+      EXPECT_EQ(value(s, i, "field4"), static_cast<float>(rows[i][4]));
+    }
+  }
+}
+
+TEST(Xyz, HeaderNamesTheColumns) {
+  TempDir dir;
+  const std::string p = dir.file("scan.txt");
+  hgdtest::writeText(p, "//intensity X Y Z label\n7 1 2 3 4\n8 5 6 7 9\n");
+  const Shape s = hgd::readShape(p);
+  EXPECT_EQ(names(s), (std::vector<std::string>{"intensity", "x", "y", "z", "label"}));
+  EXPECT_EQ(value(s, 1, "x"), 5);
+  EXPECT_EQ(value(s, 1, "intensity"), 8);
+  EXPECT_EQ(value(s, 0, "label"), 4);
+}
+
+TEST(Xyz, SixColumnConventions) {
+  TempDir dir;
+  const std::string p = dir.file("c.xyz");
+  hgdtest::writeText(p, "0 0 0 255 0 10\n1 0 0 3 4 5\n");  // integers 0..255: colours
+  Shape s = hgd::readShape(p);
+  EXPECT_EQ(names(s), (std::vector<std::string>{"x", "y", "z", "red", "green", "blue"}));
+  EXPECT_EQ(s.cloud.fields[3].datatype, Field::UINT8);
+  EXPECT_EQ(value(s, 0, "red"), 255);
+  hgdtest::writeText(p, "0 0 0 0 0 1\n1 0 0 0.6 0.8 0\n");  // unit vectors: normals
+  s = hgd::readShape(p);
+  EXPECT_EQ(names(s), (std::vector<std::string>{"x", "y", "z", "nx", "ny", "nz"}));
+  EXPECT_FLOAT_EQ(value(s, 1, "ny"), 0.8f);
+  hgdtest::writeText(p, "0 0 0 0.5 0.2 0.1\n1 0 0 1 0.25 0\n");  // 0..1: float colours
+  s = hgd::readShape(p);
+  EXPECT_EQ(names(s), (std::vector<std::string>{"x", "y", "z", "red", "green", "blue"}));
+  EXPECT_EQ(s.cloud.fields[3].datatype, Field::FLOAT32);
+  hgdtest::writeText(p, "0 0 0 0.5 -2 300\n1 0 0 1 0.25 0\n");  // neither
+  s = hgd::readShape(p);
+  EXPECT_EQ(names(s), (std::vector<std::string>{"x", "y", "z", "field3", "field4", "field5"}));
+}
+
+TEST(Xyz, RoundTripKeepsColumnsOrderAndSeparator) {
+  TempDir dir;
+  std::mt19937 rng(5);
+  const auto rows = randomRows(rng, 40, 4);
+  std::string text;
+  for (const auto& r : rows) text += g17(r[0]) + "," + g17(r[1]) + "," + g17(r[2]) + "," + g17(r[3]) + "\n";
+  const std::string in = dir.file("in.xyz"), out = dir.file("out.txt");
+  hgdtest::writeText(in, text);
+  const Shape a = hgd::readShape(in);
+  hgd::writeShape(out, a);
+  const std::string written = hgdtest::slurp(out);
+  EXPECT_EQ(std::count(written.begin(), written.end(), '\n'), 40);  // no header line added
+  EXPECT_EQ(std::count(written.begin(), written.end(), ','), 3 * 40);
+  const Shape b = hgd::readShape(out);
+  ASSERT_EQ(names(b), names(a));
+  for (std::size_t i = 0; i < rows.size(); ++i)
+    for (const char* n : {"x", "y", "z", "field3"}) EXPECT_EQ(value(b, i, n), value(a, i, n));
+  // Named columns keep their names through a round trip (a header line is written).
+  hgdtest::writeText(in, "x y z intensity\n1 2 3 0.5\n");
+  hgd::writeShape(out, hgd::readShape(in));
+  EXPECT_EQ(hgdtest::slurp(out), "x y z intensity\n1 2 3 0.5\n");
+}
+
+TEST(Xyz, ErrorsNameFileAndLine) {
+  TempDir dir;
+  const std::string p = dir.file("bad.xyz");
+  hgdtest::writeText(p, "# c\n1 2 3\n4 5 6\n7 8\n");
+  expectReadError(p, "line 4 has 2 values, expected 3");
+  hgdtest::writeText(p, "1 2 3\n4 five 6\n");
+  expectReadError(p, "'five' at line 2");
+  hgdtest::writeText(p, "# only a comment\n\n");
+  expectReadError(p, "no points");
+  hgdtest::writeText(p, "x y\n1 2\n");
+  expectReadError(p, "line 1");
+}
+
+// --- OFF -----------------------------------------------------------------------------------
+
+TEST(Off, ReadsAMeshInPieces) {
+  TempDir dir;
+  std::mt19937 rng(3);
+  const std::vector<Tri> tris = tetrahedra(rng, 3);
+  // Vertices: every corner once, in order of first use (as the test's own arrays say).
+  std::vector<std::array<float, 3>> verts;
+  std::vector<std::array<int, 3>> faces;
+  for (const auto& t : tris) {
+    std::array<int, 3> f{};
+    for (std::size_t c = 0; c < 3; ++c) {
+      auto it = std::find(verts.begin(), verts.end(), t[c]);
+      if (it == verts.end()) it = verts.insert(verts.end(), t[c]);
+      f[c] = static_cast<int>(it - verts.begin());
+    }
+    faces.push_back(f);
+  }
+  std::string text = "OFF # three tetrahedra\n# counts\n" + std::to_string(verts.size()) + " " +
+                     std::to_string(faces.size()) + " 0\n";
+  for (const auto& v : verts) text += g17(v[0]) + " " + g17(v[1]) + " " + g17(v[2]) + "\n";
+  for (const auto& f : faces)
+    text += "3 " + std::to_string(f[0]) + " " + std::to_string(f[1]) + " " + std::to_string(f[2]) + "\n";
+  const std::string p = dir.file("pieces.off");
+  hgdtest::writeText(p, text);
+  const Shape s = hgd::readShape(p);
+  EXPECT_EQ(s.format, hgd::FileFormat::Off);
+  ASSERT_EQ(s.size(), verts.size());
+  ASSERT_EQ(s.polygons.size(), faces.size());
+  for (std::size_t f = 0; f < faces.size(); ++f)
+    for (std::size_t c = 0; c < 3; ++c) EXPECT_EQ(s.polygons[f].vertices[c], faces[f][c]);
+  expectTriangles(s, tris);
+  // Round trip through OFF keeps every vertex and face.
+  const std::string out = dir.file("out.off");
+  hgd::writeShape(out, s);
+  const Shape b = hgd::readShape(out);
+  ASSERT_EQ(b.size(), s.size());
+  expectTriangles(b, tris);
+}
+
+TEST(Off, ColourAndNormalVariants) {
+  TempDir dir;
+  const std::string p = dir.file("c.off");
+  hgdtest::writeText(p,
+                     "CNOFF 4 1 0\n0 0 0 0 0 1 255 0 0 255\n1 0 0 0 0 1 0 255 0 255\n"
+                     "0 1 0 0 0 1 0 0 255 255\n1 1 0 0 0 1 9 9 9 255\n4 0 1 3 2 200 10 10\n");
+  const Shape s = hgd::readShape(p);
+  EXPECT_EQ(names(s),
+            (std::vector<std::string>{"x", "y", "z", "nx", "ny", "nz", "red", "green", "blue", "alpha"}));
+  EXPECT_EQ(value(s, 1, "green"), 255);
+  EXPECT_EQ(value(s, 3, "x"), 1);
+  ASSERT_EQ(s.polygons.size(), 1u);
+  EXPECT_EQ(s.polygons[0].vertices, (std::vector<pcl::index_t>{0, 1, 3, 2}));
+  ASSERT_EQ(s.warnings.size(), 1u);
+  EXPECT_NE(s.warnings[0].find("face colours"), std::string::npos);
+  const std::string out = dir.file("back.off");
+  hgd::writeShape(out, s);
+  EXPECT_EQ(hgdtest::slurp(out).substr(0, 6), "CNOFF\n");
+  const Shape b = hgd::readShape(out);
+  EXPECT_EQ(names(b), names(s));
+  for (std::size_t i = 0; i < 4; ++i)
+    for (const auto& n : names(s)) EXPECT_EQ(value(b, i, n), value(s, i, n)) << n;
+}
+
+TEST(Off, MalformedAndTruncated) {
+  TempDir dir;
+  const std::string p = dir.file("bad.off");
+  hgdtest::writeText(p, "OFF\n3 1 0\n0 0 0\n1 0 0\n");
+  expectReadError(p, "truncated");
+  hgdtest::writeText(p, "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n");
+  expectReadError(p, "bad face index '7' at line 6");
+  hgdtest::writeText(p, "OFF\n3 0 0\n0 0 0\n1 x 0\n0 1 0\n");
+  expectReadError(p, "'x' at line 4");
+  hgdtest::writeText(p, "OFF\n3000000 1 0\n0 0 0\n");
+  expectReadError(p, "truncated");
+}
+
+// --- STL -----------------------------------------------------------------------------------
+
+TEST(Stl, AsciiWeldsCornersAndKeepsFaces) {
+  TempDir dir;
+  std::mt19937 rng(7);
+  const std::vector<Tri> tris = tetrahedra(rng, 4);
+  const std::string p = dir.file("m.stl");
+  hgdtest::writeText(p, asciiStl(tris));
+  const Shape s = hgd::readShape(p);
+  EXPECT_EQ(s.format, hgd::FileFormat::Stl);
+  EXPECT_EQ(s.size(), 16u);  // 4 corners per tetrahedron, each shared by 3 triangles
+  expectTriangles(s, tris);
+}
+
+TEST(Stl, BinaryWeldsAndWarnsAboutAttributes) {
+  TempDir dir;
+  std::mt19937 rng(8);
+  const std::vector<Tri> tris = tetrahedra(rng, 2);
+  const std::string p = dir.file("m.stl");
+  hgdtest::writeText(p, binaryStl(tris, static_cast<std::uint32_t>(tris.size())));
+  Shape s = hgd::readShape(p);
+  EXPECT_EQ(s.size(), 8u);
+  expectTriangles(s, tris);
+  EXPECT_TRUE(s.warnings.empty());
+  hgdtest::writeText(p, binaryStl(tris, static_cast<std::uint32_t>(tris.size()), 0x7c1f));
+  s = hgd::readShape(p);
+  ASSERT_EQ(s.warnings.size(), 1u);
+  EXPECT_NE(s.warnings[0].find("attribute bytes"), std::string::npos);
+}
+
+TEST(Stl, WrongTriangleCountOrTruncationIsRefused) {
+  TempDir dir;
+  std::mt19937 rng(9);
+  const std::vector<Tri> tris = tetrahedra(rng, 1);
+  const std::string p = dir.file("bad.stl");
+  hgdtest::writeText(p, binaryStl(tris, 5));
+  expectReadError(p, "declares 5 triangles");
+  hgdtest::writeText(p, binaryStl(tris, 4).substr(0, 84 + 50 * 3 + 20));
+  expectReadError(p, "declares 4 triangles");
+  hgdtest::writeText(p, std::string(40, '\1'));
+  expectReadError(p, "at least 84 bytes");
+  const std::string text = asciiStl(tris);
+  hgdtest::writeText(p, text.substr(0, text.find("endfacet")));
+  expectReadError(p, "no 'endfacet'");
+}
+
+TEST(Stl, RoundTripsAsciiAndBinary) {
+  TempDir dir;
+  std::mt19937 rng(10);
+  const std::vector<Tri> tris = tetrahedra(rng, 3);
+  const std::string in = dir.file("in.stl");
+  hgdtest::writeText(in, asciiStl(tris));
+  const Shape s = hgd::readShape(in);
+  for (const auto enc : {hgd::Encoding::Binary, hgd::Encoding::Ascii}) {
+    const std::string out = dir.file("out.stl");
+    hgd::WriteOptions wo;
+    wo.encoding = enc;
+    hgd::writeShape(out, s, wo);
+    const std::string bytes = hgdtest::slurp(out);
+    if (enc == hgd::Encoding::Binary) {
+      EXPECT_EQ(bytes.size(), 84 + 50 * tris.size());
+    }
+    const Shape b = hgd::readShape(out);
+    EXPECT_EQ(b.size(), s.size());
+    expectTriangles(b, tris);
+  }
+}
+
+TEST(Stl, FieldsItCannotHoldAreNamed) {
+  TempDir dir;
+  const std::string p = dir.file("c.xyz");
+  hgdtest::writeText(p, "x y z intensity\n0 0 0 1\n");
+  const Shape s = hgd::readShape(p);
+  EXPECT_EQ(hgd::extrasLost(s, hgd::FileFormat::Stl), "STL cannot hold the fields intensity");
+  EXPECT_EQ(hgd::extrasLost(s, hgd::FileFormat::Off), "OFF cannot hold the fields intensity");
+  EXPECT_EQ(hgd::extrasLost(s, hgd::FileFormat::Xyz), "");
+}
+
+TEST(Stl, CloudWithoutFacesIsNotWrittenAndLeavesNothing) {
+  TempDir dir;
+  const std::string in = dir.file("c.xyz");
+  hgdtest::writeText(in, "0 0 0\n1 0 0\n0 1 0\n");
+  const Shape s = hgd::readShape(in);
+  const std::string out = dir.file("c.stl");
+  expectIoError([&] { hgd::writeShape(out, s); }, out, "no faces");
+  EXPECT_EQ(dir.list(), std::vector<std::string>{"c.xyz"});
+}
+
+// --- reading by content --------------------------------------------------------------------
+
+TEST(Sniff, ContentWinsOverTheExtension) {
+  TempDir dir;
+  const std::string ply =
+      "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+      "property float z\nend_header\n0 0 0\n1 0 0\n0 1 0\n";
+  const std::string p = dir.file("mesh.obj");
+  hgdtest::writeText(p, ply);
+  Shape s = hgd::readShape(p);
+  EXPECT_EQ(s.format, hgd::FileFormat::Ply);
+  EXPECT_EQ(s.size(), 3u);
+  ASSERT_EQ(s.warnings.size(), 1u);
+  EXPECT_NE(s.warnings[0].find("read as PLY although the extension '.obj' says OBJ"), std::string::npos)
+      << s.warnings[0];
+
+  std::mt19937 rng(4);
+  const std::vector<Tri> tris = tetrahedra(rng, 1);
+  const std::string q = dir.file("part.dat");
+  hgdtest::writeText(q, binaryStl(tris, 4));
+  s = hgd::readShape(q);
+  EXPECT_EQ(s.format, hgd::FileFormat::Stl);
+  expectTriangles(s, tris);
+  EXPECT_EQ(hgd::sniffFormat(q), hgd::FileFormat::Stl);
+
+  const std::string r = dir.file("cloud.ply");
+  hgdtest::writeText(r,
+                     "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\n"
+                     "WIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA ascii\n1 2 3\n");
+  EXPECT_EQ(hgd::readShape(r).format, hgd::FileFormat::Pcd);
+  hgdtest::writeText(r, "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+  EXPECT_EQ(hgd::readShape(r).format, hgd::FileFormat::Off);
+  hgdtest::writeText(r, "# obj\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  EXPECT_EQ(hgd::readShape(r).format, hgd::FileFormat::Obj);
+  hgdtest::writeText(r, "1 2 3\n4 5 6\n");
+  EXPECT_EQ(hgd::readShape(r).format, hgd::FileFormat::Xyz);
+
+  const std::string none = dir.file("noext");
+  hgdtest::writeText(none, "0.5 1 2\n");
+  s = hgd::readShape(none);
+  EXPECT_EQ(s.format, hgd::FileFormat::Xyz);
+  ASSERT_EQ(s.warnings.size(), 1u);
+  EXPECT_NE(s.warnings[0].find("(none)"), std::string::npos) << s.warnings[0];
+
+  hgdtest::writeText(none, "\x89PNG\r\n\x1a\n....");
+  expectReadError(none, "matches no format");
+  expectIoError([&] { hgd::sniffFormat(none); }, none, "matches no format");
+}
+
+TEST(Sniff, FileOfItsOwnFormatGetsThatFormatsErrors) {
+  TempDir dir;
+  const std::string p = dir.file("broken.ply");
+  hgdtest::writeText(p, "plx\nformat ascii 1.0\n");
+  expectReadError(p, "expected 'ply'");
+}
+
+}  // namespace
