@@ -26,7 +26,7 @@
 #include "hgdeform/fields.h"
 #include "hgdeform/geometry.h"
 #include "hgdeform/io.h"
-#include "hgdeform/shapes.h"
+#include "support/shapes.h"
 #include "test_util.h"
 
 namespace {

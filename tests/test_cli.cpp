@@ -26,8 +26,8 @@
 #include "hgdeform/io.h"
 #include "hgdeform/runner.h"
 #include "hgdeform/scenario.h"
-#include "hgdeform/shapes.h"
 #include "hgdeform/version.h"
+#include "support/shapes.h"
 #include "test_util.h"
 
 namespace {

@@ -10,7 +10,7 @@
 #include "hgdeform/deformer.h"
 #include "hgdeform/io.h"
 #include "hgdeform/neighbors.h"
-#include "hgdeform/shapes.h"
+#include "support/shapes.h"
 #include "test_util.h"
 
 using hgdtest::pointsWhere;

@@ -11,7 +11,7 @@
 #include "hgdeform/geometry.h"
 #include "hgdeform/harmonic_field.h"
 #include "hgdeform/neighbors.h"
-#include "hgdeform/shapes.h"
+#include "support/shapes.h"
 #include "test_util.h"
 
 using hgdtest::pointsWhere;

@@ -15,7 +15,7 @@
 #include "hgdeform/io.h"
 #include "hgdeform/regions.h"
 #include "hgdeform/scenario.h"
-#include "hgdeform/shapes.h"
+#include "support/shapes.h"
 #include "test_util.h"
 
 using hgdtest::contains;

@@ -42,8 +42,8 @@
 #include "hgdeform/regions.h"
 #include "hgdeform/runner.h"
 #include "hgdeform/scenario.h"
-#include "hgdeform/shapes.h"
 #include "hgdeform/solver.h"
+#include "support/shapes.h"
 #include "test_util.h"
 
 #if defined(__SANITIZE_ADDRESS__)

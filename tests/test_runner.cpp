@@ -9,7 +9,7 @@
 
 #include "hgdeform/io.h"
 #include "hgdeform/runner.h"
-#include "hgdeform/shapes.h"
+#include "support/shapes.h"
 #include "test_util.h"
 
 namespace {

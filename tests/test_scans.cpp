@@ -23,7 +23,7 @@
 #include "hgdeform/deformer.h"
 #include "hgdeform/harmonic_field.h"
 #include "hgdeform/runner.h"
-#include "hgdeform/shapes.h"
+#include "support/shapes.h"
 #include "test_util.h"
 
 namespace {

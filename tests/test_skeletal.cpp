@@ -3,7 +3,7 @@
 #include <cmath>
 
 #include "hgdeform/deformer.h"
-#include "hgdeform/shapes.h"
+#include "support/shapes.h"
 #include "test_util.h"
 
 using hgdtest::pointsWhere;

@@ -13,7 +13,7 @@
 #include "hgdeform/geometry.h"
 #include "hgdeform/io.h"
 #include "hgdeform/scenario.h"
-#include "hgdeform/shapes.h"
+#include "support/shapes.h"
 #include "test_util.h"
 
 namespace {

@@ -27,8 +27,8 @@
 #include "hgdeform/deformer.h"
 #include "hgdeform/io.h"
 #include "hgdeform/report.h"
-#include "hgdeform/shapes.h"
 #include "hgdeform/version.h"
+#include "support/shapes.h"
 
 namespace {
 

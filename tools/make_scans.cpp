@@ -10,7 +10,7 @@
 
 #include "cli_common.h"
 #include "hgdeform/io.h"
-#include "hgdeform/shapes.h"
+#include "support/shapes.h"
 
 int main(int argc, char** argv) {
   std::filesystem::path dir;

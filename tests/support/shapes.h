@@ -1,5 +1,5 @@
-// Procedural shapes for tests, benchmarks and demos: the paper's test scenes made from
-// nothing, so that they run on a clean clone.
+// Procedural shapes for tests, benchmarks and demos (not part of the installed library): the
+// paper's test scenes made from nothing, so that they run on a clean clone.
 #pragma once
 
 #include <Eigen/Core>

@@ -1,4 +1,4 @@
-#include "hgdeform/shapes.h"
+#include "support/shapes.h"
 
 #include <algorithm>
 #include <cmath>
