@@ -100,7 +100,8 @@ void ClusterSolver::setup(std::vector<SolverCluster> clusters, const std::vector
     pairs_.push_back(p);
   }
   manip_active_ = false;
-  pattern_ready_ = false;
+  if (nv > 0) analyzePattern();
+  constant_ready_ = true;
 }
 
 void ClusterSolver::reset() {
@@ -146,11 +147,11 @@ void ClusterSolver::setManipulation(const std::vector<Eigen::Vector3d>& rest,
   manip_b_ = b;
   manip_c_ = c;
   manip_active_ = true;
-  if (structure_changed) pattern_ready_ = false;
+  if (structure_changed) constant_ready_ = false;
 }
 
 void ClusterSolver::clearManipulation() {
-  if (manip_active_) pattern_ready_ = false;
+  if (manip_active_) constant_ready_ = false;
   manip_active_ = false;
 }
 
@@ -327,6 +328,78 @@ void BlockCholesky::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) const {
   for (std::size_t j = 0; j < nb; ++j) x.segment<12>(12 * order_[j]) = y[j];
 }
 
+// The constant part of the normal equations (w_Prop·JᵀJ of E_Prop, + E_Manip when active) and
+// its sparsity pattern: all diagonal blocks, and off-diagonal blocks for adjacent free pairs.
+// E_Manip adds to the manipulated cluster's diagonal block, which is always there, so the
+// pattern does not depend on it.
+void ClusterSolver::assembleConstant() {
+  const int nv = static_cast<int>(x_.size());
+  const int nb = nv / 12;
+  auto block = [&](int c) { return var_[static_cast<std::size_t>(c)] / 12; };
+  // Constant part of the normal equations and the sparsity pattern (all diagonal blocks, and
+  // off-diagonal blocks for adjacent free pairs).
+  std::vector<Eigen::Triplet<double>> trip;
+  // Off-diagonal blocks keep only what can be nonzero there: E_Prop's kron(S) couples the
+  // same row of the two 3x4 transforms, E_Length the two translations. A third of the dense
+  // block, so fewer values to refresh and scatter into the factor every iteration.
+  auto addBlock = [&](int bi, int bj, const Mat12& m) {
+    for (int r = 0; r < 12; ++r)
+      for (int c = 0; c < 12; ++c)
+        if (bi == bj || r % 3 == c % 3 || (r >= 9 && c >= 9))
+          trip.emplace_back(12 * bi + r, 12 * bj + c, m(r, c));
+  };
+  // Every diagonal block is dense (Rot couples A's entries); 1e-9 I keeps the system definite
+  // when a cluster is unconstrained (no neighbours).
+  for (int b = 0; b < nb; ++b) addBlock(b, b, 1e-9 * Mat12::Identity());
+  for (const auto& p : pairs_) {
+    const bool fi = var_[static_cast<std::size_t>(p.i)] >= 0, fj = var_[static_cast<std::size_t>(p.j)] >= 0;
+    if (fi) addBlock(block(p.i), block(p.i), w_.prop * kron(p.sii));
+    if (fj) addBlock(block(p.j), block(p.j), w_.prop * kron(p.sjj));
+    if (fi && fj) {
+      addBlock(block(p.i), block(p.j), -w_.prop * kron(p.sij));
+      addBlock(block(p.j), block(p.i), -w_.prop * kron(p.sij.transpose()));
+    }
+  }
+  if (manip_active_) addBlock(block(manipulated_), block(manipulated_), w_.manip * kron(manip_s_));
+  h_const_.resize(nv, nv);
+  h_const_.setFromTriplets(trip.begin(), trip.end());
+  h_const_.makeCompressed();
+  h_ = h_const_;
+}
+
+// The symbolic analysis, once per setup: where the per-iteration terms land and the block
+// Cholesky's elimination order and fill.
+void ClusterSolver::analyzePattern() {
+  assembleConstant();
+  const int nb = static_cast<int>(x_.size()) / 12;
+  auto block = [&](int c) { return var_[static_cast<std::size_t>(c)] / 12; };
+  // Where the per-iteration terms land in h_'s value array (found once, not per entry and
+  // iteration): Rot's 9x9 in each diagonal block, Length's 3x3 translation blocks.
+  auto at = [&](int row, int col) {
+    const int* b = h_.innerIndexPtr() + h_.outerIndexPtr()[col];
+    const int* e = h_.innerIndexPtr() + h_.outerIndexPtr()[col + 1];
+    return static_cast<int>(std::lower_bound(b, e, row) - h_.innerIndexPtr());
+  };
+  auto positions = [&](int bi, int bj, int off, int size, std::vector<int>& out) {
+    for (int c = 0; c < size; ++c)
+      for (int r = 0; r < size; ++r) out.push_back(at(12 * bi + off + r, 12 * bj + off + c));
+  };
+  rot_at_.clear();
+  for (int b = 0; b < nb; ++b) positions(b, b, 0, 9, rot_at_);
+  length_at_.clear();
+  for (const auto& p : pairs_) {
+    const int bi = var_[static_cast<std::size_t>(p.i)] >= 0 ? block(p.i) : -1;
+    const int bj = var_[static_cast<std::size_t>(p.j)] >= 0 ? block(p.j) : -1;
+    for (const auto& [x, y] : {std::pair<int, int>(bi, bi), {bj, bj}, {bi, bj}, {bj, bi}}) {
+      if (x >= 0 && y >= 0)
+        positions(x, y, 9, 3, length_at_);
+      else
+        length_at_.insert(length_at_.end(), 9, -1);
+    }
+  }
+  factor_.analyze(h_);
+}
+
 SolveStats ClusterSolver::solve(const GaussNewtonOptions& options) {
   Stopwatch sw;
   SolveStats st;
@@ -336,65 +409,10 @@ SolveStats ClusterSolver::solve(const GaussNewtonOptions& options) {
     st.energy = evaluate(x_);
     return st;
   }
-  const int nb = nv / 12;
-  auto block = [&](int c) { return var_[static_cast<std::size_t>(c)] / 12; };
 
-  if (!pattern_ready_) {
-    // Constant part of the normal equations and the sparsity pattern (all diagonal blocks, and
-    // off-diagonal blocks for adjacent free pairs).
-    std::vector<Eigen::Triplet<double>> trip;
-    // Off-diagonal blocks keep only what can be nonzero there: E_Prop's kron(S) couples the
-    // same row of the two 3x4 transforms, E_Length the two translations. A third of the dense
-    // block, so fewer values to refresh and scatter into the factor every iteration.
-    auto addBlock = [&](int bi, int bj, const Mat12& m) {
-      for (int r = 0; r < 12; ++r)
-        for (int c = 0; c < 12; ++c)
-          if (bi == bj || r % 3 == c % 3 || (r >= 9 && c >= 9))
-            trip.emplace_back(12 * bi + r, 12 * bj + c, m(r, c));
-    };
-    // Every diagonal block is dense (Rot couples A's entries); 1e-9 I keeps the system definite
-    // when a cluster is unconstrained (no neighbours).
-    for (int b = 0; b < nb; ++b) addBlock(b, b, 1e-9 * Mat12::Identity());
-    for (const auto& p : pairs_) {
-      const bool fi = var_[static_cast<std::size_t>(p.i)] >= 0, fj = var_[static_cast<std::size_t>(p.j)] >= 0;
-      if (fi) addBlock(block(p.i), block(p.i), w_.prop * kron(p.sii));
-      if (fj) addBlock(block(p.j), block(p.j), w_.prop * kron(p.sjj));
-      if (fi && fj) {
-        addBlock(block(p.i), block(p.j), -w_.prop * kron(p.sij));
-        addBlock(block(p.j), block(p.i), -w_.prop * kron(p.sij.transpose()));
-      }
-    }
-    if (manip_active_) addBlock(block(manipulated_), block(manipulated_), w_.manip * kron(manip_s_));
-    h_const_.resize(nv, nv);
-    h_const_.setFromTriplets(trip.begin(), trip.end());
-    h_const_.makeCompressed();
-    h_ = h_const_;
-    // Where the per-iteration terms land in h_'s value array (found once, not per entry and
-    // iteration): Rot's 9x9 in each diagonal block, Length's 3x3 translation blocks.
-    auto at = [&](int row, int col) {
-      const int* b = h_.innerIndexPtr() + h_.outerIndexPtr()[col];
-      const int* e = h_.innerIndexPtr() + h_.outerIndexPtr()[col + 1];
-      return static_cast<int>(std::lower_bound(b, e, row) - h_.innerIndexPtr());
-    };
-    auto positions = [&](int bi, int bj, int off, int size, std::vector<int>& out) {
-      for (int c = 0; c < size; ++c)
-        for (int r = 0; r < size; ++r) out.push_back(at(12 * bi + off + r, 12 * bj + off + c));
-    };
-    rot_at_.clear();
-    for (int b = 0; b < nb; ++b) positions(b, b, 0, 9, rot_at_);
-    length_at_.clear();
-    for (const auto& p : pairs_) {
-      const int bi = var_[static_cast<std::size_t>(p.i)] >= 0 ? block(p.i) : -1;
-      const int bj = var_[static_cast<std::size_t>(p.j)] >= 0 ? block(p.j) : -1;
-      for (const auto& [x, y] : {std::pair<int, int>(bi, bi), {bj, bj}, {bi, bj}, {bj, bi}}) {
-        if (x >= 0 && y >= 0)
-          positions(x, y, 9, 3, length_at_);
-        else
-          length_at_.insert(length_at_.end(), 9, -1);
-      }
-    }
-    factor_.analyze(h_);
-    pattern_ready_ = true;
+  if (!constant_ready_) {  // E_Manip's targets changed: the constant part's values only
+    assembleConstant();
+    constant_ready_ = true;
   }
 
   Energies e = evaluate(x_);

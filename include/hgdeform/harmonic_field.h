@@ -49,6 +49,12 @@ struct FieldTimings {
 
 class HarmonicField {
  public:
+  HarmonicField() = default;
+  HarmonicField(const HarmonicField&) = delete;  // owns its graph and caches: moved, not copied
+  HarmonicField& operator=(const HarmonicField&) = delete;
+  HarmonicField(HarmonicField&&) = default;
+  HarmonicField& operator=(HarmonicField&&) = default;
+
   void setInputCloud(const pcl::PointCloud<pcl::PointXYZ>::ConstPtr& cloud);
   void setInputNormals(const pcl::PointCloud<pcl::Normal>::ConstPtr& normals);
   void setPolygons(const std::vector<pcl::Vertices>& polygons);

@@ -82,8 +82,15 @@ class BlockCholesky {
 
 class ClusterSolver {
  public:
+  ClusterSolver() = default;
+  ClusterSolver(const ClusterSolver&) = delete;  // owns its factorisation: moved, not copied
+  ClusterSolver& operator=(const ClusterSolver&) = delete;
+  ClusterSolver(ClusterSolver&&) = default;
+  ClusterSolver& operator=(ClusterSolver&&) = default;
+
   /// Precomputes everything that does not change per frame: the constant parts of the normal
-  /// equations (E_Prop is linear), their sparsity pattern and its symbolic factorisation.
+  /// equations (E_Prop is linear), their sparsity pattern and its symbolic factorisation (all
+  /// here: a solve only refreshes values and factorises numerically).
   /// `manipulated` is the index of the MC (or -1); `edges` are adjacent cluster pairs.
   void setup(std::vector<SolverCluster> clusters, const std::vector<std::pair<int, int>>& edges,
              int manipulated, const SolverWeights& weights);
@@ -110,6 +117,8 @@ class ClusterSolver {
   void setTransforms(const std::vector<Transform>& transforms);
 
  private:
+  void assembleConstant();
+  void analyzePattern();
   Energies evaluate(const Eigen::VectorXd& x) const;
   void unpack(const Eigen::VectorXd& x);
   Eigen::Vector3d translationOf(const Eigen::VectorXd& x, int cluster) const;
@@ -138,7 +147,7 @@ class ClusterSolver {
   std::vector<int> rot_at_;     ///< per free block: h_ value positions of its 9x9 A-A part
   std::vector<int> length_at_;  ///< per pair: of the 3x3 t-t parts (ii, jj, ij, ji; -1 if constant)
   BlockCholesky factor_;
-  bool pattern_ready_ = false;
+  bool constant_ready_ = false;  ///< h_const_ holds the current E_Manip
 };
 
 /// Rot(A): the six squared residuals of A from a rotation-like matrix (paper §4).
