@@ -62,9 +62,9 @@ void Progress::finished(const ScanResult& r, std::size_t number) {
     std::fflush(stderr);
   }
   if (quiet_) return;
-  if (!r.notes.empty()) {
+  if (!r.report.notes.empty()) {
     clearBar();
-    for (const auto& note : r.notes)
+    for (const auto& note : r.report.notes)
       std::fprintf(stderr, "hgdeform batch: %s%s: note: %s\n", prefix_.c_str(), r.file.c_str(), note.c_str());
     std::fflush(stderr);
   }

@@ -204,7 +204,6 @@ ScanResult processScan(const Scan& s, const Context& ctx) {
     fs::remove(record_path, gone);  // from here until the new record, the output is unrecorded
     run.write(s.output.string(), {}, {s.scenario.string()});
     const hgd::DeformReport rep = run.report();
-    r.ms_write = rep.write_ms;
     testHook(s.rel);
     batch::Provenance p;
     p.input = s.rel;
@@ -232,20 +231,7 @@ ScanResult processScan(const Scan& s, const Context& ctx) {
     }
     r.status = "ok";
     r.has_metrics = true;
-    r.points = rep.points;
-    r.clusters = rep.clusters;
-    r.iterations = rep.iterations;
-    r.frames = rep.frames;
-    r.handle_error = rep.handle_error;
-    r.ms_read = rep.read_ms;
-    r.ms_build = rep.build_ms;
-    r.ms_field = rep.field_ms;
-    r.ms_sampling = rep.sampling_ms;
-    r.ms_clusters = rep.clusters_ms;
-    r.ms_solve = rep.solve_ms;
-    r.ms_interpolation = rep.interpolation_ms;
-    r.ms_total = rep.total_ms;
-    r.notes = rep.notes;
+    r.report = rep;
     for (const auto& w : rep.warnings) appendWarning(r.warning, w);
     if (ctx.thumbnails) {
       const hgd::Shape after = run.deformedShape();
