@@ -37,7 +37,7 @@ Totals countResults(const std::vector<ScanResult>& results) {
   for (const auto& r : results) {
     if (r.status == "ok") {
       ++t.ok;
-      t.points += r.points;
+      t.points += r.report.points;
     } else if (r.status == "skipped") {
       ++t.skipped;
     } else {
@@ -57,25 +57,25 @@ nlohmann::json toJson(const ScanResult& r) {
   j["reason"] = r.reason;
   j["error"] = r.error;
   j["warning"] = r.warning;
-  j["notes"] = r.notes;
+  j["notes"] = r.report.notes;
   j["thumbnail"] = r.thumbnail;
   j["rank"] = r.rank;
   j["ms_wall"] = r.ms_wall;
   if (r.has_metrics) {
-    j["points"] = r.points;
-    j["clusters"] = r.clusters;
-    j["iterations"] = r.iterations;
-    j["frames"] = r.frames;
-    j["handle_error"] = r.handle_error;
-    j["ms"] = {{"read", r.ms_read},
-               {"build", r.ms_build},
-               {"field", r.ms_field},
-               {"sampling", r.ms_sampling},
-               {"clusters", r.ms_clusters},
-               {"solve", r.ms_solve},
-               {"interpolation", r.ms_interpolation},
-               {"total", r.ms_total},
-               {"write", r.ms_write}};
+    j["points"] = r.report.points;
+    j["clusters"] = r.report.clusters;
+    j["iterations"] = r.report.iterations;
+    j["frames"] = r.report.frames;
+    j["handle_error"] = r.report.handle_error;
+    j["ms"] = {{"read", r.report.read_ms},
+               {"build", r.report.build_ms},
+               {"field", r.report.field_ms},
+               {"sampling", r.report.sampling_ms},
+               {"clusters", r.report.clusters_ms},
+               {"solve", r.report.solve_ms},
+               {"interpolation", r.report.interpolation_ms},
+               {"total", r.report.total_ms},
+               {"write", r.report.write_ms}};
   } else {
     for (const char* k : {"points", "clusters", "iterations", "frames", "handle_error", "ms"}) j[k] = nullptr;
   }
@@ -92,27 +92,27 @@ ScanResult fromJson(const nlohmann::json& j) {
   r.reason = j.value("reason", std::string());
   r.error = j.at("error").get<std::string>();
   r.warning = j.value("warning", std::string());
-  r.notes = j.value("notes", std::vector<std::string>());
+  r.report.notes = j.value("notes", std::vector<std::string>());
   r.thumbnail = j.at("thumbnail").get<std::string>();
   r.rank = j.at("rank").get<int>();
   r.ms_wall = j.at("ms_wall").get<double>();
   r.has_metrics = !j.at("points").is_null();
   if (r.has_metrics) {
-    r.points = j.at("points").get<std::size_t>();
-    r.clusters = j.at("clusters").get<std::size_t>();
-    r.iterations = j.at("iterations").get<int>();
-    r.frames = j.at("frames").get<int>();
-    r.handle_error = j.at("handle_error").get<double>();
+    r.report.points = j.at("points").get<std::size_t>();
+    r.report.clusters = j.at("clusters").get<std::size_t>();
+    r.report.iterations = j.at("iterations").get<int>();
+    r.report.frames = j.at("frames").get<int>();
+    r.report.handle_error = j.at("handle_error").get<double>();
     const auto& ms = j.at("ms");
-    r.ms_read = ms.at("read").get<double>();
-    r.ms_build = ms.at("build").get<double>();
-    r.ms_field = ms.at("field").get<double>();
-    r.ms_sampling = ms.at("sampling").get<double>();
-    r.ms_clusters = ms.at("clusters").get<double>();
-    r.ms_solve = ms.at("solve").get<double>();
-    r.ms_interpolation = ms.at("interpolation").get<double>();
-    r.ms_total = ms.at("total").get<double>();
-    r.ms_write = ms.at("write").get<double>();
+    r.report.read_ms = ms.at("read").get<double>();
+    r.report.build_ms = ms.at("build").get<double>();
+    r.report.field_ms = ms.at("field").get<double>();
+    r.report.sampling_ms = ms.at("sampling").get<double>();
+    r.report.clusters_ms = ms.at("clusters").get<double>();
+    r.report.solve_ms = ms.at("solve").get<double>();
+    r.report.interpolation_ms = ms.at("interpolation").get<double>();
+    r.report.total_ms = ms.at("total").get<double>();
+    r.report.write_ms = ms.at("write").get<double>();
   }
   return r;
 }
@@ -157,10 +157,10 @@ std::string summaryCsv(const std::vector<ScanResult>& results) {
   for (const auto& r : sorted(results)) {
     out += csvField(r.file) + ',' + csvField(r.status) + ',' + csvField(r.error);
     if (r.has_metrics) {
-      out += ',' + std::to_string(r.points) + ',' + std::to_string(r.clusters) + ',' +
-             std::to_string(r.iterations) + ',' + general(r.handle_error);
-      for (double ms :
-           {r.ms_build, r.ms_field, r.ms_sampling, r.ms_clusters, r.ms_solve, r.ms_interpolation, r.ms_total})
+      out += ',' + std::to_string(r.report.points) + ',' + std::to_string(r.report.clusters) + ',' +
+             std::to_string(r.report.iterations) + ',' + general(r.report.handle_error);
+      for (double ms : {r.report.build_ms, r.report.field_ms, r.report.sampling_ms, r.report.clusters_ms,
+                        r.report.solve_ms, r.report.interpolation_ms, r.report.total_ms})
         out += ',' + fixed(ms, 3);
     } else {
       out += ",,,,,,,,,,,";
@@ -236,8 +236,9 @@ std::string indexHtml(const std::vector<ScanResult>& results, const Totals& t, c
     if (!r.reason.empty()) h += "<br><small>" + htmlEscape(r.reason) + "</small>";
     h += "</td>";
     if (r.has_metrics)
-      h += "<td>" + std::to_string(r.points) + "</td><td>" + std::to_string(r.clusters) + "</td><td>" +
-           std::to_string(r.iterations) + "</td><td>" + fixed(r.ms_total, 0) + "</td>";
+      h += "<td>" + std::to_string(r.report.points) + "</td><td>" + std::to_string(r.report.clusters) +
+           "</td><td>" + std::to_string(r.report.iterations) + "</td><td>" + fixed(r.report.total_ms, 0) +
+           "</td>";
     else
       h += "<td></td><td></td><td></td><td></td>";
     h += "<td>";

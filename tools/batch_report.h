@@ -7,6 +7,8 @@
 #include <string>
 #include <vector>
 
+#include "hgdeform/runner.h"
+
 namespace hgdcli {
 namespace batch {
 
@@ -21,17 +23,15 @@ struct ScanResult {
   /// or any of "input changed", "scenario changed", "options changed", "tool version changed",
   /// "output changed" joined by ", ". "" when it failed before that was decided.
   std::string reason;
-  std::string error;               ///< why it failed ("" otherwise)
-  std::string warning;             ///< e.g. why there is no thumbnail ("" otherwise)
-  std::vector<std::string> notes;  ///< what the deformation adjusted (DeformReport::notes)
-  std::string thumbnail;           ///< PNG relative to the report directory ("" = none)
-  int rank = 0;                    ///< MPI rank that processed it (0 without MPI)
-  bool has_metrics = false;        ///< false for failed and skipped scans
-  std::size_t points = 0, clusters = 0;
-  int iterations = 0, frames = 0;
-  double handle_error = 0;
-  double ms_read = 0, ms_build = 0, ms_field = 0, ms_sampling = 0, ms_clusters = 0, ms_solve = 0,
-         ms_interpolation = 0, ms_total = 0, ms_write = 0;
+  std::string error;         ///< why it failed ("" otherwise)
+  std::string warning;       ///< e.g. why there is no thumbnail ("" otherwise)
+  std::string thumbnail;     ///< PNG relative to the report directory ("" = none)
+  int rank = 0;              ///< MPI rank that processed it (0 without MPI)
+  bool has_metrics = false;  ///< false for failed and skipped scans
+  /// The deformation's figures, timings and notes (what it adjusted) as hgd::ScenarioRunner
+  /// reported them; empty for failed and skipped scans. The report files show, and MPI ranks
+  /// pass on (toJson, fromJson), only part of it.
+  hgd::DeformReport report;
   double ms_wall = 0;  ///< the whole scan as seen by the batch (read, deform, write)
 };
 

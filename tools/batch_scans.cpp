@@ -1,0 +1,139 @@
+// hgdeform batch: the scans of INPUT_DIR (top level or, with --recursive, the tree), each with
+// its output path, its scenario (its own beside it, else the default) and its size.
+#include <algorithm>
+#include <cctype>
+#include <map>
+#include <set>
+#include <stdexcept>
+#include <string>
+#include <system_error>
+#include <vector>
+
+#include "batch_internal.h"
+
+namespace hgdcli {
+namespace batch {
+
+namespace {
+
+bool isScanFile(const fs::path& p) {
+  const std::string e = lowerExtension(p);
+  // Not .txt: too common a name for notes and logs in a folder of scans.
+  return e == ".ply" || e == ".pcd" || e == ".obj" || e == ".xyz" || e == ".off" || e == ".stl";
+}
+
+bool hidden(const fs::path& p) {
+  const std::string name = p.filename().string();
+  return !name.empty() && name[0] == '.';
+}
+
+}  // namespace
+
+fs::path normalisedAbsolute(const fs::path& p) {
+  fs::path n = fs::weakly_canonical(fs::absolute(p)).lexically_normal();
+  if (!n.has_filename() && n.has_parent_path() && n != n.root_path()) n = n.parent_path();
+  return n;
+}
+
+std::string lowerExtension(const fs::path& p) {
+  std::string e = p.extension().string();
+  for (char& ch : e) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+  return e;
+}
+
+std::vector<Scan> listScans(const Config& c, std::vector<batch::SkippedEntry>& skipped) {
+  std::vector<fs::path> files;
+  std::error_code ec;
+  auto consider = [&](const fs::directory_entry& e) {
+    if (hidden(e.path())) return;
+    std::error_code e1, e2;
+    const fs::file_status own = e.symlink_status(e1);
+    const fs::file_status target = e.status(e2);  // links followed
+    const bool link = !e1 && fs::is_symlink(own);
+    const std::string rel = e.path().lexically_relative(c.input_dir).generic_string();
+    if (link && !fs::exists(target)) {  // dangling, or a loop of links
+      std::error_code e3;
+      const fs::path to = fs::read_symlink(e.path(), e3);
+      if (isScanFile(e.path()) || isScanFile(to))
+        skipped.push_back({rel, "a dangling symbolic link (" + to.string() + ": " +
+                                    (e2 ? e2.message() : std::string("No such file or directory")) + ")"});
+      return;
+    }
+    if (link && fs::is_directory(target)) {
+      if (c.recursive)
+        skipped.push_back({rel,
+                           "a symbolic link to a folder: not followed, to avoid cycles (give the folder "
+                           "it names as INPUT_DIR to process it)"});
+      return;
+    }
+    if (!isScanFile(e.path()) || fs::is_directory(target)) return;
+    if (fs::is_regular_file(target)) {
+      files.push_back(e.path());
+      return;
+    }
+    const std::string what = fs::is_fifo(target)                                          ? "a FIFO"
+                             : fs::is_socket(target)                                      ? "a socket"
+                             : fs::is_block_file(target) || fs::is_character_file(target) ? "a device"
+                                                                                          : "a special file";
+    skipped.push_back({rel, what + (link ? " (through a symbolic link)" : "") + ", not a regular file"});
+  };
+  if (c.recursive) {
+    fs::recursive_directory_iterator it(c.input_dir, fs::directory_options::skip_permission_denied, ec), end;
+    if (ec) throw std::runtime_error(c.input_dir.string() + ": cannot list: " + ec.message());
+    for (; it != end; it.increment(ec)) {
+      if (ec) throw std::runtime_error(c.input_dir.string() + ": cannot list: " + ec.message());
+      if (hidden(it->path())) {
+        std::error_code e2;
+        if (it->is_directory(e2)) it.disable_recursion_pending();  // .git, .cache, ...
+        continue;
+      }
+      consider(*it);
+    }
+  } else {
+    fs::directory_iterator it(c.input_dir, ec), end;
+    if (ec) throw std::runtime_error(c.input_dir.string() + ": cannot list: " + ec.message());
+    for (; it != end; it.increment(ec)) {
+      if (ec) throw std::runtime_error(c.input_dir.string() + ": cannot list: " + ec.message());
+      consider(*it);
+    }
+  }
+
+  std::vector<Scan> scans;
+  std::set<std::string> inputs;  // canonical input paths, so that no output overwrites an input
+  for (const auto& f : files) {
+    Scan s;
+    s.input = f;
+    s.rel = f.lexically_relative(c.input_dir).generic_string();
+    fs::path out_rel(s.rel);
+    if (c.format != "same") out_rel.replace_extension("." + c.format);
+    s.out_rel = out_rel.generic_string();
+    s.output = c.output_dir / out_rel;
+    const fs::path own = f.parent_path() / (f.stem().string() + ".json");
+    std::error_code e1, e2;
+    if (fs::is_regular_file(own, e1) && !fs::equivalent(own, c.scenario_path, e2)) {
+      s.scenario = own;
+      s.own_scenario = true;
+    } else {
+      s.scenario = c.scenario_path;
+    }
+    s.size = fs::file_size(f, e1);
+    if (e1) s.size = 0;
+    inputs.insert(normalisedAbsolute(f).string());
+    scans.push_back(std::move(s));
+  }
+  std::sort(scans.begin(), scans.end(), [](const Scan& a, const Scan& b) { return a.rel < b.rel; });
+  std::sort(skipped.begin(), skipped.end(),
+            [](const batch::SkippedEntry& a, const batch::SkippedEntry& b) { return a.path < b.path; });
+  std::map<std::string, std::string> writer;  // output -> the scan writing it
+  for (auto& s : scans) {
+    auto [it, fresh] = writer.emplace(s.out_rel, s.rel);
+    if (!fresh)
+      s.error = "output " + s.out_rel + " would also be written by " + it->second + " (use --format same)";
+    else if (inputs.count(normalisedAbsolute(s.output).string()))
+      s.error = "output " + s.output.string() + " would overwrite an input scan";
+  }
+  return scans;
+}
+
+}  // namespace batch
+}  // namespace hgdcli

@@ -1,0 +1,256 @@
+// hgdeform batch: one scan. Is its output up to date (its provenance record)? If not: read,
+// deform (hgd::ScenarioRunner), write atomically, record, and draw its thumbnail for the report.
+#include <chrono>
+#include <cstdlib>
+#include <exception>
+#include <filesystem>
+#include <mutex>
+#include <new>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "batch_internal.h"
+#include "batch_provenance.h"
+#include "hgdeform/io.h"
+#include "hgdeform/runner.h"
+#include "hgdeform/scenario.h"
+#ifdef HGD_HAVE_RENDER
+#include "hgdeform/render.h"
+#endif
+
+namespace hgdcli {
+namespace batch {
+
+namespace {
+
+double msSince(Clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+// --- provenance: is an output up to date? ---------------------------------------------------
+
+/// OUTPUT_DIR/.hgdeform/records/<output>.json: what the output was made from. One small file per
+/// output, written by whichever thread, shard or MPI rank made that output (each output has
+/// exactly one writer), right after the output: no shared file to merge, and an interrupted run
+/// keeps the records of the scans it finished.
+fs::path recordPath(const Context& ctx, const Scan& s) {
+  return ctx.cfg.output_dir / ".hgdeform" / "records" / (s.out_rel + ".json");
+}
+
+/// The options that change an output's bytes: only its format (the deformation options are the
+/// tool's own, covered by its version).
+nlohmann::json outputOptions(const Scan& s) {
+  std::string ext = lowerExtension(s.output);
+  if (!ext.empty()) ext.erase(0, 1);
+  return {{"output_format", ext}};
+}
+
+/// Why the scan must be (re)done: reasons joined by ", ", "" when its output is up to date.
+/// Hashes the input (into `input_hash`) only when its size is the recorded one but its time is
+/// not; `refresh` then says that only the record's input time is out of date.
+std::string whyRedo(const Scan& s, const batch::FileState& input, const std::optional<batch::Provenance>& rec,
+                    const std::string& scenario_hash, const nlohmann::json& options, std::string& input_hash,
+                    bool& refresh) {
+  const batch::FileState out = batch::fileState(s.output.string());
+  if (!out.exists) return rec ? "output missing" : "new";
+  if (!rec) return "no record";
+  std::vector<std::string> why;
+  if (!rec->invalid.empty() || rec->input != s.rel || rec->input_size != input.size) {
+    why.push_back("input changed");
+  } else if (rec->input_mtime_ns != input.mtime_ns) {
+    input_hash = batch::hashFile(s.input.string());
+    if (input_hash != rec->input_hash)
+      why.push_back("input changed");
+    else
+      refresh = batch::fileState(s.input.string()).unchangedFrom(input);
+  }
+  if (scenario_hash != rec->scenario_hash) why.push_back("scenario changed");
+  if (options != rec->options) why.push_back("options changed");
+  if (batch::toolVersion() != rec->tool) why.push_back("tool version changed");
+  if (out.size != rec->output_size) why.push_back("output changed");
+  std::string text;
+  for (const auto& w : why) text += (text.empty() ? "" : ", ") + w;
+  return text;
+}
+
+/// HGDEFORM_BATCH_TEST_HOOK=REL:FILE, for tests only: once the output of scan REL is written
+/// (before its input is checked again and its record written), create FILE and wait until it
+/// is removed (60 s at most). Lets a test change an input mid-scan or hold a run open.
+void testHook(const std::string& rel) {
+  const char* env = std::getenv("HGDEFORM_BATCH_TEST_HOOK");
+  if (!env) return;
+  const std::string hook = env;
+  const auto colon = hook.find(':');
+  if (colon == std::string::npos || hook.compare(0, colon, rel) != 0) return;
+  const fs::path flag = hook.substr(colon + 1);
+  hgd::writeFileAtomically(flag.string(), "waiting\n");
+  const auto deadline = Clock::now() + std::chrono::seconds(60);
+  std::error_code ec;
+  while (fs::exists(flag, ec) && Clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+}
+
+#ifdef HGD_HAVE_RENDER
+std::string thumbnailName(const std::string& rel) {
+  return "thumbs/" + rel + ".png";
+}
+
+std::mutex g_render_mutex;  // VTK is not thread-safe: one picture at a time
+
+void renderThumbnail(const hgd::Shape& before, const hgd::Shape& after, const fs::path& png) {
+  fs::create_directories(png.parent_path());
+  hgd::RenderOptions o;
+  o.width = 640;
+  o.height = 320;
+  o.point_size = 2;
+  o.titles = {"before", "after"};
+  std::lock_guard<std::mutex> lock(g_render_mutex);
+  hgd::renderPng({&before, &after}, png.string(), o);
+}
+#endif
+
+/// Thumbnail of a deformed scan, or of an up-to-date one (from its input and existing output).
+/// A scan's warnings are one line, joined by "; ".
+void appendWarning(std::string& warning, const std::string& more) {
+  warning += (warning.empty() ? "" : "; ") + more;
+}
+
+/// Returns the name relative to the report directory, "" (and a warning) on failure.
+std::string thumbnail(const Context& ctx, const Scan& s, const hgd::Shape* before, const hgd::Shape* after,
+                      std::string& warning) {
+#ifdef HGD_HAVE_RENDER
+  const std::string name = thumbnailName(s.rel);
+  const fs::path png = ctx.cfg.report_dir / name;
+  try {
+    if (before && after) {
+      renderThumbnail(*before, *after, png);
+    } else {
+      std::error_code e1, e2;
+      const auto t_png = fs::last_write_time(png, e1);
+      const auto t_out = fs::last_write_time(s.output, e2);
+      if (e1 || e2 || t_png < t_out) {
+        const hgd::Shape in = hgd::readShape(s.input.string());
+        const hgd::Shape out = hgd::readShape(s.output.string());
+        renderThumbnail(in, out, png);
+      }
+    }
+    return name;
+  } catch (const std::exception& e) {
+    appendWarning(warning, std::string("no thumbnail: ") + e.what());
+    return "";
+  }
+#else
+  (void)ctx, (void)s, (void)before, (void)after, (void)warning;
+  return "";
+#endif
+}
+
+}  // namespace
+
+ScanResult processScan(const Scan& s, const Context& ctx) {
+  ScanResult r;
+  r.file = s.rel;
+  r.output = s.out_rel;
+  r.scenario = s.scenario.string();
+  r.own_scenario = s.own_scenario;
+  r.rank = ctx.rank;
+  const auto t0 = Clock::now();
+  try {
+    if (!s.error.empty()) throw std::runtime_error(s.error);
+    std::optional<hgd::Scenario> own;
+    if (s.own_scenario) own = hgd::readScenario(s.scenario.string());
+    const hgd::Scenario& scenario = own ? *own : ctx.default_scenario;
+    const std::string scenario_hash =
+        own ? batch::hashBytes(hgd::scenarioToJson(*own)) : ctx.default_scenario_hash;
+    const nlohmann::json options = outputOptions(s);
+    const std::string record_path = recordPath(ctx, s).string();
+    const std::optional<batch::Provenance> rec = batch::readRecord(record_path);
+    const batch::FileState in_before = batch::fileState(s.input.string());
+    std::string input_hash;
+    bool refresh = false;
+    r.reason =
+        ctx.cfg.force ? "forced" : whyRedo(s, in_before, rec, scenario_hash, options, input_hash, refresh);
+    if (r.reason.empty()) {
+      r.reason = "up to date";
+      r.status = "skipped";
+      if (refresh) {  // touched, same bytes: remember the new time so as not to hash it again
+        batch::Provenance p = *rec;
+        p.input_mtime_ns = in_before.mtime_ns;
+        try {
+          hgd::writeFileAtomically(record_path, batch::recordText(p));
+        } catch (const std::exception& e) {
+          appendWarning(r.warning, std::string("provenance record not updated: ") + e.what());
+        }
+      }
+      if (ctx.thumbnails) r.thumbnail = thumbnail(ctx, s, nullptr, nullptr, r.warning);
+      r.ms_wall = msSince(t0);
+      return r;
+    }
+    // Hash before reading: a change from here to the end shows in the input's stat below.
+    if (input_hash.empty()) {
+      const bool recorded = rec && rec->invalid.empty() && rec->input == s.rel &&
+                            rec->input_size == in_before.size && rec->input_mtime_ns == in_before.mtime_ns;
+      input_hash = recorded ? rec->input_hash : batch::hashFile(s.input.string());
+    }
+    hgd::ScenarioRunner run = hgd::ScenarioRunner::read(s.input.string());
+    run.setScenario(scenario);
+    run.applyMoves();
+    fs::create_directories(s.output.parent_path());
+    std::error_code gone;
+    fs::remove(record_path, gone);  // from here until the new record, the output is unrecorded
+    run.write(s.output.string(), {}, {s.scenario.string()});
+    const hgd::DeformReport rep = run.report();
+    testHook(s.rel);
+    batch::Provenance p;
+    p.input = s.rel;
+    p.input_size = in_before.size;
+    p.input_mtime_ns = in_before.mtime_ns;
+    p.input_hash = input_hash;
+    p.scenario = s.scenario.string();
+    p.scenario_hash = scenario_hash;
+    p.options = options;
+    p.tool = batch::toolVersion();
+    p.output_size = batch::fileState(s.output.string()).size;
+    if (!batch::fileState(s.input.string()).unchangedFrom(in_before)) {
+      p.invalid = "the input changed while it was being deformed";
+      appendWarning(r.warning,
+                    "the input changed while it was being deformed: the output is not recorded as up to "
+                    "date and the next run redoes it");
+    }
+    try {
+      fs::create_directories(fs::path(record_path).parent_path());
+      hgd::writeFileAtomically(record_path, batch::recordText(p));
+    } catch (const std::exception& e) {
+      appendWarning(
+          r.warning,
+          std::string("provenance record not written (the next run redoes this scan): ") + e.what());
+    }
+    r.status = "ok";
+    r.has_metrics = true;
+    r.report = rep;
+    for (const auto& w : rep.warnings) appendWarning(r.warning, w);
+    if (ctx.thumbnails) {
+      const hgd::Shape after = run.deformedShape();
+      r.thumbnail = thumbnail(ctx, s, &run.shape(), &after, r.warning);
+    }
+  } catch (const std::bad_alloc&) {
+    r.status = "failed";
+    r.error = "out of memory";
+  } catch (const std::exception& e) {
+    r.status = "failed";
+    r.error = e.what();
+  } catch (...) {
+    r.status = "failed";
+    r.error = "unknown error";
+  }
+  if (r.status == "failed") r.has_metrics = false;
+  r.ms_wall = msSince(t0);
+  return r;
+}
+
+}  // namespace batch
+}  // namespace hgdcli
