@@ -31,7 +31,6 @@
 #include <vtkLookupTable.h>
 #include <vtkMapper.h>
 #include <vtkObjectFactory.h>
-#include <vtkPNGWriter.h>
 #include <vtkPoints.h>
 #include <vtkPolyData.h>
 #include <vtkRenderWindow.h>
@@ -41,7 +40,6 @@
 #include <vtkScalarBarActor.h>
 #include <vtkSmartPointer.h>
 #include <vtkTextProperty.h>
-#include <vtkWindowToImageFilter.h>
 
 #include <algorithm>
 #include <chrono>
@@ -370,22 +368,8 @@ class Viewer {
   }
 
   void screenshot(const std::string& path) {
-    hgd::refuseInputs(path, inputs_);
     render();
-    auto grab = vtkSmartPointer<vtkWindowToImageFilter>::New();
-    grab->SetInput(vis_->getRenderWindow());
-    grab->SetInputBufferTypeToRGB();
-    grab->ReadFrontBufferOff();
-    grab->Update();
-    const std::string tmp = path + ".tmp.png";
-    auto writer = vtkSmartPointer<vtkPNGWriter>::New();
-    writer->SetFileName(tmp.c_str());
-    writer->SetInputConnection(grab->GetOutputPort());
-    writer->Write();
-    if (writer->GetErrorCode() != 0 || std::rename(tmp.c_str(), path.c_str()) != 0) {
-      std::remove(tmp.c_str());
-      throw std::runtime_error(path + ": cannot write the screenshot");
-    }
+    hgd::writeWindowPng(vis_->getRenderWindow(), path, inputs_, "screenshot");
     message("screenshot " + path);
   }
 
