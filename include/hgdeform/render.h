@@ -11,6 +11,8 @@
 
 #include "hgdeform/shape.h"
 
+class vtkRenderWindow;
+
 namespace hgd {
 
 struct RenderOptions {
@@ -42,5 +44,13 @@ Eigen::Vector3f upAxis(const std::string& up, const std::vector<const Shape*>& s
 /// writes a PNG atomically. Throws std::runtime_error on failure.
 void renderPng(const std::vector<const Shape*>& shapes, const std::string& png_path,
                const RenderOptions& options);
+
+/// Writes what `window` shows (its back buffer, as last rendered) as a PNG, atomically: a
+/// temporary file beside the target, then a rename, so never a half-written picture. Refuses
+/// (hgd::refuseInputs) to replace one of `inputs`. Throws std::runtime_error
+/// "<png_path>: cannot write the <what>" on failure. renderPng and the viewer's screenshots
+/// both write through it.
+void writeWindowPng(vtkRenderWindow* window, const std::string& png_path,
+                    const std::vector<std::string>& inputs = {}, const std::string& what = "picture");
 
 }  // namespace hgd

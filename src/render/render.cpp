@@ -15,6 +15,7 @@
 #include "hgdeform/colormap.h"
 #include "hgdeform/fields.h"
 #include "hgdeform/geometry.h"
+#include "hgdeform/io.h"
 
 namespace hgd {
 
@@ -133,6 +134,12 @@ void renderPng(const std::vector<const Shape*>& shapes, const std::string& png_p
   window->SetSize(width, height);
   window->SetOffScreenRendering(1);
   window->Render();
+  writeWindowPng(window, png_path);
+}
+
+void writeWindowPng(vtkRenderWindow* window, const std::string& png_path,
+                    const std::vector<std::string>& inputs, const std::string& what) {
+  refuseInputs(png_path, inputs);
   auto grab = vtkSmartPointer<vtkWindowToImageFilter>::New();
   grab->SetInput(window);
   grab->SetInputBufferTypeToRGB();
@@ -146,7 +153,7 @@ void renderPng(const std::vector<const Shape*>& shapes, const std::string& png_p
   writer->Write();
   if (writer->GetErrorCode() != 0 || std::rename(tmp.c_str(), png_path.c_str()) != 0) {
     std::remove(tmp.c_str());
-    throw std::runtime_error(png_path + ": cannot write the picture");
+    throw std::runtime_error(png_path + ": cannot write the " + what);
   }
 }
 

@@ -1,0 +1,135 @@
+// hgdeform-view: the interactive front end. Pick handles, drag, see it live.
+//
+//   hgdeform-view INPUT [--scenario S.json] [--replay EVENTS.json] [--screenshot OUT.png]
+//                 [--size WxH] [--stats]
+//
+// Keys (also shown by 'h'):
+//   x          area selection (rubber band) on/off; shift+click selects a point and its radius
+//   + / -      selection radius up / down;  c  clear the selection
+//   f / m / j  the selection becomes a fixed handle / the manipulated handle / a joint
+//   C          clear all handles
+//   d          drag mode on/off: left-drag on the manipulated handle moves it (else the camera)
+//   t          frame mode on/off: arrows move the handle in the view plane, [ ] turn it about
+//              the view direction, , . about the view's vertical
+//   v          view: original colours / harmonic field / clusters;  o  rest shape overlay
+//   z / y      undo / redo;  n  back to the rest shape
+//   s / S      save the deformed shape / the session as a scenario (beside the input)
+//   k          screenshot (PNG);  h  this help;  q  quit
+//
+// --replay plays a script of events (picks, keys, drags in screen or world coordinates) and
+// exits; with --screenshot it saves a picture at the end. The replay format, checked as a whole
+// before the first event runs (tools/viewer/replay.cpp), is in docs/replay.md. Every committed
+// drag is applied the way `hgdeform deform` replays a scenario's drag, so a saved session
+// replays to the same shape.
+//
+// The viewer's code follows the pipeline, one file per stage: see tools/viewer/viewer.h.
+#include <vtkRenderWindow.h>
+
+#include <cstdio>
+#include <iostream>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "blas_guard.h"
+#include "cli_common.h"
+#include "hgdeform/io.h"
+#include "hgdeform/render.h"
+#include "replay.h"
+#include "viewer.h"
+
+namespace {
+
+using hgdview::Viewer;
+
+const char* kDescription =
+    "Opens a shape for interactive deformation; 'h' in the window lists the keys.\n"
+    "--replay plays a script of events and exits (the whole file is checked first); with\n"
+    "--screenshot it then saves a PNG, with --stats it prints frame timings. The replay format\n"
+    "and how the options combine: docs/replay.md.";
+
+/// hgdeform-view's command line.
+struct ViewArgs {
+  std::string input, scenario, replay, shot;
+  int width = 1100, height = 800;
+  bool stats = false, quiet = false;
+};
+
+/// Parses the command line into `a`; returns -1 to go on, else the exit status.
+int parseArgs(int argc, char** argv, ViewArgs& a) {
+  CLI::App app(kDescription);
+  hgdcli::configureApp(app, "hgdeform-view");
+  app.add_option("INPUT", a.input, "the shape: PLY, PCD, OBJ, XYZ/TXT, OFF or STL")
+      ->required()
+      ->type_name("");
+  app.add_option("-s,--scenario", a.scenario, "handles to load (docs/scenario.md)")->type_name("S.json");
+  app.add_option("--replay", a.replay, "play a script of events, then exit (docs/replay.md)")
+      ->type_name("EVENTS.json");
+  app.add_option("--screenshot", a.shot, "save a PNG (after the replay, if any) and exit")
+      ->type_name("OUT.png");
+  std::string size;
+  app.add_option("--size", size, "window size (default 1100x800)")
+      ->check(CLI::Validator(
+          [&a](std::string& text) -> std::string {
+            int w = 0, h = 0;
+            char rest = 0;
+            if (std::sscanf(text.c_str(), "%dx%d%c", &w, &h, &rest) != 2 || w < 64 || h < 64)
+              return "must be WIDTHxHEIGHT, each at least 64 (got '" + text + "')";
+            a.width = w;
+            a.height = h;
+            return {};
+          },
+          "", "size"))
+      ->type_name("WxH");
+  app.add_flag("--stats", a.stats, "print frame timings");
+  app.add_flag("-q,--quiet", a.quiet, "print nothing but errors");
+  return hgdcli::parse(app, argc, argv);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  hgdcli::singleThreadBlas();  // as hgdeform does (blas_guard.h)
+  ViewArgs args;
+  if (const int status = parseArgs(argc, argv, args); status >= 0) return status;
+  const std::string &input = args.input, &scenario = args.scenario, &replay = args.replay, &shot = args.shot;
+  const int width = args.width, height = args.height;
+  const bool stats = args.stats, quiet = args.quiet;
+  try {
+    // No output of the viewer (screenshots, saved shapes and scenarios, from keys or replay
+    // events) may replace one of its inputs.
+    const std::vector<std::string> inputs = {input, scenario, replay};
+    if (!shot.empty()) hgd::refuseInputs(shot, inputs);
+    // The whole replay is checked before anything runs (no display needed): a bad event late in
+    // the file does nothing at all, not even the events before it.
+    std::vector<hgdview::ReplayEvent> events;
+    if (!replay.empty()) {
+      events = hgdview::readReplay(replay);
+      hgdview::refuseInputsAsOutputs(events, replay, inputs);
+    }
+    if (const std::string problem = hgd::displayProblem(); !problem.empty())
+      throw std::runtime_error(problem);
+    Viewer viewer(input, width, height);
+    viewer.verbose_ = !quiet;
+    viewer.inputs_ = inputs;
+    if (!scenario.empty()) viewer.loadScenario(scenario);
+    viewer.open();
+    viewer.vis().setSize(width, height);  // the first render may shrink the window
+    if (!replay.empty()) {
+      viewer.replay(events, replay, viewer.vis().getRenderWindow()->GetInteractor());
+      if (!shot.empty()) viewer.screenshot(shot);
+      if (stats) viewer.printStats();
+      return 0;  // scripted: no interactive loop (and no close(), which crashes without one)
+    }
+    if (!shot.empty()) {
+      viewer.screenshot(shot);
+      return 0;
+    }
+    viewer.spin();
+    if (stats) viewer.printStats();
+    return 0;
+  } catch (const std::exception& e) {
+    std::cerr << "hgdeform-view: " << e.what() << "\n";
+    return 1;
+  }
+}

@@ -1,0 +1,259 @@
+// The viewer's state: the shape and its selection, the handles marked from it, the moves made
+// through the runner (as `hgdeform deform` replays them, with undo and redo), and what is saved.
+#include "viewer.h"
+
+#include <algorithm>
+#include <cstdio>
+#include <filesystem>
+#include <iterator>
+#include <sstream>
+
+#include "hgdeform/deformer.h"
+#include "hgdeform/geometry.h"
+#include "hgdeform/io.h"
+
+namespace hgdview {
+
+Viewer::Viewer(const std::string& input, int width, int height)
+    : input_(input), width_(width), height_(height), run_(hgd::ScenarioRunner::read(input)) {
+  diagonal_ = hgd::boundingBoxDiagonal(run_.geometry());
+  for (const std::string& w : run_.shape().warnings)
+    std::fprintf(stderr, "hgdeform-view: warning: %s\n", w.c_str());
+  radius_ = 0.03 * diagonal_;
+  display_.reset(new pcl::PointCloud<pcl::PointXYZRGB>);
+  display_->resize(run_.geometry().size());
+  rest_.reset(new pcl::PointCloud<pcl::PointXYZRGB>);
+  rest_->resize(run_.geometry().size());
+  for (std::size_t i = 0; i < run_.geometry().size(); ++i) {
+    (*rest_)[i].getVector3fMap() = run_.geometry().world(i).cast<float>();
+    (*rest_)[i].r = (*rest_)[i].g = (*rest_)[i].b = 170;
+  }
+  role_.assign(run_.geometry().size(), 0);
+  selected_.assign(run_.geometry().size(), 0);
+  fileColours();
+}
+
+void Viewer::loadScenario(const std::string& path) {
+  const hgd::Scenario scenario = hgd::readScenario(path);
+  run_.setScenario(scenario);
+  fixed_regions_ = scenario.fixed;
+  manipulated_region_ = scenario.manipulated;
+  joint_regions_ = scenario.joints;
+  handles_ = run_.handles();
+  refreshRoles();
+  run_.applyMoves();
+  updateAlerts();
+}
+
+void Viewer::printStats() const {
+  auto median = [](std::vector<double> v) {
+    if (v.empty()) return 0.0;
+    std::sort(v.begin(), v.end());
+    return v[v.size() / 2];
+  };
+  const double s = median(stats_.solve), i = median(stats_.interpolate), r = median(stats_.render);
+  std::printf(
+      "frames %zu: solve %.2f ms, interpolate %.2f ms, render %.2f ms (medians); %.1f frames/s, %.0f "
+      "updates/s without rendering\n",
+      stats_.solve.size(), s, i, r, 1000.0 / std::max(1e-9, s + i + r), 1000.0 / std::max(1e-9, s + i));
+}
+
+void Viewer::markSelection(int role) {
+  std::vector<int> idx;
+  for (std::size_t i = 0; i < selected_.size(); ++i)
+    if (selected_[i]) idx.push_back(static_cast<int>(i));
+  if (idx.empty()) return message("nothing selected (x: area, shift+click: point)");
+  std::vector<long long> raw;
+  for (int i : idx) raw.push_back(run_.geometry().raw_index[static_cast<std::size_t>(i)]);
+  hgd::Region region = hgd::Region::fromIndices(raw);
+  hgd::Handles h = handles_;
+  auto remove = [&](std::vector<int>& from) {
+    std::vector<int> keep;
+    std::set_difference(from.begin(), from.end(), idx.begin(), idx.end(), std::back_inserter(keep));
+    from = keep;
+  };
+  // A point has one role: marking takes the points away from other handles.
+  for (auto& f : h.fixed) remove(f);
+  remove(h.manipulated);
+  for (auto& jt : h.joints) remove(jt);
+  if (role == 1) {
+    h.fixed.push_back(idx);
+    fixed_regions_.push_back(region);
+  } else if (role == 2) {
+    h.manipulated = idx;
+    manipulated_region_ = region;
+  } else {
+    h.joints.push_back(idx);
+    joint_regions_.push_back(region);
+  }
+  // Regions keep in step with the handles they describe.
+  h.fixed.erase(std::remove_if(h.fixed.begin(), h.fixed.end(), [](const auto& v) { return v.empty(); }),
+                h.fixed.end());
+  h.joints.erase(std::remove_if(h.joints.begin(), h.joints.end(), [](const auto& v) { return v.empty(); }),
+                 h.joints.end());
+  handles_ = h;
+  syncRegions();
+  clearSelection(false);
+  refreshRoles();
+  run_.setHandles(handles_);
+  updateAlerts();
+  if (run_.ready()) {
+    message("handles: " + std::to_string(handles_.fixed.size()) + " fixed, manipulated " +
+            std::to_string(handles_.manipulated.size()) + " points, " +
+            std::to_string(handles_.joints.size()) + " joints; " +
+            std::to_string(run_.deformer().clustering().clusters.size()) + " clusters");
+  } else {
+    message(std::string("marked; still needed: ") + (handles_.fixed.empty() ? "a fixed handle " : "") +
+            (handles_.manipulated.empty() ? "the manipulated handle" : ""));
+  }
+  refresh();
+}
+
+// The regions written to a saved scenario: the points each handle holds now, as indices.
+void Viewer::syncRegions() {
+  auto asRegion = [&](const std::vector<int>& idx) {
+    std::vector<long long> raw;
+    for (int i : idx) raw.push_back(run_.geometry().raw_index[static_cast<std::size_t>(i)]);
+    return hgd::Region::fromIndices(raw);
+  };
+  fixed_regions_.clear();
+  for (const auto& f : handles_.fixed) fixed_regions_.push_back(asRegion(f));
+  if (!handles_.manipulated.empty()) manipulated_region_ = asRegion(handles_.manipulated);
+  joint_regions_.clear();
+  for (const auto& jt : handles_.joints) joint_regions_.push_back(asRegion(jt));
+  run_.setRegions(fixed_regions_, manipulated_region_, joint_regions_);
+}
+
+void Viewer::clearSelection(bool redraw) {
+  std::fill(selected_.begin(), selected_.end(), 0);
+  if (redraw) refresh();
+}
+
+void Viewer::clearHandles() {
+  handles_ = hgd::Handles{};
+  fixed_regions_.clear();
+  joint_regions_.clear();
+  run_.setHandles(handles_);
+  run_.setRegions(fixed_regions_, manipulated_region_, joint_regions_);
+  updateAlerts();
+  refreshRoles();
+  message("handles cleared");
+  refresh();
+}
+
+// What the deformation cannot do for this shape, on the status line and stderr: pieces that
+// no handle reaches (followed or left), a piece moved rigidly, a surface pulled apart.
+void Viewer::updateAlerts() {
+  alert_.clear();
+  if (!run_.ready()) return;
+  const hgd::PieceReport& p = run_.deformer().pieces().report;
+  std::vector<std::string> full = p.warnings();
+  std::ostringstream s;
+  if (p.followed_points) s << " | " << p.followed_points << " points without a handle follow";
+  if (p.stayed_points) s << " | " << p.stayed_points << " points without a handle stay";
+  if (p.rigid_points) s << " | " << p.rigid_points << " points move rigidly with the handle";
+  if (!run_.moves().empty()) {
+    const hgd::SurfaceStretch st = run_.deformer().surfaceStretch();
+    if (st.split_points) s << " | SURFACE PULLED APART at " << st.split_points << " points";
+    if (const std::string w = hgd::stretchWarning(st); !w.empty()) full.push_back(w);
+  }
+  alert_ = s.str();
+  for (const auto& w : full)
+    if (std::find(reported_.begin(), reported_.end(), w) == reported_.end()) {
+      std::fprintf(stderr, "hgdeform-view: warning: %s\n", w.c_str());
+      reported_.push_back(w);
+    }
+}
+
+// Applies a move through the runner (as `hgdeform deform` does), recorded for undo and the
+// saved scenario.
+void Viewer::commit(const hgd::Move& m) {
+  if (!run_.ready()) return;
+  run_.apply(m);
+  updateAlerts();
+}
+
+void Viewer::frameMove(const Eigen::Vector3d& translate, const Eigen::Vector3d& axis, double degrees) {
+  if (!run_.ready()) return message("mark a fixed and a manipulated handle first");
+  hgd::Move m;
+  m.kind = hgd::Move::Kind::Frame;
+  m.frame.translate = translate;
+  if (degrees != 0) {
+    m.frame.axis = axis;
+    m.frame.degrees = degrees;
+    m.frame.center = handleCentre();  // explicit, so that the scenario replays it exactly
+  }
+  const auto t0 = Clock::now();
+  commit(m);
+  stats_.solve.push_back(msSince(t0));
+  stats_.interpolate.push_back(run_.deformer().lastInterpolationMs());
+  refresh();
+}
+
+void Viewer::undo() {
+  if (!run_.ready() || !run_.undo()) return message("nothing to undo");
+  updateAlerts();
+  message("undone");
+  refresh();
+}
+
+void Viewer::redo() {
+  if (!run_.ready() || !run_.redo()) return message("nothing to redo");
+  updateAlerts();
+  message("redone");
+  refresh();
+}
+
+void Viewer::resetShape() {
+  if (!run_.ready()) return;
+  run_.reset();
+  updateAlerts();
+  message("rest shape");
+  refresh();
+}
+
+void Viewer::saveShape(const std::string& path) {
+  run_.write(path, {}, inputs_);
+  message("saved " + path);
+}
+
+void Viewer::saveScenario(const std::string& path) {
+  hgd::refuseInputs(path, inputs_);
+  if (handles_.fixed.empty() || handles_.manipulated.empty())
+    return message("a scenario needs a fixed and a manipulated handle");
+  hgd::writeFileAtomically(path, hgd::scenarioToJson(run_.scenario()));
+  message("saved " + path);
+}
+
+Eigen::Vector3d Viewer::deformed(std::size_t i) const {
+  return run_.ready() ? run_.deformer().deformedWorld(i) : run_.geometry().world(i);
+}
+
+Eigen::Vector3d Viewer::centre() const {
+  const Eigen::AlignedBox3f box = hgd::boundingBox(*run_.geometry().points);
+  return run_.geometry().origin + 0.5 * (box.min() + box.max()).cast<double>();
+}
+
+Eigen::Vector3d Viewer::handleCentre() const {
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  for (int i : handles_.manipulated) c += deformed(static_cast<std::size_t>(i));
+  return c / std::max<double>(1.0, static_cast<double>(handles_.manipulated.size()));
+}
+
+std::string Viewer::defaultPath(const std::string& suffix, const std::string& ext) const {
+  const std::filesystem::path p(input_);
+  return (p.parent_path() / (p.stem().string() + suffix + ext)).string();
+}
+
+std::string Viewer::extensionOf(const std::string& path) {
+  const std::string e = std::filesystem::path(path).extension().string();
+  return e.empty() ? ".ply" : e;
+}
+
+std::string Viewer::num(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.3g", v);
+  return b;
+}
+
+}  // namespace hgdview

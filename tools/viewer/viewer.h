@@ -1,0 +1,177 @@
+// hgdeform-view's window: the Viewer (a shape, its selection and handles, the moves made through
+// hgd::ScenarioRunner, which owns undo and redo) and the VTK interactor style that feeds it.
+// The code follows the pipeline, one file per stage:
+//   main.cpp           the command line; opens the viewer, replays or spins
+//   viewer_input.cpp   the interactor style, keys, picks, the area selection, the drag gesture
+//   viewer_replay.cpp  plays a replay file's events (read and checked by replay.cpp)
+//   viewer.cpp         state: selection, handles, moves, undo, saving
+//   viewer_draw.cpp    the window: drawing, colours, the status line, screenshots, screen geometry
+#pragma once
+
+#include <pcl/visualization/interactor_style.h>
+#include <pcl/visualization/pcl_visualizer.h>
+#include <vtkRenderWindowInteractor.h>
+#include <vtkScalarBarActor.h>
+#include <vtkSmartPointer.h>
+
+#include <Eigen/Core>
+#include <chrono>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "hgdeform/regions.h"
+#include "hgdeform/runner.h"
+#include "hgdeform/scenario.h"
+#include "replay.h"
+
+class vtkPolyData;
+class vtkRenderer;
+
+namespace hgdview {
+
+using Clock = std::chrono::steady_clock;
+inline double msSince(Clock::time_point t) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
+}
+
+inline const char* const kHelp =
+    "x  area select on/off   shift+click  select around a point   +/-  radius   c  clear selection\n"
+    "f  fixed handle   m  manipulated handle   j  joint   C  clear all handles\n"
+    "d  drag mode (left-drag the manipulated handle)   t  frame mode (arrows, [ ], , .)\n"
+    "v  view: colours / field / clusters   o  rest overlay   z/y  undo/redo   n  rest shape\n"
+    "s  save shape   S  save scenario   k  screenshot   h  help   q  quit";
+
+class Viewer;
+
+// The interactor style: our keys and the handle drag first, PCL's behaviour for the rest
+// (viewer_input.cpp).
+class Style : public pcl::visualization::PCLVisualizerInteractorStyle {
+ public:
+  static Style* New();
+  vtkTypeMacro(Style, pcl::visualization::PCLVisualizerInteractorStyle) Viewer* viewer = nullptr;
+
+  void OnKeyDown() override;
+  void OnChar() override;
+  void OnLeftButtonDown() override;
+  void OnLeftButtonUp() override;
+  void OnMouseMove() override;
+  // vtkInteractorStyleRubberBandPick's modes: 0 orient (camera), 1 select (rubber band).
+  bool selecting() const { return CurrentMode == 1; }
+  void rubberBand(int& x0, int& y0, int& x1, int& y1) const {
+    x0 = StartPosition[0];
+    y0 = StartPosition[1];
+    x1 = EndPosition[0];
+    y1 = EndPosition[1];
+  }
+};
+
+struct FrameStats {
+  std::vector<double> solve, interpolate, render;
+};
+
+class Viewer {
+ public:
+  // --- state (viewer.cpp) -----------------------------------------------------------------
+  Viewer(const std::string& input, int width, int height);
+  void loadScenario(const std::string& path);
+  void printStats() const;
+
+  // --- the window (viewer_draw.cpp) -------------------------------------------------------
+  void open();
+  void spin();
+  void screenshot(const std::string& path);
+
+  // --- events (viewer_input.cpp) ----------------------------------------------------------
+  bool key(const std::string& sym, char code);
+  void pickAt(int x, int y);
+  void selectArea(int x0, int y0, int x1, int y1);
+  bool dragBegin(int x, int y);
+  bool dragMove(int x, int y);
+  bool dragEnd(int x, int y);
+
+  // --- replay (viewer_replay.cpp) ---------------------------------------------------------
+  void replay(const std::vector<hgdview::ReplayEvent>& events, const std::string& path,
+              vtkRenderWindowInteractor* iren);
+
+  Style* style() { return style_.Get(); }
+  pcl::visualization::PCLVisualizer& vis() { return *vis_; }
+
+ private:
+  // --- state changes (viewer.cpp) ---------------------------------------------------------
+  void markSelection(int role);
+  void syncRegions();
+  void clearSelection(bool redraw = true);
+  void clearHandles();
+  void updateAlerts();
+  void commit(const hgd::Move& m);
+  void frameMove(const Eigen::Vector3d& translate, const Eigen::Vector3d& axis, double degrees);
+  void undo();
+  void redo();
+  void resetShape();
+  void saveShape(const std::string& path);
+  void saveScenario(const std::string& path);
+  Eigen::Vector3d deformed(std::size_t i) const;
+  Eigen::Vector3d centre() const;
+  Eigen::Vector3d handleCentre() const;
+  std::string defaultPath(const std::string& suffix, const std::string& ext) const;
+  static std::string extensionOf(const std::string& path);
+  static std::string num(double v);
+
+  // --- drawing (viewer_draw.cpp) ----------------------------------------------------------
+  void fileColours();
+  void refreshRoles();
+  void refresh();
+  void updatePositions();
+  vtkPolyData* shapePolyData();
+  void render();
+  void updateStatus();
+  void message(const std::string& m);
+  static Eigen::Vector3f clusterColour(int id);
+
+  // --- geometry on screen (viewer_draw.cpp) -----------------------------------------------
+  vtkRenderer* renderer();
+  Eigen::Vector3d toDisplay(const Eigen::Vector3d& w);
+  Eigen::Vector3d fromDisplay(double x, double y, double depth);
+  void cameraAxes(Eigen::Vector3d& up, Eigen::Vector3d& right, Eigen::Vector3d& view);
+  int nearestOnScreen(int x, int y, double pixels, bool manipulated_only = false);
+
+  // --- replay (viewer_replay.cpp) ---------------------------------------------------------
+  Eigen::Vector2d screenOf(const hgdview::ReplayPosition& p);
+  static int pixel(double v);
+  void sendKey(vtkRenderWindowInteractor* iren, const std::string& key);
+  void sendMouse(vtkRenderWindowInteractor* iren, unsigned long event, const Eigen::Vector2d& at,
+                 bool shift = false);
+  void replayEvent(const hgdview::ReplayEvent& e, vtkRenderWindowInteractor* iren);
+
+ public:
+  bool verbose_ = true;
+  std::vector<std::string> inputs_;  // files no output may replace
+  bool drag_mode_ = false;
+
+ private:
+  std::string input_;
+  int width_, height_;
+  hgd::ScenarioRunner run_;  // the shape, its handles, the deformer, moves and undo
+  double diagonal_ = 1, radius_ = 0.03;
+  std::vector<hgd::Region> fixed_regions_, joint_regions_;
+  hgd::Region manipulated_region_;
+  hgd::Handles handles_;
+  std::vector<char> role_, selected_;
+  std::vector<Eigen::Vector3f> colours_;
+  pcl::PointCloud<pcl::PointXYZRGB>::Ptr display_, rest_;
+  std::unique_ptr<pcl::visualization::PCLVisualizer> vis_;
+  vtkSmartPointer<Style> style_;
+  vtkSmartPointer<vtkScalarBarActor> scale_bar_;
+  int view_ = 0;
+  bool overlay_ = false, overlay_shown_ = false, help_visible_ = false;
+  bool frame_mode_ = false, dragging_ = false, quit_ = false;
+  Eigen::Vector3d drag_from_, drag_last_;
+  double drag_depth_ = 0;
+  std::string message_;
+  std::string alert_;                  // see updateAlerts()
+  std::vector<std::string> reported_;  // warnings already printed on stderr
+  FrameStats stats_;
+};
+
+}  // namespace hgdview

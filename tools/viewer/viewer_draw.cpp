@@ -1,0 +1,291 @@
+// The viewer's window: opening it, drawing the shape in its colours (file, field, clusters,
+// handle roles, selection), the rest-shape overlay, the status line, screenshots, and the
+// conversions between the shape's space and the screen.
+#include <pcl/conversions.h>
+#include <vtkActor.h>
+#include <vtkCamera.h>
+#include <vtkFloatArray.h>
+#include <vtkLODActor.h>
+#include <vtkLookupTable.h>
+#include <vtkMapper.h>
+#include <vtkPoints.h>
+#include <vtkPolyData.h>
+#include <vtkRenderWindow.h>
+#include <vtkRenderer.h>
+#include <vtkRendererCollection.h>
+#include <vtkTextProperty.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+
+#include "hgdeform/colormap.h"
+#include "hgdeform/fields.h"
+#include "hgdeform/render.h"
+#include "viewer.h"
+
+namespace hgdview {
+
+void Viewer::open() {
+  style_ = vtkSmartPointer<Style>::Take(Style::New());
+  style_->viewer = this;
+  int argc = 0;
+  vis_ =
+      std::make_unique<pcl::visualization::PCLVisualizer>(argc, nullptr, "hgdeform-view", style_.Get(), true);
+  vis_->setSize(width_, height_);
+  vis_->setBackgroundColor(1, 1, 1);
+  if (run_.geometry().faces.empty()) {
+    const pcl::visualization::PointCloudColorHandlerRGBField<pcl::PointXYZRGB> rgb(display_);
+    vis_->addPointCloud<pcl::PointXYZRGB>(display_, rgb, "shape");
+    // Big points cost fill rate under software GL: dense clouds need no more than one pixel.
+    const double size = run_.geometry().size() > 200000 ? 1 : run_.geometry().size() > 50000 ? 2 : 3;
+    vis_->setPointCloudRenderingProperties(pcl::visualization::PCL_VISUALIZER_POINT_SIZE, size, "shape");
+  } else {
+    pcl::PolygonMesh mesh;
+    pcl::toPCLPointCloud2(*display_, mesh.cloud);
+    mesh.polygons = run_.geometry().faces;
+    vis_->addPolygonMesh(mesh, "shape");
+  }
+  vis_->addText("", 10, 10, 13, 0.1, 0.1, 0.1, "status");
+  vis_->addText(kHelp, 10, height_ - 110, 13, 0.1, 0.1, 0.1, "help");
+  help_visible_ = true;
+  // The field's colour scale, shown in field view.
+  auto lut = vtkSmartPointer<vtkLookupTable>::New();
+  lut->SetNumberOfTableValues(256);
+  for (int k = 0; k < 256; ++k) {
+    const Eigen::Vector3f c = hgd::colourMap(static_cast<float>(k) / 255.0f);
+    lut->SetTableValue(k, c.x(), c.y(), c.z(), 1.0);
+  }
+  lut->SetRange(0, 1);
+  lut->Build();
+  scale_bar_ = vtkSmartPointer<vtkScalarBarActor>::New();
+  scale_bar_->SetLookupTable(lut);
+  scale_bar_->SetTitle("harmonic");
+  scale_bar_->SetNumberOfLabels(3);
+  scale_bar_->GetTitleTextProperty()->SetColor(0.1, 0.1, 0.1);
+  scale_bar_->GetLabelTextProperty()->SetColor(0.1, 0.1, 0.1);
+  scale_bar_->SetWidth(0.08);
+  scale_bar_->SetHeight(0.45);
+  scale_bar_->SetPosition(0.9, 0.3);
+  scale_bar_->SetVisibility(false);
+  renderer()->AddActor2D(scale_bar_);
+  vis_->resetCamera();
+  const Eigen::Vector3d c = centre();
+  vis_->setCameraPosition(c.x(), c.y(), c.z() + 2.2 * diagonal_, c.x(), c.y(), c.z(), 0, 1, 0);
+  vis_->setCameraClipDistances(0.01 * diagonal_, 10 * diagonal_);
+  refresh();
+}
+
+void Viewer::spin() {
+  while (!vis_->wasStopped() && !quit_) vis_->spinOnce(30);
+}
+
+void Viewer::screenshot(const std::string& path) {
+  render();
+  hgd::writeWindowPng(vis_->getRenderWindow(), path, inputs_, "screenshot");
+  message("screenshot " + path);
+}
+
+void Viewer::fileColours() {
+  const hgd::ColourFields fields = hgd::findColourFields(run_.shape().cloud);
+  colours_.resize(run_.geometry().size());
+  for (std::size_t i = 0; i < run_.geometry().size(); ++i)
+    colours_[i] =
+        hgd::readColour(run_.shape().cloud, static_cast<std::size_t>(run_.geometry().raw_index[i]), fields);
+}
+
+void Viewer::refreshRoles() {
+  std::fill(role_.begin(), role_.end(), 0);
+  for (const auto& f : handles_.fixed)
+    for (int i : f) role_[static_cast<std::size_t>(i)] = 1;
+  for (int i : handles_.manipulated) role_[static_cast<std::size_t>(i)] = 2;
+  for (const auto& jt : handles_.joints)
+    for (int i : jt) role_[static_cast<std::size_t>(i)] = 3;
+}
+
+void Viewer::refresh() {
+  if (!vis_) return;
+  static const Eigen::Vector3f kRole[4] = {
+      {0, 0, 0}, {0.15f, 0.35f, 0.95f}, {0.95f, 0.15f, 0.1f}, {0.2f, 0.75f, 0.2f}};
+  const bool field_view = view_ == 1 && run_.ready();
+  const bool cluster_view = view_ == 2 && run_.ready();
+  for (std::size_t i = 0; i < run_.geometry().size(); ++i) {
+    auto& p = (*display_)[i];
+    p.getVector3fMap() = deformed(i).cast<float>();
+    Eigen::Vector3f c = colours_[i];
+    if (field_view) c = hgd::colourMap(run_.deformer().field()[i]);
+    if (cluster_view) c = clusterColour(run_.deformer().clustering().piece[i]);
+    if (!field_view && role_[i] != 0) c = 0.35f * c + 0.65f * kRole[static_cast<int>(role_[i])];
+    if (selected_[i]) c = Eigen::Vector3f(1.0f, 0.85f, 0.1f);
+    p.r = static_cast<std::uint8_t>(std::clamp(c.x(), 0.0f, 1.0f) * 255);
+    p.g = static_cast<std::uint8_t>(std::clamp(c.y(), 0.0f, 1.0f) * 255);
+    p.b = static_cast<std::uint8_t>(std::clamp(c.z(), 0.0f, 1.0f) * 255);
+  }
+  if (run_.geometry().faces.empty()) {
+    // With an explicit colour handler: PCL's plain update paints the cloud white.
+    const pcl::visualization::PointCloudColorHandlerRGBField<pcl::PointXYZRGB> rgb(display_);
+    vis_->updatePointCloud<pcl::PointXYZRGB>(display_, rgb, "shape");
+  } else {
+    // PCL's updatePolygonMesh drops the colours (the mesh turns black): add it afresh.
+    pcl::PolygonMesh mesh;
+    pcl::toPCLPointCloud2(*display_, mesh.cloud);
+    mesh.polygons = run_.geometry().faces;
+    vis_->removePolygonMesh("shape");
+    vis_->addPolygonMesh(mesh, "shape");
+  }
+  if (overlay_ && !overlay_shown_) {
+    const pcl::visualization::PointCloudColorHandlerRGBField<pcl::PointXYZRGB> grey(rest_);
+    vis_->addPointCloud<pcl::PointXYZRGB>(rest_, grey, "rest");
+    vis_->setPointCloudRenderingProperties(pcl::visualization::PCL_VISUALIZER_OPACITY, 0.35, "rest");
+    overlay_shown_ = true;
+  } else if (!overlay_ && overlay_shown_) {
+    vis_->removePointCloud("rest");
+    overlay_shown_ = false;
+  }
+  scale_bar_->SetVisibility(field_view);
+  render();
+}
+
+// During a drag only positions change: write them straight into the VTK points of the shape
+// (PCL's update would rebuild the whole poly data, colours included, on every mouse move).
+void Viewer::updatePositions() {
+  vtkPolyData* poly = shapePolyData();
+  vtkPoints* pts = poly ? poly->GetPoints() : nullptr;
+  if (!pts || pts->GetNumberOfPoints() != static_cast<vtkIdType>(run_.geometry().size()) ||
+      pts->GetDataType() != VTK_FLOAT) {
+    refresh();
+    return;
+  }
+  float* raw = static_cast<vtkFloatArray*>(pts->GetData())->GetPointer(0);
+  const long long n = static_cast<long long>(run_.geometry().size());
+  const auto& local = run_.deformer().deformedPoints();
+  const Eigen::Vector3f origin = run_.geometry().origin.cast<float>();
+#pragma omp parallel for schedule(static)
+  for (long long i = 0; i < n; ++i) {
+    const Eigen::Vector3f p = local[static_cast<std::size_t>(i)] + origin;
+    raw[3 * i] = p.x();
+    raw[3 * i + 1] = p.y();
+    raw[3 * i + 2] = p.z();
+  }
+  pts->Modified();
+  poly->Modified();
+  render();
+}
+
+vtkPolyData* Viewer::shapePolyData() {
+  vtkMapper* mapper = nullptr;
+  if (run_.geometry().faces.empty()) {
+    auto it = vis_->getCloudActorMap()->find("shape");
+    if (it != vis_->getCloudActorMap()->end() && it->second.actor) mapper = it->second.actor->GetMapper();
+  } else {
+    auto it = vis_->getShapeActorMap()->find("shape");
+    if (it != vis_->getShapeActorMap()->end())
+      if (auto* actor = vtkActor::SafeDownCast(it->second)) mapper = actor->GetMapper();
+  }
+  return mapper ? vtkPolyData::SafeDownCast(mapper->GetInput()) : nullptr;
+}
+
+void Viewer::render() {
+  const auto t0 = Clock::now();
+  updateStatus();
+  vis_->getRenderWindow()->Render();
+  if (dragging_) stats_.render.push_back(msSince(t0));
+}
+
+void Viewer::updateStatus() {
+  static const char* kViews[3] = {"colours", "field", "clusters"};
+  std::ostringstream s;
+  s << run_.geometry().size() << " points";
+  if (run_.ready()) s << ", " << run_.deformer().clustering().clusters.size() << " clusters";
+  s << " | view " << kViews[view_] << (drag_mode_ ? " | DRAG" : "") << (frame_mode_ ? " | FRAME" : "");
+  if (!stats_.solve.empty())
+    s << " | solve " << num(stats_.solve.back()) << " ms, interpolate " << num(stats_.interpolate.back())
+      << " ms, render " << (stats_.render.empty() ? std::string("-") : num(stats_.render.back())) << " ms";
+  s << alert_;
+  if (!message_.empty()) s << " | " << message_;
+  vis_->updateText(s.str(), 10, 10, 13, 0.1, 0.1, 0.1, "status");
+}
+
+void Viewer::message(const std::string& m) {
+  message_ = m;
+  if (verbose_) std::fprintf(stderr, "hgdeform-view: %s\n", m.c_str());
+  if (vis_) render();
+}
+
+Eigen::Vector3f Viewer::clusterColour(int id) {
+  // Golden-ratio hues: neighbouring ids look different.
+  const float h = std::fmod(static_cast<float>(id) * 0.618034f, 1.0f) * 6.0f;
+  const float x = 1.0f - std::abs(std::fmod(h, 2.0f) - 1.0f);
+  Eigen::Vector3f c;
+  if (h < 1)
+    c = {1, x, 0};
+  else if (h < 2)
+    c = {x, 1, 0};
+  else if (h < 3)
+    c = {0, 1, x};
+  else if (h < 4)
+    c = {0, x, 1};
+  else if (h < 5)
+    c = {x, 0, 1};
+  else
+    c = {1, 0, x};
+  return 0.25f + 0.7f * c.array();
+}
+
+vtkRenderer* Viewer::renderer() {
+  return vis_->getRenderWindow()->GetRenderers()->GetFirstRenderer();
+}
+
+Eigen::Vector3d Viewer::toDisplay(const Eigen::Vector3d& w) {
+  vtkRenderer* r = renderer();
+  r->SetWorldPoint(w.x(), w.y(), w.z(), 1.0);
+  r->WorldToDisplay();
+  double d[3];
+  r->GetDisplayPoint(d);
+  return {d[0], d[1], d[2]};
+}
+
+Eigen::Vector3d Viewer::fromDisplay(double x, double y, double depth) {
+  vtkRenderer* r = renderer();
+  r->SetDisplayPoint(x, y, depth);
+  r->DisplayToWorld();
+  double w[4];
+  r->GetWorldPoint(w);
+  return Eigen::Vector3d(w[0], w[1], w[2]) / (w[3] != 0 ? w[3] : 1.0);
+}
+
+void Viewer::cameraAxes(Eigen::Vector3d& up, Eigen::Vector3d& right, Eigen::Vector3d& view) {
+  vtkCamera* cam = renderer()->GetActiveCamera();
+  double u[3], p[3], f[3];
+  cam->GetViewUp(u);
+  cam->GetPosition(p);
+  cam->GetFocalPoint(f);
+  view = (Eigen::Vector3d(f[0], f[1], f[2]) - Eigen::Vector3d(p[0], p[1], p[2])).normalized();
+  up = Eigen::Vector3d(u[0], u[1], u[2]).normalized();
+  right = view.cross(up).normalized();
+  up = right.cross(view).normalized();
+}
+
+// The point nearest to the cursor on screen (within `pixels`), front-most on ties.
+int Viewer::nearestOnScreen(int x, int y, double pixels, bool manipulated_only) {
+  int best = -1;
+  double best_d = pixels * pixels, best_z = INFINITY;
+  auto consider = [&](std::size_t i) {
+    const Eigen::Vector3d d = toDisplay(deformed(i));
+    const double dd = (d.x() - x) * (d.x() - x) + (d.y() - y) * (d.y() - y);
+    if (dd < best_d - 1e-9 || (std::abs(dd - best_d) <= 1e-9 && d.z() < best_z)) {
+      best_d = dd;
+      best_z = d.z();
+      best = static_cast<int>(i);
+    }
+  };
+  if (manipulated_only) {
+    for (int i : handles_.manipulated) consider(static_cast<std::size_t>(i));
+  } else {
+    for (std::size_t i = 0; i < run_.geometry().size(); ++i) consider(i);
+  }
+  return best;
+}
+
+}  // namespace hgdview
