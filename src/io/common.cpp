@@ -293,12 +293,21 @@ void writePackedBinary(AtomicWriter& w, const pcl::PCLPointCloud2& c, std::size_
     const std::uint8_t* pt = c.data.data() + i * c.point_step;
     for (const Field* f : fields)
       buf.insert(buf.end(), pt + f->offset, pt + f->offset + datatypeSize(f->datatype) * fieldCount(*f));
-    if (buf.size() >= kFlushBytes) {
-      w.write(buf.data(), buf.size());
-      buf.clear();
-    }
+    flushIfFull(w, buf);
   }
   w.write(buf.data(), buf.size());
+}
+
+void appendFaceLines(AtomicWriter& w, std::string& buf, const std::vector<pcl::Vertices>& polygons) {
+  for (const auto& poly : polygons) {
+    appendInt(buf, poly.vertices.size());
+    for (const auto idx : poly.vertices) {
+      buf += ' ';
+      appendInt(buf, idx);
+    }
+    buf += '\n';
+    flushIfFull(w, buf);
+  }
 }
 
 void writeAsciiPoints(AtomicWriter& w, const pcl::PCLPointCloud2& c, std::size_t n,
@@ -318,10 +327,7 @@ void writeAsciiPoints(AtomicWriter& w, const pcl::PCLPointCloud2& c, std::size_t
       }
     }
     buf += '\n';
-    if (buf.size() >= kFlushBytes) {
-      w.write(buf);
-      buf.clear();
-    }
+    flushIfFull(w, buf);
   }
   w.write(buf);
 }

@@ -248,6 +248,18 @@ class AtomicWriter {
 std::vector<const Field*> checkShape(const std::string& path, const Shape& shape, bool keep_padding);
 /// True if the fields, in order, tile the point exactly (then the data can be written as is).
 bool isPacked(const std::vector<const Field*>& fields, std::uint32_t point_step);
+/// Writes `buf` (text or bytes) out once it holds kFlushBytes: the writers' one buffering rule.
+template <typename Buffer>
+void flushIfFull(AtomicWriter& w, Buffer& buf) {
+  if (buf.size() >= kFlushBytes) {
+    w.write(buf.data(), buf.size());
+    buf.clear();
+  }
+}
+
+/// Appends faces as text lines "count i j k ..." (ascii PLY, OFF), flushing through `w`.
+void appendFaceLines(AtomicWriter& w, std::string& buf, const std::vector<pcl::Vertices>& polygons);
+
 /// Writes the points' values of `fields` in binary, packed in field order.
 void writePackedBinary(AtomicWriter& w, const pcl::PCLPointCloud2& c, std::size_t n,
                        const std::vector<const Field*>& fields);

@@ -199,10 +199,7 @@ bool writeObjLines(const std::string& path, const Shape& shape, const XyzFields&
       buf += line;
     }
     buf += '\n';
-    if (buf.size() >= kFlushBytes) {
-      w.write(buf);
-      buf.clear();
-    }
+    flushIfFull(w, buf);
   }
   w.write(buf);
   w.commit();
@@ -238,10 +235,7 @@ void writeObj(const std::string& path, const Shape& shape) {
       }
     }
     buf += '\n';
-    if (buf.size() >= kFlushBytes) {
-      w.write(buf);
-      buf.clear();
-    }
+    flushIfFull(w, buf);
   }
   for (const auto& poly : shape.polygons) {
     buf += 'f';
@@ -250,10 +244,7 @@ void writeObj(const std::string& path, const Shape& shape) {
       appendInt(buf, static_cast<long long>(idx) + 1);
     }
     buf += '\n';
-    if (buf.size() >= kFlushBytes) {
-      w.write(buf);
-      buf.clear();
-    }
+    flushIfFull(w, buf);
   }
   w.write(buf);
   w.commit();

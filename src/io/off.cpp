@@ -135,23 +135,9 @@ void writeOff(const std::string& path, const Shape& shape) {
       appendValue(buf, pt + f.offset, f.datatype);
     }
     buf += '\n';
-    if (buf.size() >= kFlushBytes) {
-      w.write(buf);
-      buf.clear();
-    }
+    flushIfFull(w, buf);
   }
-  for (const auto& poly : shape.polygons) {
-    appendInt(buf, poly.vertices.size());
-    for (const auto idx : poly.vertices) {
-      buf += ' ';
-      appendInt(buf, idx);
-    }
-    buf += '\n';
-    if (buf.size() >= kFlushBytes) {
-      w.write(buf);
-      buf.clear();
-    }
-  }
+  appendFaceLines(w, buf, shape.polygons);
   w.write(buf);
   w.commit();
 }

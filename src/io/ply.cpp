@@ -533,18 +533,7 @@ void writePly(const std::string& path, const Shape& shape, bool ascii) {
   if (ascii) {
     writeAsciiPoints(w, c, n, fields);
     std::string buf;
-    for (const auto& poly : shape.polygons) {
-      appendInt(buf, poly.vertices.size());
-      for (const auto idx : poly.vertices) {
-        buf += ' ';
-        appendInt(buf, idx);
-      }
-      buf += '\n';
-      if (buf.size() >= kFlushBytes) {
-        w.write(buf);
-        buf.clear();
-      }
-    }
+    appendFaceLines(w, buf, shape.polygons);
     w.write(buf);
   } else {
     writePackedBinary(w, c, n, fields);
@@ -562,10 +551,7 @@ void writePly(const std::string& path, const Shape& shape, bool ascii) {
         const auto* b = reinterpret_cast<const std::uint8_t*>(&v);
         buf.insert(buf.end(), b, b + sizeof v);
       }
-      if (buf.size() >= kFlushBytes) {
-        w.write(buf.data(), buf.size());
-        buf.clear();
-      }
+      flushIfFull(w, buf);
     }
     w.write(buf.data(), buf.size());
   }

@@ -211,10 +211,7 @@ void writeStl(const std::string& path, const Shape& shape, bool ascii) {
         buf += " endloop\nendfacet\n";
       else
         buf.append(2, '\0');
-      if (buf.size() >= kFlushBytes) {
-        w.write(buf);
-        buf.clear();
-      }
+      flushIfFull(w, buf);
     }
   }
   if (ascii) buf += "endsolid hgdeform\n";

@@ -167,10 +167,7 @@ void writeXyz(const std::string& path, const Shape& shape) {
       }
     }
     buf += '\n';
-    if (buf.size() >= kFlushBytes) {
-      w.write(buf);
-      buf.clear();
-    }
+    flushIfFull(w, buf);
   }
   w.write(buf);
   w.commit();
