@@ -93,6 +93,7 @@ class HandleDeformation : public pcl::PCLBase<PointT> {
  private:
   void invalidate();
   void ensureBuilt();
+  Scenario& indexHandles();
 
   RunOptions options_;
   Scenario scenario_;

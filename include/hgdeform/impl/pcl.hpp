@@ -93,30 +93,31 @@ inline Region indexRegion(const pcl::Indices& indices) {
 }  // namespace pcl_detail
 
 template <typename PointT>
-void HandleDeformation<PointT>::setFixedHandles(const std::vector<pcl::Indices>& handles) {
-  if (have_scenario_) scenario_ = Scenario{};
-  have_scenario_ = false;
-  scenario_.fixed.clear();
-  for (const auto& h : handles) scenario_.fix(pcl_detail::indexRegion(h));
+Scenario& HandleDeformation<PointT>::indexHandles() {
+  // Handles by index replace a scenario given before (its regions, moves and options) whole.
   invalidate();
+  return scenario_;
+}
+
+template <typename PointT>
+void HandleDeformation<PointT>::setFixedHandles(const std::vector<pcl::Indices>& handles) {
+  Scenario& s = indexHandles();
+  s.fixed.clear();
+  for (const auto& h : handles) s.fix(pcl_detail::indexRegion(h));
 }
 
 template <typename PointT>
 void HandleDeformation<PointT>::setManipulatedHandle(const pcl::Indices& handle) {
-  if (have_scenario_) scenario_ = Scenario{};
-  have_scenario_ = false;
-  scenario_.manipulated = Region{};
-  scenario_.manipulate(pcl_detail::indexRegion(handle));
-  invalidate();
+  indexHandles().manipulate(pcl_detail::indexRegion(handle));
 }
 
 template <typename PointT>
 void HandleDeformation<PointT>::setJoints(const std::vector<pcl::Indices>& joints) {
   if (have_scenario_) scenario_ = Scenario{};
   have_scenario_ = false;
-  scenario_.joints.clear();
-  for (const auto& j : joints) scenario_.joint(pcl_detail::indexRegion(j));
-  invalidate();
+  Scenario& s = indexHandles();
+  s.joints.clear();
+  for (const auto& j : joints) s.joint(pcl_detail::indexRegion(j));
 }
 
 template <typename PointT>
