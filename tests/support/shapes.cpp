@@ -261,5 +261,66 @@ Shape barMesh(float length, float width, float h) {
   return s;
 }
 
+PointsAndNormals sampledFork(std::size_t n, unsigned seed, double noise, double outliers) {
+  using V3 = Eigen::Vector3f;
+  struct Box {
+    V3 lo, hi;
+  };
+  const Box boxes[] = {{{0, -0.1f, -0.03f}, {0.45f, 0.1f, 0.03f}},
+                       {{0.4f, 0.02f, -0.03f}, {1.2f, 0.08f, 0.03f}},
+                       {{0.4f, -0.08f, -0.03f}, {1.2f, -0.02f, 0.03f}}};
+  struct Face {
+    int box, axis, side;
+    double area;
+  };
+  std::vector<Face> faces;
+  double total = 0;
+  for (int b = 0; b < 3; ++b)
+    for (int axis = 0; axis < 3; ++axis)
+      for (int side = 0; side < 2; ++side) {
+        const V3 e = boxes[b].hi - boxes[b].lo;
+        const double area = static_cast<double>(e[(axis + 1) % 3] * e[(axis + 2) % 3]);
+        faces.push_back({b, axis, side, area});
+        total += area;
+      }
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(0, 1);
+  std::normal_distribution<float> gauss(0, 1);
+  const float diag = V3(1.2f, 0.2f, 0.06f).norm();
+  PointsAndNormals s;
+  auto inside = [&](const V3& x, int except) {
+    for (int b = 0; b < 3; ++b)
+      if (b != except && (x.array() > boxes[b].lo.array() + 1e-6f).all() &&
+          (x.array() < boxes[b].hi.array() - 1e-6f).all())
+        return true;
+    return false;
+  };
+  while (s.p.size() < n) {
+    double t = u(rng) * total;
+    std::size_t f = 0;
+    while (f + 1 < faces.size() && t > faces[f].area) t -= faces[f++].area;
+    const Box& b = boxes[faces[f].box];
+    V3 x;
+    for (int a = 0; a < 3; ++a) x[a] = b.lo[a] + static_cast<float>(u(rng)) * (b.hi[a] - b.lo[a]);
+    const int axis = faces[f].axis;
+    x[axis] = faces[f].side ? b.hi[axis] : b.lo[axis];
+    if (inside(x, faces[f].box)) continue;
+    V3 nrm = V3::Zero();
+    nrm[axis] = faces[f].side ? 1.0f : -1.0f;
+    if (rng() % 2) nrm = -nrm;
+    if (noise > 0) x += V3(gauss(rng), gauss(rng), gauss(rng)) * static_cast<float>(noise) * diag;
+    s.p.push_back(x);
+    s.n.push_back(nrm);
+  }
+  const auto extra = static_cast<std::size_t>(outliers * static_cast<double>(n));
+  for (std::size_t i = 0; i < extra; ++i) {
+    const V3 x(static_cast<float>(u(rng) * 1.4 - 0.1), static_cast<float>(u(rng) * 0.4 - 0.2),
+               static_cast<float>(u(rng) * 0.26 - 0.13));
+    s.p.push_back(x);
+    s.n.push_back(V3(gauss(rng), gauss(rng), gauss(rng)).normalized());
+  }
+  return s;
+}
+
 }  // namespace shapes
 }  // namespace hgd

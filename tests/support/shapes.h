@@ -36,6 +36,16 @@ Shape bumpySphere(std::size_t n, float amp = 0.1f);
 /// faces' normals: a resampled scan of any size from a mesh. Deterministic for a seed.
 Shape sampleMesh(const Shape& mesh, std::size_t n, unsigned seed = 1);
 
+/// A fork of three box-section bars (a base [0, 0.45] and two prongs [0.4, 1.2] with a gap
+/// of 0.04 between them, 0.06 thick), n points sampled uniformly by area at random like a
+/// resampled mesh, each with its face's normal in a random sign (resamplers do not orient).
+/// `noise` adds Gaussian noise of that fraction of the diagonal; `outliers` adds that fraction
+/// of n stray points, uniform in a box around the fork, after the n surface points.
+struct PointsAndNormals {
+  std::vector<Eigen::Vector3f> p, n;
+};
+PointsAndNormals sampledFork(std::size_t n, unsigned seed, double noise = 0, double outliers = 0);
+
 /// Triangle mesh of the same bar as bar(): vertices on the grid, two triangles per cell.
 Shape barMesh(float length = 1.0f, float width = 0.1f, float h = 0.01f);
 
