@@ -338,7 +338,11 @@ SurfaceStretch Deformer::surfaceStretch() const {
   // Mesh edges where there are faces (what the user sees joined), else the neighbour graph.
   if (!geometry_.faces.empty())
     return measureStretch(*geometry_.points, positions_, ringGraph(geometry_.size(), geometry_.faces), moved);
-  return measureStretch(*geometry_.points, positions_, field_.graph(), moved);
+  // A stray's one pair to the surface point it hangs from is no surface pair (a stray inside
+  // the dragged handle moves with it, its anchor maybe not).
+  const std::vector<char>& strays = field_.outliers();
+  return measureStretch(*geometry_.points, positions_, field_.graph(), moved,
+                        strays.empty() ? nullptr : &strays);
 }
 
 void Deformer::writeDeformed(Shape& shape) const {

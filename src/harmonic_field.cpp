@@ -177,6 +177,23 @@ void HarmonicField::compute(std::vector<float>& phi) {
   if (rebuilt) buildGraph();
   FieldTimings t = timings_;
   if (!rebuilt) t.knn_ms = t.normals_ms = t.graph_ms = 0;  // cached: this compute() did not pay for them
+  // A stray inside a handle region is no constraint: as a leaf it would pass the handle's
+  // value to the surface point it hangs from, maybe on another part (a stray between the
+  // prongs of a fork, inside the dragged prong's handle box, hung from the other prong and
+  // pulled it along). It takes its anchor's value; it still moves with its handle. A handle
+  // of strays only keeps them.
+  if (!outliers_.empty()) {
+    auto release = [&](const std::vector<int>& idx) {
+      const bool any_inlier =
+          std::any_of(idx.begin(), idx.end(), [&](int i) { return !outliers_[static_cast<std::size_t>(i)]; });
+      if (any_inlier)
+        for (int i : idx)
+          if (outliers_[static_cast<std::size_t>(i)])
+            constrained[static_cast<std::size_t>(i)] = 0, value[static_cast<std::size_t>(i)] = 0;
+    };
+    for (const auto& f : fixed_) release(f);
+    release(manipulated_);
+  }
   Stopwatch sw_join;
   (void)knn_ms;
   (void)normals_ms;

@@ -17,11 +17,12 @@ namespace hgd {
 namespace {
 // The normal filter (docs/scans.md, "The neighbour graph and its normal filter"): a pair is across a thin gap
 // when its normals face each other or away from each other within about 26 degrees (cos 26 = 0.9) and one
-// point lies above the other along them by at least 0.15 of the offset (9 degrees out of the tangent plane:
-// two layers half a spacing apart have neighbours across the gap up to 3 spacings aside; a flipped normal on
-// a smooth surface has its neighbours within a few degrees of its tangent plane).
+// point lies above the other along them by at least 0.10 of the offset (6 degrees out of the tangent plane:
+// at the rim of two layers a third of a spacing apart, neighbours across the gap lie up to 2.5 spacings
+// aside, 7.6 degrees out; a flipped normal on a smooth surface has its neighbours within a few degrees of
+// its tangent plane).
 constexpr float kThinGapCos = 0.9f;
-constexpr float kThinGapOffset = 0.15f;
+constexpr float kThinGapOffset = 0.10f;
 
 KnnTable knnOfDistinct(const pcl::PointCloud<pcl::PointXYZ>& points, int k, bool* coincident = nullptr);
 }  // namespace
@@ -328,7 +329,25 @@ std::vector<char> findOutliers(const pcl::PointCloud<pcl::PointXYZ>& points, con
     return sorted[k];
   };
   const float limit = std::max(9.0f * at(sorted.size() / 2), at(sorted.size() * 97 / 100));
-  for (std::size_t i = 0; i < n; ++i) out[i] = std::isfinite(nearest[i]) && nearest[i] > limit;
+  // Also a stray: a point that none of its k nearest neighbours counts among theirs (it is
+  // farther from each than that neighbour's own k-th). A point of the surface, however noisy,
+  // is someone's neighbour; a stray between two parts of the surface (the prongs of a fork),
+  // within the noise's reach of both and so not far by the rule above, is nobody's, and joined
+  // to both it would carry the field across the gap.
+#pragma omp parallel for schedule(static) if (nn > kParallelMin)
+  for (long long ii = 0; ii < nn; ++ii) {
+    const auto i = static_cast<std::size_t>(ii);
+    if (!std::isfinite(nearest[i])) continue;
+    // (A row the search could not fill holds the point itself: no neighbour, no verdict.)
+    bool far = nearest[i] > limit, listed = false, any = false;
+    for (int m = 0; m < knn.k && !far && !listed; ++m) {
+      const auto j = static_cast<std::size_t>(knn.row(i)[m]);
+      if (j == i) continue;
+      any = true;
+      listed = (points[j].getVector3fMap() - points[i].getVector3fMap()).squaredNorm() <= nearest[j];
+    }
+    out[i] = far || (any && !listed);
+  }
   return out;
 }
 

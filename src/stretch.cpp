@@ -11,9 +11,9 @@ namespace hgd {
 
 SurfaceStretch measureStretch(const pcl::PointCloud<pcl::PointXYZ>& rest,
                               const std::vector<Eigen::Vector3f>& deformed, const NeighborGraph& pairs,
-                              double move_distance) {
+                              double move_distance, const std::vector<char>* skip) {
   const std::size_t n = rest.size();
-  if (deformed.size() != n || pairs.size() != n)
+  if (deformed.size() != n || pairs.size() != n || (skip && skip->size() != n))
     throw std::invalid_argument("measureStretch: rest, deformed and pairs differ in size");
   SurfaceStretch s;
   const double grow = 0.02 * move_distance;
@@ -23,9 +23,11 @@ SurfaceStretch measureStretch(const pcl::PointCloud<pcl::PointXYZ>& rest,
 #pragma omp parallel for schedule(static) reduction(max : worst) reduction(+ : split, measured) if (nn > kParallelMin)
   for (long long ii = 0; ii < nn; ++ii) {
     const auto i = static_cast<std::size_t>(ii);
+    if (skip && (*skip)[i]) continue;
     bool is_split = false;
     for (const int* j = pairs.begin(i); j != pairs.end(i); ++j) {
       const auto u = static_cast<std::size_t>(*j);
+      if (skip && (*skip)[u]) continue;
       const double r0 = (rest[u].getVector3fMap() - rest[i].getVector3fMap()).cast<double>().norm();
       if (!(r0 > 0)) continue;
       const double r1 = (deformed[u] - deformed[i]).cast<double>().norm();

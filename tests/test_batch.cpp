@@ -323,6 +323,32 @@ TEST(BatchUsage, BadOptions) {
 
 // --- a whole folder --------------------------------------------------------------------------
 
+// A scan whose handles touch (fixed x <= 0.5, manipulated beyond, lifted by 0.3) comes apart
+// along x = 0.5: the batch says so on stderr and in the scan's warning in summary.json, and
+// the other scan of the folder is not warned about.
+TEST(Batch, SurfacePulledApartIsSaid) {
+  TempDir dir;
+  const fs::path in = dir.path() / "in", out = dir.path() / "out", rep = dir.path() / "rep";
+  fs::create_directories(in);
+  writeText((in / "scenario.json").string(), R"({
+    "fixed": [ { "box": { "min": [-1, -1, -1], "max": [0.5, 1, 1] } } ],
+    "manipulated": { "box": { "min": [0.5001, -1, -1], "max": [2, 1, 1] } },
+    "move": { "frame": { "translate": [0, 0.3, 0] } }
+  })");
+  hgd::writeShape((in / "torn.ply").string(), hgd::shapes::bar(1.0f, 0.1f, 0.0125f));
+  writeText((in / "whole.json").string(), kScenario);
+  hgd::writeShape((in / "whole.ply").string(), hgd::shapes::bar(1.0f, 0.1f, 0.0125f));
+  const Result r = cli(batch(in, out, "--report " + q(rep)));
+  ASSERT_EQ(r.code, 0) << r.out << r.err;
+  EXPECT_TRUE(contains(r.err, "torn.ply")) << r.err;
+  EXPECT_EQ(countOf(r.err, "the surface is pulled apart at"), 1u) << r.err;
+  const auto j = nlohmann::json::parse(slurp(rep / "summary.json"));
+  std::map<std::string, std::string> warning;
+  for (const auto& s : j.at("scans")) warning[s.at("file").get<std::string>()] = s.value("warning", "");
+  EXPECT_TRUE(contains(warning["torn.ply"], "the surface is pulled apart at")) << j.dump();
+  EXPECT_FALSE(contains(warning["whole.ply"], "pulled apart")) << j.dump();
+}
+
 // DISPLAY names an X server that is not there (VTK would abort the process): every scan is
 // still deformed and summarised; the thumbnails are skipped with a note that says why.
 TEST(Batch, AbsentXServerSkipsThumbnailsOnly) {

@@ -362,6 +362,38 @@ TEST(CliDeform, FrameMoveIsExactOnManipulatedHandle) {
     }
 }
 
+// A bar whose fixed and manipulated handles touch at x = 0.5, the manipulated half lifted by
+// 0.3: the surface has to come apart along x = 0.5. The deform says so on stderr and in the
+// report (surface.split_points, surface.max_stretch, a warning), and exits 0: the result is
+// what was asked for, but a user must not find the split by looking first.
+TEST(CliDeform, SurfacePulledApartIsSaid) {
+  TempDir dir;
+  const std::string input = dir.file("bar.ply"), output = dir.file("out.ply"), scenario = dir.file("s.json"),
+                    report = dir.file("r.json");
+  hgd::writeShape(input, hgd::shapes::bar());
+  writeText(scenario, R"({
+    "fixed": [ { "box": { "min": [-1, -1, -1], "max": [0.5, 1, 1] } } ],
+    "manipulated": { "box": { "min": [0.5001, -1, -1], "max": [2, 1, 1] } },
+    "move": { "frame": { "translate": [0, 0.3, 0] } }
+  })");
+  const Result r = cli("deform " + quote(input) + " -s " + quote(scenario) + " -o " + quote(output) +
+                       " --report " + quote(report));
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = nlohmann::json::parse(slurp(report));
+  const std::size_t split = j.at("surface").at("split_points").get<std::size_t>();
+  // Every point within a spacing of x = 0.5 has a neighbour across it (the bar's grid has
+  // 40 points round each of the two columns there), and no point farther than the graph's
+  // reach (10 neighbours: under 3 spacings) has one.
+  EXPECT_GE(split, 80u) << r.err;
+  EXPECT_LE(split, 6u * 40u) << r.err;
+  EXPECT_GT(j.at("surface").at("max_stretch").get<double>(), 10.0);  // 0.01 apart, then ~0.3
+  EXPECT_TRUE(contains(r.err, "warning: the surface is pulled apart at " + std::to_string(split) + " points"))
+      << r.err;
+  bool warned = false;
+  for (const auto& w : j.at("warnings")) warned = warned || contains(w.get<std::string>(), "pulled apart");
+  EXPECT_TRUE(warned) << j.dump();
+}
+
 // An organized PCD (10 x 8, some NaN points): the grid layout and the NaNs survive a deformation.
 TEST(CliDeform, OrganizedPcdKeepsLayoutAndNaNs) {
   TempDir dir;

@@ -419,14 +419,19 @@ TEST(Knn, ThinGapIsNotARidge) {
   EXPECT_TRUE(hgd::acrossThinGap(V(0, 0, 0), V(0, 0, -1), V(0, 0, 0.5f), V(0, 0, 1)));
   EXPECT_TRUE(hgd::acrossThinGap(V(0, 0, 0), V(0, 0, 1), V(0, 0, 0.5f), V(0, 0, -1)));
   EXPECT_TRUE(hgd::acrossThinGap(V(0, 0, 0), V(0, 0, 1), V(1.0f, 0, 0.5f), V(0, 0, -2)));
+  // At the rim of a sheet whose layers are a third of a spacing apart, a neighbour on the
+  // other layer 2.5 spacings aside (7.6 degrees out of the tangent plane).
+  EXPECT_TRUE(hgd::acrossThinGap(V(0, 0, 0), V(0, 0, 1), V(2.5f, 0, -0.333f), V(0, 0, -1)));
   // A sawtooth crest: faces at +-55 degrees, normals turned 110 degrees: kept, whatever the
   // offset.
   const float a = 55.0f * static_cast<float>(M_PI) / 180.0f;
   const V left(-std::cos(a), 0, -std::sin(a)), right(std::cos(a), 0, -std::sin(a));  // down the faces
   const V nl(-std::sin(a), 0, std::cos(a)), nr(std::sin(a), 0, std::cos(a));
   for (const float t : {0.3f, 1.0f, 2.0f}) EXPECT_FALSE(hgd::acrossThinGap(left * t, nl, right, nr)) << t;
-  // A flipped normal on a flat patch: the neighbour is beside it, not above it.
+  // A flipped normal on a flat patch or a gently curved one (3 and 5 degrees out of the
+  // tangent plane): the neighbour is beside it, not above it.
   EXPECT_FALSE(hgd::acrossThinGap(V(0, 0, 0), V(0, 0, 1), V(1, 0, 0.05f), V(0, 0, -1)));
+  EXPECT_FALSE(hgd::acrossThinGap(V(0, 0, 0), V(0, 0, 1), V(1, 0, 0.087f), V(0, 0, -1)));
   // Coincident points and zero normals: never across a gap.
   EXPECT_FALSE(hgd::acrossThinGap(V(0, 0, 0), V(0, 0, 1), V(0, 0, 0), V(0, 0, -1)));
   EXPECT_FALSE(hgd::acrossThinGap(V(0, 0, 0), V(0, 0, 0), V(0, 0, 1), V(0, 0, -1)));

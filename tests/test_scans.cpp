@@ -11,6 +11,7 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -378,66 +379,12 @@ TEST(Scans, PatchOfFlippedNormalsStaysAttached) {
   EXPECT_TRUE(r.report.warnings.empty()) << r.report.warnings.front();
 }
 
-// A fork of three box-section bars (a base and two prongs 0.04 apart), sampled uniformly by
-// area at random like a resampled mesh, with the faces' normals (random signs: resamplers
-// do not orient). Optionally noise (a fraction of the diagonal) and outliers.
+// The fork of hgd::shapes::sampledFork as a test surface (no pairs: a sampled cloud).
 Surface sampledFork(std::size_t n, unsigned seed, double noise = 0, double outliers = 0) {
-  struct Box {
-    V3 lo, hi;
-  };
-  const Box boxes[] = {{{0, -0.1f, -0.03f}, {0.45f, 0.1f, 0.03f}},
-                       {{0.4f, 0.02f, -0.03f}, {1.2f, 0.08f, 0.03f}},
-                       {{0.4f, -0.08f, -0.03f}, {1.2f, -0.02f, 0.03f}}};
-  struct Face {
-    int box, axis, side;
-    double area;
-  };
-  std::vector<Face> faces;
-  double total = 0;
-  for (int b = 0; b < 3; ++b)
-    for (int axis = 0; axis < 3; ++axis)
-      for (int side = 0; side < 2; ++side) {
-        const V3 e = boxes[b].hi - boxes[b].lo;
-        const double area = static_cast<double>(e[(axis + 1) % 3] * e[(axis + 2) % 3]);
-        faces.push_back({b, axis, side, area});
-        total += area;
-      }
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> u(0, 1);
-  std::normal_distribution<float> gauss(0, 1);
-  const float diag = V3(1.2f, 0.2f, 0.06f).norm();
+  hgd::shapes::PointsAndNormals f = hgd::shapes::sampledFork(n, seed, noise, outliers);
   Surface s;
-  auto inside = [&](const V3& x, int except) {
-    for (int b = 0; b < 3; ++b)
-      if (b != except && (x.array() > boxes[b].lo.array() + 1e-6f).all() &&
-          (x.array() < boxes[b].hi.array() - 1e-6f).all())
-        return true;
-    return false;
-  };
-  while (s.size() < n) {
-    double t = u(rng) * total;
-    std::size_t f = 0;
-    while (f + 1 < faces.size() && t > faces[f].area) t -= faces[f++].area;
-    const Box& b = boxes[faces[f].box];
-    V3 x;
-    for (int a = 0; a < 3; ++a) x[a] = b.lo[a] + static_cast<float>(u(rng)) * (b.hi[a] - b.lo[a]);
-    const int axis = faces[f].axis;
-    x[axis] = faces[f].side ? b.hi[axis] : b.lo[axis];
-    if (inside(x, faces[f].box)) continue;
-    V3 nrm = V3::Zero();
-    nrm[axis] = faces[f].side ? 1.0f : -1.0f;
-    if (rng() % 2) nrm = -nrm;
-    if (noise > 0) x += V3(gauss(rng), gauss(rng), gauss(rng)) * static_cast<float>(noise) * diag;
-    s.p.push_back(x);
-    s.n.push_back(nrm);
-  }
-  const auto extra = static_cast<std::size_t>(outliers * static_cast<double>(n));
-  for (std::size_t i = 0; i < extra; ++i) {
-    const V3 x(static_cast<float>(u(rng) * 1.4 - 0.1), static_cast<float>(u(rng) * 0.4 - 0.2),
-               static_cast<float>(u(rng) * 0.26 - 0.13));
-    s.p.push_back(x);
-    s.n.push_back(V3(gauss(rng), gauss(rng), gauss(rng)).normalized());
-  }
+  s.p = std::move(f.p);
+  s.n = std::move(f.n);
   return s;
 }
 
@@ -486,11 +433,10 @@ TEST(Scans, ClusterCountsDoNotDependOnDensityOrNoise) {
       EXPECT_EQ(r.report.unreachable, 0u);
     }
   }
-  // Densities: within 25% of each other (measured: the same count). Noise, outliers: within
-  // 25% of the clean cloud (measured: the same). Both at once: the strays between the prongs,
-  // within a few noise widths of either surface, are not told from noise and make small
-  // contours of their own (measured: 26 against 18); bounded at 1.5x so that it cannot grow
-  // unseen.
+  // Densities: within 25% of each other; noise, outliers, and both at once: within 25% of the
+  // clean cloud (measured: the same count, 18, in all six). Both at once used to give 26: a
+  // stray in the gap, within the noise's reach of both prongs, was not far enough to be
+  // flagged and joined them; it is nobody's neighbour, and now a stray for that.
   const auto [lo, hi] = std::minmax_element(clusters.begin(), clusters.begin() + 3);
   EXPECT_LE(static_cast<double>(*hi), 1.25 * static_cast<double>(*lo));
   const auto near = [&](std::size_t c, double factor) {
@@ -499,7 +445,47 @@ TEST(Scans, ClusterCountsDoNotDependOnDensityOrNoise) {
   };
   EXPECT_TRUE(near(clusters[3], 0.25)) << clusters[3];
   EXPECT_TRUE(near(clusters[4], 0.25)) << clusters[4];
-  EXPECT_TRUE(near(clusters[5], 0.5)) << clusters[5];
+  EXPECT_TRUE(near(clusters[5], 0.25)) << clusters[5];
+}
+
+// Strays inside the dragged handle's box, in the gap between the prongs and nearer the prong
+// that should stay (a user's box drawn a little wide): they move with the handle, but they are
+// no constraint of the field. As constrained leaves they passed the handle's value to the
+// other prong's tip, which then moved with the drag (at 200k points with noise and outliers:
+// 25 clusters against 18, and that prong's tip at a harmonic value of 0.48).
+TEST(Scans, StraysInsideAHandleDoNotPullAnotherPart) {
+  Surface s = sampledFork(30000, 3);
+  const std::size_t surface = s.size();
+  // Three strays 0.025 apart: 0.015 from the other prong, 0.025 from the dragged one.
+  for (int i = 0; i < 3; ++i) {
+    s.p.push_back(
+        V3(1.165f + 0.015f * static_cast<float>(i), -0.005f, -0.02f + 0.02f * static_cast<float>(i)));
+    s.n.push_back(V3(0, 0, 1));
+  }
+  const std::vector<long long> fixed = where(s, [](const V3& x) { return x.x() < 0.4f; });
+  const std::vector<long long> manipulated =
+      where(s, [](const V3& x) { return x.x() > 1.15f && x.y() > -0.01f && x.y() < 0.1f; });
+  const Eigen::Vector3d from(1.2, 0.05, 0.0), to(1.2, 0.15, 0.3);
+  const Outcome r = deform(s, fixed, manipulated, from, to);
+  const double drag = (to - from).norm();
+  double other = 0, strays = 0;
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    const double moved = static_cast<double>((r.deformed[i] - s.p[i]).norm());
+    if (i < surface && s.p[i].x() > 0.5f && s.p[i].y() < -0.01f) other = std::max(other, moved);
+    if (i >= surface) strays = std::max(strays, static_cast<double>((r.deformed[i] - s.p[i]).norm()));
+  }
+  std::vector<char> on_surface(s.size(), 0);
+  std::fill(on_surface.begin(), on_surface.begin() + static_cast<long>(surface), 1);
+  const std::size_t torn = tornPoints(s.p, r.deformed, drag, on_surface);
+  std::printf(
+      "strays in the handle: %zu clusters, other prong moved %.2f%% of the drag, strays %.2f, torn %zu, "
+      "split %zu\n",
+      r.report.clusters, 100 * other / drag, strays / drag, torn, r.report.surface.split_points);
+  EXPECT_LT(other, 0.006 * drag);  // measured 0.30% (0.90% when the strays were constraints)
+  EXPECT_GT(strays, 0.5 * drag);   // they are in the handle: they move with it
+  EXPECT_EQ(torn, 0u);
+  EXPECT_EQ(r.report.surface.split_points, 0u);  // a stray's pair to its anchor is no surface pair
+  EXPECT_LE(r.report.clusters, 18u);
 }
 
 // A small sphere sampled on a golden spiral.
@@ -689,12 +675,11 @@ CreaseRun creaseCase(const char* name, const Surface& s, const std::vector<long 
       "clusters %zu\n",
       name, out.split, out.stretch, out.torn, out.jump, r.report.clusters);
 #ifndef HGD_TEST_BEFORE
-  // The report measures the same thing on its own pairs (the mesh's edges, else the graph).
-  if (mesh) {
-    EXPECT_EQ(r.report.surface.split_points, out.split);
-  }
-  // On clouds it measures the neighbour graph, which may keep a few pairs across a gap of a
-  // third of a spacing (at the sheet's rim): those do come apart, and it says so.
+  // The report measures the same thing on its own pairs (the mesh's edges, else the graph):
+  // on clouds the graph must hold no pair across a thin gap, which would come apart and be
+  // called a split (at the rim of a sheet whose layers are a third of a spacing apart, the
+  // filter's old 9 degrees kept pairs 7.6 degrees out of the plane: 8 false split points).
+  EXPECT_EQ(r.report.surface.split_points, out.split);
   std::printf("  the report: %zu split points, largest stretch %.2f\n", r.report.surface.split_points,
               r.report.surface.max_stretch);
   EXPECT_EQ(mentions(r.report.warnings, "the surface is pulled apart at"), r.report.surface.split_points > 0);
@@ -831,6 +816,77 @@ void foldedSheet(float gap) {
   EXPECT_LE(worst, 0.03);
   EXPECT_EQ(c.split, 0u);
   EXPECT_LE(c.jump, 3.0);
+}
+
+// A mesh folded flat on itself with no radius at all: two layers 0.005 apart (half a spacing),
+// joined along x = 1 by one row of faces straight across the gap, each vertex with its own
+// layer's normal (+z on top, -z below), as a file gives them. The fold's edges are then pairs
+// across a thin gap by the filter's rule, but they are mesh edges, and mesh edges are never
+// dropped: the field runs round the fold as on the unfolded strip, and the fold holds. Were
+// they dropped, the top layer would hold the manipulated handle alone and move rigidly, and
+// the fold would tear.
+TEST(Creases, MeshEdgesAcrossAFoldAreNeverDropped) {
+  const float h = 0.01f, gap = 0.005f;
+  const int nx = 101, ny = 21;
+  Surface s;
+  std::vector<float> along;  // distance along the surface from the top handle's edge (x = 0.1)
+  auto id = [&](int layer, int i, int j) { return (layer * nx + i) * ny + j; };
+  for (int layer = 0; layer < 2; ++layer)
+    for (int i = 0; i < nx; ++i)
+      for (int j = 0; j < ny; ++j) {
+        const float x = static_cast<float>(i) * h;
+        s.p.push_back(V3(x, static_cast<float>(j) * h, layer ? -gap / 2 : gap / 2));
+        s.n.push_back(V3(0, 0, layer ? -1.0f : 1.0f));
+        along.push_back(layer ? 0.9f + gap + (1.0f - x) : x - 0.1f);
+      }
+  auto quad = [&](int a, int b, int c, int d) {
+    for (const auto& tri : {std::array<int, 3>{a, b, c}, std::array<int, 3>{a, c, d}}) {
+      pcl::Vertices f;
+      f.vertices.assign(tri.begin(), tri.end());
+      s.faces.push_back(f);
+    }
+    for (const auto& [u, v] : {std::pair<int, int>{a, b}, {b, c}, {c, d}, {d, a}})
+      s.pairs.emplace_back(std::min(u, v), std::max(u, v));
+  };
+  for (int layer = 0; layer < 2; ++layer)
+    for (int i = 0; i + 1 < nx; ++i)
+      for (int j = 0; j + 1 < ny; ++j)
+        quad(id(layer, i, j), id(layer, i + 1, j), id(layer, i + 1, j + 1), id(layer, i, j + 1));
+  for (int j = 0; j + 1 < ny; ++j)  // the fold: straight across the gap
+    quad(id(0, nx - 1, j), id(1, nx - 1, j), id(1, nx - 1, j + 1), id(0, nx - 1, j + 1));
+  std::sort(s.pairs.begin(), s.pairs.end());
+  s.pairs.erase(std::unique(s.pairs.begin(), s.pairs.end()), s.pairs.end());
+  const std::vector<long long> manipulated =
+      where(s, [](const V3& x) { return x.x() < 0.1f - 1e-4f && x.z() > 0; });
+  const std::vector<long long> fixed =
+      where(s, [](const V3& x) { return x.x() < 0.1f - 1e-4f && x.z() < 0; });
+  const Eigen::Vector3d from(0.0, 0.1, gap / 2), to(-0.1, 0.1, 0.3);
+  const Outcome r = deform(s, fixed, manipulated, from, to, true, true);
+  const double drag = (to - from).norm();
+  const Split split = splitPoints(s, r.deformed, drag);
+  // The field, against the unfolded strip's (linear in the distance along the surface).
+  hgd::Geometry g = hgd::extractGeometry(toShape(s, true, true));
+  hgd::Handles hs;
+  hs.fixed.emplace_back();
+  for (const long long i : fixed) hs.fixed[0].push_back(g.finite_index[static_cast<std::size_t>(i)]);
+  for (const long long i : manipulated) hs.manipulated.push_back(g.finite_index[static_cast<std::size_t>(i)]);
+  hgd::Deformer d(g, hs);
+  const float total = along[static_cast<std::size_t>(id(1, 10, 0))];
+  double worst = 0;
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    const float expected = std::clamp(1.0f - along[i] / total, 0.0f, 1.0f);
+    worst = std::max(worst, static_cast<double>(
+                                std::abs(d.field()[static_cast<std::size_t>(g.finite_index[i])] - expected)));
+  }
+  std::printf(
+      "fold as a mesh: field off the unfolded strip's by %.3f at most; split %zu (stretch %.2f); report "
+      "%zu\n",
+      worst, split.points, split.max_stretch, r.report.surface.split_points);
+  EXPECT_LE(worst, 0.03);
+  EXPECT_EQ(split.points, 0u);
+  EXPECT_EQ(r.report.surface.split_points, 0u);
+  EXPECT_EQ(r.report.unreachable, 0u);
+  EXPECT_EQ(r.report.pieces.rigid_points, 0u);
 }
 
 // Half a spacing apart, and a third (the pairs across the gap then lie within 17 degrees of

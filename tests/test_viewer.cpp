@@ -62,6 +62,12 @@ int countDifferent(const Image& a, const Image& b) {
   return n;
 }
 
+std::size_t countOf(const std::string& text, const std::string& part) {
+  std::size_t n = 0;
+  for (auto p = text.find(part); p != std::string::npos; p = text.find(part, p + part.size())) ++n;
+  return n;
+}
+
 bool haveXvfb() {
   std::string out;
   return hgdtest::run("command -v xvfb-run", out) == 0;
@@ -291,6 +297,26 @@ TEST(Viewer, MalformedReplayIsRefusedBeforeAnyEventRuns) {
     EXPECT_TRUE(hgdtest::contains(bad.err, ev + message)) << text << "\n" << bad.err;
   }
   EXPECT_EQ(hgdtest::slurp(bar), bar_before);
+}
+
+// A scenario whose handles touch (fixed x <= 0.5, manipulated beyond, lifted by 0.3) pulls the
+// bar apart along x = 0.5: the viewer says so on stderr (and on its status line) as soon as
+// the scenario's move is applied.
+TEST(Viewer, SurfacePulledApartIsSaid) {
+  if (!haveXvfb()) GTEST_SKIP() << "xvfb-run not installed";
+  hgdtest::TempDir dir;
+  const std::string bar = dir.file("bar.ply"), scenario = dir.file("s.json"), ev = dir.file("e.json");
+  hgd::writeShape(bar, hgd::shapes::bar());
+  hgdtest::writeText(scenario, R"({
+    "fixed": [ { "box": { "min": [-1, -1, -1], "max": [0.5, 1, 1] } } ],
+    "manipulated": { "box": { "min": [0.5001, -1, -1], "max": [2, 1, 1] } },
+    "move": { "frame": { "translate": [0, 0.3, 0] } }
+  })");
+  hgdtest::writeText(ev, R"({"events": []})");
+  const hgdtest::CommandResult r =
+      hgdtest::shell(viewer(bar + " --scenario " + scenario + " --replay " + ev + " --quiet"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(countOf(r.err, "hgdeform-view: warning: the surface is pulled apart at"), 1u) << r.err;
 }
 
 // The example of README.md and docs/replay.md replays, with --screenshot, --size and --stats

@@ -31,7 +31,7 @@ struct FieldOptions {
   int k_neighbors = 10;       ///< kNN for the Laplacian
   int k_normals = 16;         ///< kNN for normal estimation (when normals are not given)
   bool mesh_ring = false;     ///< on meshes, use the 1-ring from faces instead of kNN
-  bool normal_filter = true;  ///< drop neighbours whose normals point the other way
+  bool normal_filter = true;  ///< drop kNN pairs across a thin gap (docs/scans.md); never mesh edges
   FieldSolver solver = FieldSolver::Auto;
   std::size_t exact_limit = 4000;
   double tolerance = 1e-3;   ///< multilevel: relative residual (tightened as 1/sqrt(n) above 1M unknowns)

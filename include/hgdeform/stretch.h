@@ -25,10 +25,11 @@ struct SurfaceStretch {
 
 /// Measures every pair (i, j) of `pairs` (a symmetric graph; pairs of coincident rest points
 /// are skipped). `move_distance`: how far the manipulated handle travelled (its largest point
-/// displacement), the scale of "grew by more than 2%".
+/// displacement), the scale of "grew by more than 2%". Points marked in `skip` (a cloud's
+/// strays) and their pairs are not measured.
 SurfaceStretch measureStretch(const pcl::PointCloud<pcl::PointXYZ>& rest,
                               const std::vector<Eigen::Vector3f>& deformed, const NeighborGraph& pairs,
-                              double move_distance);
+                              double move_distance, const std::vector<char>* skip = nullptr);
 
 /// The warning a front end prints when points are split ("" when none is).
 std::string stretchWarning(const SurfaceStretch& stretch);
