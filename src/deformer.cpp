@@ -183,6 +183,14 @@ SolveStats Deformer::dragFrame(const Eigen::Vector3d& to) {
   return st;
 }
 
+SolveStats Deformer::translateHandle(const Eigen::Vector3d& from, const Eigen::Vector3d& to) {
+  if (!to.allFinite() || !from.allFinite()) throw std::invalid_argument("drag: target is not finite");
+  if (picked_ < 0 || from != last_to_) pick(from);
+  const SolveStats st = moveHandle(Eigen::Affine3d(Eigen::Translation3d(to - pickedWorld())));
+  last_to_ = to;
+  return st;
+}
+
 Eigen::Vector3d Deformer::pickedWorld() const {
   const Eigen::Vector3d rest =
       normalise((*geometry_.points)[static_cast<std::size_t>(picked_)].getVector3fMap().cast<double>());

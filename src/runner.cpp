@@ -101,7 +101,19 @@ MoveResult ScenarioRunner::apply(const Move& move) {
   history_.push_back(d.state());
   const int number = static_cast<int>(moves_.size()) + 1;
   MoveResult r;
-  if (move.kind == Move::Kind::Drag) {
+  if (move.kind == Move::Kind::Drag && move.drag.keep_orientation) {
+    const SolveStats st = d.translateHandle(move.drag.from, move.drag.to);
+    r.frames = 1;
+    r.iterations = st.iterations;
+    r.max_frame_iterations = st.iterations;
+    r.reached = true;  // a rigid translation of the handle: the picked point lands exactly
+    r.solve_ms = st.ms;
+    r.interpolation_ms = d.lastInterpolationMs();
+    if (!st.decreased)
+      r.warning = "move " + std::to_string(number) +
+                  " (drag, keeping orientation): Gauss-Newton could not decrease the energy; the shape may "
+                  "not follow the handle exactly";
+  } else if (move.kind == Move::Kind::Drag) {
     const DragResult dr = d.dragTo(move.drag.from, move.drag.to);
     r.frames = dr.frames;
     r.iterations = dr.iterations;
@@ -144,13 +156,14 @@ MoveResult ScenarioRunner::apply(const Move& move) {
   return r;
 }
 
-SolveStats ScenarioRunner::liveDrag(const Eigen::Vector3d& from, const Eigen::Vector3d& to) {
+SolveStats ScenarioRunner::liveDrag(const Eigen::Vector3d& from, const Eigen::Vector3d& to,
+                                    bool keep_orientation) {
   if (!deformer_) throw std::logic_error("ScenarioRunner::liveDrag: no handles yet");
   if (!live_) {
     history_.push_back(deformer_->state());  // the last applied state, taken back by dropLive()
     live_ = true;
   }
-  return deformer_->drag(from, to);
+  return keep_orientation ? deformer_->translateHandle(from, to) : deformer_->drag(from, to);
 }
 
 void ScenarioRunner::dropLive() {

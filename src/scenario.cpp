@@ -99,11 +99,12 @@ Scenario& Scenario::joint(Region region) {
   return *this;
 }
 
-Scenario& Scenario::drag(const Eigen::Vector3d& from, const Eigen::Vector3d& to) {
+Scenario& Scenario::drag(const Eigen::Vector3d& from, const Eigen::Vector3d& to, bool keep_orientation) {
   Move m;
   m.kind = Move::Kind::Drag;
   m.drag.from = from;
   m.drag.to = to;
+  m.drag.keep_orientation = keep_orientation;
   moves.push_back(m);
   return *this;
 }
@@ -342,10 +343,14 @@ struct Parser {
     if (j.contains("drag")) {
       const std::string p = path + "/drag";
       const json& d = object(j["drag"], p);
-      onlyKeys(d, p, {"from", "to"});
+      onlyKeys(d, p, {"from", "to", "keep_orientation"});
       m.kind = Move::Kind::Drag;
       m.drag.from = coordinates(member(d, p, "from"), p + "/from");
       m.drag.to = coordinates(member(d, p, "to"), p + "/to");
+      if (d.contains("keep_orientation")) {
+        if (!d["keep_orientation"].is_boolean()) fail(p + "/keep_orientation", "must be true or false");
+        m.drag.keep_orientation = d["keep_orientation"].get<bool>();
+      }
     } else if (j.contains("frame")) {
       const std::string p = path + "/frame";
       const json& f = object(j["frame"], p);
@@ -500,7 +505,9 @@ std::string scenarioToJson(const Scenario& s) {
     json moves = json::array();
     for (const auto& m : s.moves) {
       if (m.kind == Move::Kind::Drag) {
-        moves.push_back({{"drag", {{"from", v(m.drag.from)}, {"to", v(m.drag.to)}}}});
+        json d = {{"from", v(m.drag.from)}, {"to", v(m.drag.to)}};
+        if (m.drag.keep_orientation) d["keep_orientation"] = true;
+        moves.push_back({{"drag", d}});
       } else {
         json f;
         f["translate"] = v(m.frame.translate);

@@ -394,6 +394,38 @@ TEST(CliDeform, SurfacePulledApartIsSaid) {
   EXPECT_TRUE(warned) << j.dump();
 }
 
+// `deform --mesh-ring`: the field's graph is the faces' 1-ring. Its output is the library's
+// with that option, and differs from the default graph's (kNN plus mesh edges).
+TEST(CliDeform, MeshRingUsesTheFacesOneRing) {
+  TempDir dir;
+  const std::string input = dir.file("bar.ply"), scenario = dir.file("s.json");
+  const hgd::Shape mesh = hgd::shapes::barMesh(1.0f, 0.1f, 0.02f);
+  hgd::writeShape(input, mesh);
+  writeText(scenario, R"({
+    "fixed": [ { "box": { "min": [-1, -1, -1], "max": [0.05, 1, 1] } } ],
+    "manipulated": { "box": { "min": [0.95, -1, -1], "max": [2, 1, 1] } },
+    "move": { "frame": { "translate": [0, 0.2, 0.1], "rotate": { "axis": [0, 0, 1], "degrees": 30 } } }
+  })");
+  const std::string ring = dir.file("ring.ply"), knn = dir.file("knn.ply");
+  const Result a =
+      cli("deform " + quote(input) + " -s " + quote(scenario) + " -o " + quote(ring) + " --mesh-ring");
+  const Result b = cli("deform " + quote(input) + " -s " + quote(scenario) + " -o " + quote(knn));
+  ASSERT_EQ(a.code, 0) << a.err;
+  ASSERT_EQ(b.code, 0) << b.err;
+  hgd::Shape lib = hgd::readShape(input);
+  hgd::DeformOptions opt;
+  opt.field.mesh_ring = true;
+  hgd::deformShape(lib, hgd::readScenario(scenario), opt);
+  const hgd::Shape out_ring = hgd::readShape(ring), out_knn = hgd::readShape(knn);
+  double same = 0, apart = 0;
+  for (std::size_t i = 0; i < lib.size(); ++i) {
+    same = std::max(same, (position(out_ring, i) - position(lib, i)).norm());
+    apart = std::max(apart, (position(out_ring, i) - position(out_knn, i)).norm());
+  }
+  EXPECT_EQ(same, 0.0);
+  EXPECT_GT(apart, 1e-4);
+}
+
 // An organized PCD (10 x 8, some NaN points): the grid layout and the NaNs survive a deformation.
 TEST(CliDeform, OrganizedPcdKeepsLayoutAndNaNs) {
   TempDir dir;

@@ -64,7 +64,7 @@ struct DeformArgs {
   int joint_clusters = hgd::DeformOptions().clusters.joint_isoclusters;
   std::string blend;  // empty: the scenario's
   std::string solver = "auto";
-  bool ascii = false, quiet = false;
+  bool mesh_ring = false, ascii = false, quiet = false;
 };
 
 void addInputOutput(CLI::App& app, std::string& input, std::string& scenario, std::string& output,
@@ -131,6 +131,7 @@ int parseDeform(int argc, const char* const* argv, DeformArgs& a) {
       ->check(hgdcli::integerFrom(1, 100))
       ->type_name("N");
   addSolver(app, a.solver, "field solver: ");
+  app.add_flag("--mesh-ring", a.mesh_ring, "on meshes, the field's graph is the faces' 1-ring instead of kNN");
   app.add_flag("--ascii", a.ascii, "write ascii instead of binary");
   app.add_flag("-q,--quiet", a.quiet, "no summary line");
   return hgdcli::parse(app, argc, argv);
@@ -222,6 +223,7 @@ int runDeform(const DeformArgs& a) {
   hgd::DeformOptions& opt = ro.deform;
   opt.field.k_neighbors = a.k;
   opt.field.solver = fieldSolver(a.solver);
+  opt.field.mesh_ring = a.mesh_ring;
   opt.clusters.samples = a.samples;
   opt.clusters.joint_isoclusters = a.joint_clusters;
   if (a.clusters > 0) ro.clusters = a.clusters;

@@ -78,6 +78,13 @@ class Deformer {
   /// tolerance.
   DragResult dragTo(const Eigen::Vector3d& from, const Eigen::Vector3d& to);
 
+  /// A drag that keeps the handle's orientation (a scenario's "keep_orientation", the viewer's
+  /// `l`): the manipulated handle translates rigidly, without turning, so that its point nearest
+  /// `from` (deformed shape) lands on `to` exactly, as ARAP tools and proportional editing drag.
+  /// Continuing a drag (`from` equal to the previous `to`) keeps the picked point. Travelled in
+  /// steps like moveHandle().
+  SolveStats translateHandle(const Eigen::Vector3d& from, const Eigen::Vector3d& to);
+
   /// Frame metaphor: the manipulated handle gets the rigid (or affine) transform T, world
   /// coordinates, relative to the rest shape, exactly. A large change is travelled in steps
   /// (at most 20 degrees, a tenth of the diagonal each), as a user would turn the handle.

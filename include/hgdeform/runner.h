@@ -107,8 +107,9 @@ class ScenarioRunner {
   MoveResult apply(const Move& move);
 
   /// One interactive frame of a drag, shown but not recorded: the next apply(), undo() or
-  /// dropLive() returns to the last applied state first.
-  SolveStats liveDrag(const Eigen::Vector3d& from, const Eigen::Vector3d& to);
+  /// dropLive() returns to the last applied state first. `keep_orientation`: the handle
+  /// translates without turning (Deformer::translateHandle).
+  SolveStats liveDrag(const Eigen::Vector3d& from, const Eigen::Vector3d& to, bool keep_orientation = false);
   /// Back to the last applied state, if live frames moved the shape.
   void dropLive();
 

@@ -52,9 +52,12 @@ struct Region {
 };
 
 /// Direct manipulation: the manipulated handle's point nearest `from` is dragged to `to`.
+/// With `keep_orientation` the handle translates without turning (Deformer::translateHandle);
+/// without it, the paper's drag: the handle follows by shape matching and may turn.
 struct DragMove {
   Eigen::Vector3d from = Eigen::Vector3d::Zero();
   Eigen::Vector3d to = Eigen::Vector3d::Zero();
+  bool keep_orientation = false;
 };
 
 /// Frame metaphor: the manipulated handle gets this rigid motion exactly:
@@ -91,7 +94,7 @@ struct Scenario {
   Scenario& manipulate(Region region);  ///< sets the manipulated handle
   Scenario& joint(Region region);       ///< adds a joint (a bone between two handles' clusters)
   /// Adds a drag: the manipulated handle's point nearest `from` is dragged to `to`.
-  Scenario& drag(const Eigen::Vector3d& from, const Eigen::Vector3d& to);
+  Scenario& drag(const Eigen::Vector3d& from, const Eigen::Vector3d& to, bool keep_orientation = false);
   Scenario& frame(const FrameMove& move);  ///< adds a frame move
 };
 

@@ -38,9 +38,9 @@ inline double msSince(Clock::time_point t) {
 inline const char* const kHelp =
     "x  area select on/off   shift+click  select around a point   +/-  radius   c  clear selection\n"
     "f  fixed handle   m  manipulated handle   j  joint   C  clear all handles\n"
-    "d  drag mode (left-drag the manipulated handle)   t  frame mode (arrows, [ ], , .)\n"
-    "v  view: colours / field / clusters   o  rest overlay   z/y  undo/redo   n  rest shape\n"
-    "s  save shape   S  save scenario   k  screenshot   h  help   q  quit";
+    "d  drag mode (left-drag the manipulated handle)   l  drags keep its orientation\n"
+    "t  frame mode (arrows, [ ], , .)   v  view: colours / field / clusters   o  rest overlay\n"
+    "z/y  undo/redo   n  rest shape   s  save shape   S  save scenario   k  screenshot   h  help   q  quit";
 
 class Viewer;
 
@@ -148,6 +148,7 @@ class Viewer {
   bool verbose_ = true;
   std::vector<std::string> inputs_;  // files no output may replace
   bool drag_mode_ = false;
+  bool keep_orientation_ = false;  // `l`: drags translate the handle without turning it
 
  private:
   std::string input_;

@@ -43,6 +43,11 @@ bool Viewer::key(const std::string& sym, char code) {
       if (frame_mode_) drag_mode_ = false;
       message(frame_mode_ ? "frame mode: arrows move, [ ] and , . turn the handle" : "frame mode off");
       return true;
+    case 'l':
+      keep_orientation_ = !keep_orientation_;
+      message(keep_orientation_ ? "drags keep the handle's orientation (it translates without turning)"
+                                : "drags turn the handle as the shape pulls it (the paper's drag)");
+      return true;
     case 'v':
       view_ = (view_ + 1) % 3;
       refresh();
@@ -127,7 +132,7 @@ bool Viewer::dragMove(int x, int y) {
   if (!dragging_) return false;
   const Eigen::Vector3d to = fromDisplay(x, y, drag_depth_);
   const auto t0 = Clock::now();
-  run_.liveDrag(drag_last_, to);
+  run_.liveDrag(drag_last_, to, keep_orientation_);
   const double total = msSince(t0);
   stats_.interpolate.push_back(run_.deformer().lastInterpolationMs());
   stats_.solve.push_back(total - run_.deformer().lastInterpolationMs());
@@ -147,6 +152,7 @@ bool Viewer::dragEnd(int x, int y) {
   m.kind = hgd::Move::Kind::Drag;
   m.drag.from = drag_from_;
   m.drag.to = drag_last_;
+  m.drag.keep_orientation = keep_orientation_;
   commit(m);
   refresh();
   return true;
