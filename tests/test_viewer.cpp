@@ -4,9 +4,12 @@
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
 #include <png.h>
+#include <sys/stat.h>
 
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
+#include <set>
 #include <string>
 
 #include "hgdeform/fields.h"
@@ -210,6 +213,47 @@ TEST(Viewer, NoOutputReplacesAnInput) {
   }
   EXPECT_EQ(hgdtest::slurp(bar), bar_before);
   EXPECT_EQ(hgdtest::slurp(sc), sc_before);
+}
+
+// A PNG is written like every other output (the issue: the picture went to a fixed temporary
+// OUT.tmp.png renamed over OUT, so an input of that name was lost, and a link or a FIFO at OUT
+// was replaced by a file): an input named like that temporary stays, a symbolic link is
+// followed and stays a link, a FIFO is written to, and nothing else is left beside the output.
+TEST(Render, PngIsWrittenLikeEveryOtherOutput) {
+  if (!haveXvfb()) GTEST_SKIP() << "xvfb-run not installed";
+  namespace fs = std::filesystem;
+  hgdtest::TempDir dir;
+  const std::string bar = dir.file("bar.ply"), shot = dir.file("shot.png"), in = dir.file("shot.png.tmp.png");
+  hgd::writeShape(bar, hgd::shapes::bar(1.0f, 0.1f, 0.05f));
+  fs::copy_file(bar, in);
+  const std::string in_before = hgdtest::slurp(in);
+  fs::create_directories(dir.path() / "pics");
+  fs::create_symlink("pics/real.png", dir.file("link.png"));
+  const std::string fifo = dir.file("pipe.png"), got = dir.file("got.png");
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  const std::string render = std::string(HGD_RENDER) + " ";
+  const std::string script =
+      render + hgdtest::quote(in) + " -o " + hgdtest::quote(shot) + " --size 64x48 && " + render +
+      hgdtest::quote(bar) + " -o " + hgdtest::quote(dir.file("link.png")) +
+      " --size 64x48 && { timeout 20 cat " + hgdtest::quote(fifo) + " > " + hgdtest::quote(got) + " & " +
+      render + hgdtest::quote(bar) + " -o " + hgdtest::quote(fifo) + " --size 64x48; s=$?; wait; exit $s; }";
+  const hgdtest::CommandResult r =
+      hgdtest::shell("xvfb-run -a -s '-screen 0 1280x1024x24' sh -c " + hgdtest::quote(script));
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(hgdtest::slurp(in) == in_before) << "the input named like the temporary file was replaced";
+  EXPECT_EQ(readPng(shot).width, 64);
+  EXPECT_TRUE(fs::is_symlink(dir.file("link.png")));
+  EXPECT_EQ(readPng(dir.file("pics/real.png")).width, 64);
+  EXPECT_TRUE(fs::is_fifo(fifo));
+  EXPECT_EQ(readPng(got).width, 64);
+  const std::vector<std::string> names = dir.list();
+  EXPECT_EQ(std::set<std::string>(names.begin(), names.end()),
+            (std::set<std::string>{"bar.ply", "shot.png.tmp.png", "shot.png", "pics", "link.png", "pipe.png",
+                                   "got.png"}));
+  std::vector<std::string> pics;
+  for (const auto& e : fs::directory_iterator(dir.path() / "pics"))
+    pics.push_back(e.path().filename().string());
+  EXPECT_EQ(pics, std::vector<std::string>{"real.png"});
 }
 
 // A malformed replay (docs/replay.md) is refused as a whole before any event runs: exit 1 (no

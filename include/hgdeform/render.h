@@ -45,11 +45,13 @@ Eigen::Vector3f upAxis(const std::string& up, const std::vector<const Shape*>& s
 void renderPng(const std::vector<const Shape*>& shapes, const std::string& png_path,
                const RenderOptions& options);
 
-/// Writes what `window` shows (its back buffer, as last rendered) as a PNG, atomically: a
-/// temporary file beside the target, then a rename, so never a half-written picture. Refuses
-/// (hgd::refuseInputs) to replace one of `inputs`. Throws std::runtime_error
-/// "<png_path>: cannot write the <what>" on failure. renderPng and the viewer's screenshots
-/// both write through it.
+/// Writes what `window` shows (its back buffer, as last rendered) as a PNG: encoded in memory,
+/// then written by hgd::writeFileAtomically like every other output (a temporary file beside the
+/// target renamed over it, a symbolic link followed, a FIFO or a device written to directly;
+/// never a half-written picture, nothing left behind on failure). Refuses (hgd::refuseInputs)
+/// to replace one of `inputs`. Throws std::runtime_error ("<png_path>: cannot write the <what>:
+/// …", or the writer's hgd::IoError "<png_path>: cannot write: …") on failure. renderPng and the
+/// viewer's screenshots both write through it.
 void writeWindowPng(vtkRenderWindow* window, const std::string& png_path,
                     const std::vector<std::string>& inputs = {}, const std::string& what = "picture");
 
