@@ -618,4 +618,27 @@ TEST_F(CliErrors, ReportToStdoutLinksAndFifos) {
   EXPECT_TRUE(fs::is_symlink(out_.file("stdout.json")));
 }
 
+// A full disk (/dev/full: every write fails with ENOSPC). The report cannot be written: exit 1
+// and the shape written before it is taken back. The shape cannot be written (a link named .ply
+// to /dev/full, as outputs are told by their extension): exit 1 and no report.
+TEST_F(CliErrors, FullDiskLeavesNoOutput) {
+  if (!fs::exists("/dev/full")) GTEST_SKIP() << "no /dev/full";
+  const std::string base = "deform " + quote(bar_) + " -s " + quote(scenario_) + " -o ";
+  Result r = cli(base + quote(out_.file("o.ply")) + " --report /dev/full");
+  EXPECT_EQ(r.code, 1) << r.err;
+  EXPECT_TRUE(contains(r.err, "/dev/full: cannot write: No space left on device")) << r.err;
+  EXPECT_TRUE(listing(out_).empty()) << "left " << *listing(out_).begin();
+
+  fs::create_symlink("/dev/full", out_.file("full.ply"));
+  for (const char* cmd : {"field", "deform"}) {
+    r = cli(std::string(cmd) + " " + quote(bar_) + " -s " + quote(scenario_) + " -o " +
+            quote(out_.file("full.ply")) +
+            (cmd == std::string("deform") ? " --report " + quote(out_.file("r.json")) : ""));
+    EXPECT_EQ(r.code, 1) << cmd << ": " << r.err;
+    EXPECT_TRUE(contains(r.err, "full.ply: cannot write: No space left on device")) << cmd << ": " << r.err;
+    EXPECT_EQ(listing(out_), std::set<std::string>{"full.ply"}) << cmd;
+    EXPECT_TRUE(fs::is_symlink(out_.file("full.ply")));
+  }
+}
+
 }  // namespace

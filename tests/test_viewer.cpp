@@ -256,6 +256,27 @@ TEST(Render, PngIsWrittenLikeEveryOtherOutput) {
   EXPECT_EQ(pics, std::vector<std::string>{"real.png"});
 }
 
+// A full disk (a link named .png to /dev/full): the picture cannot be written, exit 1, the
+// link stays and nothing is left beside it.
+TEST(Render, FullDiskIsAnError) {
+  if (!haveXvfb()) GTEST_SKIP() << "xvfb-run not installed";
+  if (!hgdtest::exists("/dev/full")) GTEST_SKIP() << "no /dev/full";
+  namespace fs = std::filesystem;
+  hgdtest::TempDir dir;
+  const std::string bar = dir.file("bar.ply"), full = dir.file("full.png");
+  hgd::writeShape(bar, hgd::shapes::bar(1.0f, 0.1f, 0.05f));
+  fs::create_symlink("/dev/full", full);
+  const hgdtest::CommandResult r =
+      hgdtest::shell("xvfb-run -a -s '-screen 0 1280x1024x24' " + std::string(HGD_RENDER) + " " +
+                     hgdtest::quote(bar) + " -o " + hgdtest::quote(full) + " --size 64x48");
+  EXPECT_EQ(r.code, 1) << r.err;
+  EXPECT_TRUE(hgdtest::contains(r.err, full + ": cannot write: No space left on device")) << r.err;
+  EXPECT_TRUE(fs::is_symlink(full));
+  const std::vector<std::string> names = dir.list();
+  EXPECT_EQ(std::set<std::string>(names.begin(), names.end()),
+            (std::set<std::string>{"bar.ply", "full.png"}));
+}
+
 // A malformed replay (docs/replay.md) is refused as a whole before any event runs: exit 1 (no
 // crash: run() gives -1 for a signal), the JSON path of the problem on stderr, and no output of
 // the valid events before the bad one.
