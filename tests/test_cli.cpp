@@ -641,4 +641,43 @@ TEST_F(CliErrors, FullDiskLeavesNoOutput) {
   }
 }
 
+// A report at /dev/stdout, /dev/stderr, /dev/fd/N or /proc/self/fd/N is written to that
+// descriptor, as "-" is (the issue: with stdout redirected to a file, /dev/stdout led through
+// /proc/self/fd/1 to that file, which was replaced: `>> log.txt` lost the log's earlier lines).
+TEST_F(CliErrors, ReportAtADescriptorPathIsWrittenToTheDescriptor) {
+  const std::string earlier = "an earlier line of the log\n";
+  fs::create_symlink("/dev/stdout", out_.file("stdout.json"));
+  struct Case {
+    std::string report, redirect;
+  };
+  const std::vector<Case> cases = {
+      {"/dev/stdout", ">>"},           {"/dev/stderr", "2>>"}, {"/dev/fd/1", ">>"},
+      {"/proc/self/fd/1", ">>"},       {"/dev/fd/3", "3>>"},   {"/proc/self/fd/3", "3>>"},
+      {out_.file("stdout.json"), ">>"}};
+  int k = 0;
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.report + " " + c.redirect);
+    const std::string log = in_.file("log.txt");
+    writeText(log, earlier);
+    struct stat before {};
+    ASSERT_EQ(::stat(log.c_str(), &before), 0);
+    const std::string output = out_.file("o" + std::to_string(k++) + ".ply");
+    const Result r =
+        shell("( " + quote(HGD_TOOL) + " deform " + quote(bar_) + " -s " + quote(scenario_) + " -o " +
+              quote(output) + " -q --report " + quote(c.report) + " " + c.redirect + " " + quote(log) + " )");
+    EXPECT_EQ(r.code, 0) << r.err;
+    EXPECT_TRUE(fs::exists(output));
+    struct stat after {};
+    ASSERT_EQ(::stat(log.c_str(), &after), 0);
+    EXPECT_EQ(after.st_ino, before.st_ino) << "the log was replaced";
+    const std::string text = slurp(log);
+    ASSERT_EQ(text.rfind(earlier, 0), 0u) << text.substr(0, 200);
+    std::string json = text.substr(earlier.size());
+    json = json.substr(
+        0, json.find("\nhgdeform: ") == std::string::npos ? json.size() : json.find("\nhgdeform: "));
+    EXPECT_GT(nlohmann::json::parse(json).at("points").get<int>(), 0);
+  }
+  EXPECT_TRUE(fs::is_symlink(out_.file("stdout.json")));
+}
+
 }  // namespace

@@ -43,9 +43,60 @@ void unregisterTemp(int slot) {
   if (slot >= 0) g_temp_slots[slot].state.store(0);
 }
 
+/// The descriptor an absolute, normalised path names: /dev/stdin, /dev/stdout, /dev/stderr,
+/// /dev/fd/N, /proc/self/fd/N, /proc/thread-self/fd/N or /proc/<this process>/fd/N; else -1.
+int descriptorNamed(const std::string& p) {
+  if (p == "/dev/stdin") return 0;
+  if (p == "/dev/stdout") return 1;
+  if (p == "/dev/stderr") return 2;
+  for (const std::string& dir :
+       {std::string("/dev/fd/"), std::string("/proc/self/fd/"), std::string("/proc/thread-self/fd/"),
+        "/proc/" + std::to_string(::getpid()) + "/fd/"}) {
+    if (p.size() <= dir.size() || p.compare(0, dir.size(), dir) != 0 || p.size() - dir.size() > 9) continue;
+    int fd = 0;
+    for (std::size_t i = dir.size(); i < p.size(); ++i) {
+      if (p[i] < '0' || p[i] > '9') return -1;
+      fd = fd * 10 + (p[i] - '0');
+    }
+    return fd;
+  }
+  return -1;
+}
+
 }  // namespace
 
+int descriptorPath(const std::string& path) {
+  fs::path p(path);
+  for (int hops = 0; hops < 40; ++hops) {
+    std::error_code ec;
+    const fs::path abs = fs::absolute(p, ec).lexically_normal();
+    if (ec) return -1;
+    if (const int fd = descriptorNamed(abs.string()); fd >= 0) return fd;
+    struct stat st {};
+    if (::lstat(p.c_str(), &st) != 0 || !S_ISLNK(st.st_mode)) return -1;
+    const fs::path to = fs::read_symlink(p, ec);
+    if (ec) return -1;
+    p = to.is_absolute() ? to : p.parent_path() / to;
+  }
+  return -1;
+}
+
 AtomicWriter::AtomicWriter(const std::string& target) : target_(target) {
+  if (const int fd = descriptorPath(target); fd >= 0) {
+    // Written to the descriptor itself (as "-" is to stdout): whatever it is open on, a file
+    // that stdout was redirected to (appended to with >>) included, is never replaced.
+    if (fd == STDOUT_FILENO) std::fflush(stdout);  // what the program printed comes first
+    if (fd == STDERR_FILENO) std::fflush(stderr);
+    const int copy = ::fcntl(fd, F_DUPFD_CLOEXEC, 0);
+    if (copy < 0) fail(target_, "cannot write: " + errnoText(errno));
+    file_ = ::fdopen(copy, "wb");
+    if (!file_) {
+      const int e = errno;
+      ::close(copy);
+      fail(target_, "cannot write: " + errnoText(e));
+    }
+    return;  // direct: commit only flushes
+  }
   struct stat st {};
   if (::stat(target.c_str(), &st) == 0 && !S_ISREG(st.st_mode) && !S_ISDIR(st.st_mode)) {
     const int fd = ::open(target.c_str(), O_WRONLY | O_CLOEXEC);
@@ -148,6 +199,7 @@ void refuseInputs(const std::string& output, const std::vector<std::string>& inp
 }
 
 void removeOutput(const std::string& path) noexcept {
+  if (io_internal::descriptorPath(path) >= 0) return;  // written to a descriptor: nothing to take back
   struct stat st {};
   if (::lstat(path.c_str(), &st) != 0) return;
   if (S_ISLNK(st.st_mode)) {  // what the writer wrote is the link's target
