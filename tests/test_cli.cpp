@@ -680,4 +680,29 @@ TEST_F(CliErrors, ReportAtADescriptorPathIsWrittenToTheDescriptor) {
   EXPECT_TRUE(fs::is_symlink(out_.file("stdout.json")));
 }
 
+// A loop of symbolic links is refused, naming the path (the issue: the report replaced l1 with
+// a regular file); the shape written before the report is taken back.
+TEST_F(CliErrors, SymlinkLoopIsRefused) {
+  fs::create_symlink("l1", out_.file("l2"));
+  fs::create_symlink("l2", out_.file("l1"));
+  fs::create_symlink("b.ply", out_.file("a.ply"));
+  fs::create_symlink("a.ply", out_.file("b.ply"));
+  const std::string base = "deform " + quote(bar_) + " -s " + quote(scenario_) + " -o ";
+  const std::set<std::string> links = {"l1", "l2", "a.ply", "b.ply"};
+  Result r = cli(base + quote(out_.file("o.ply")) + " --report " + quote(out_.file("l1")));
+  EXPECT_EQ(r.code, 1) << r.err;
+  EXPECT_TRUE(contains(r.err, out_.file("l1") + ": cannot write: Too many levels of symbolic links"))
+      << r.err;
+  EXPECT_EQ(listing(out_), links);
+  for (const char* cmd : {"field", "deform"}) {
+    r = cli(std::string(cmd) + " " + quote(bar_) + " -s " + quote(scenario_) + " -o " +
+            quote(out_.file("a.ply")));
+    EXPECT_EQ(r.code, 1) << cmd << ": " << r.err;
+    EXPECT_TRUE(contains(r.err, out_.file("a.ply") + ": cannot write: Too many levels of symbolic links"))
+        << cmd << ": " << r.err;
+    EXPECT_EQ(listing(out_), links) << cmd;
+  }
+  for (const auto& name : links) EXPECT_TRUE(fs::is_symlink(out_.file(name))) << name;
+}
+
 }  // namespace

@@ -98,7 +98,10 @@ AtomicWriter::AtomicWriter(const std::string& target) : target_(target) {
     return;  // direct: commit only flushes
   }
   struct stat st {};
-  if (::stat(target.c_str(), &st) == 0 && !S_ISREG(st.st_mode) && !S_ISDIR(st.st_mode)) {
+  const int found = ::stat(target.c_str(), &st);
+  // A loop of links (l1 -> l2 -> l1) names no file: refused, not replaced by one.
+  if (found != 0 && errno == ELOOP) fail(target_, "cannot write: " + errnoText(ELOOP));
+  if (found == 0 && !S_ISREG(st.st_mode) && !S_ISDIR(st.st_mode)) {
     const int fd = ::open(target.c_str(), O_WRONLY | O_CLOEXEC);
     if (fd < 0) fail(target_, "cannot write: " + errnoText(errno));
     file_ = ::fdopen(fd, "wb");
@@ -112,8 +115,9 @@ AtomicWriter::AtomicWriter(const std::string& target) : target_(target) {
   if (struct stat lst{}; ::lstat(target.c_str(), &lst) == 0 && S_ISLNK(lst.st_mode)) {
     // Follow the link (and links to links) to the file it names, existing or not.
     fs::path t(target);
-    for (int hops = 0; hops < 40 && fs::is_symlink(t); ++hops) {
-      std::error_code ec;
+    int hops = 0;
+    for (std::error_code ec; fs::is_symlink(t, ec); ++hops) {
+      if (hops == 40) fail(target_, "cannot write: " + errnoText(ELOOP));
       const fs::path to = fs::read_symlink(t, ec);
       if (ec) fail(target_, "cannot write: cannot read the symbolic link: " + ec.message());
       t = to.is_absolute() ? to : t.parent_path() / to;
