@@ -779,6 +779,73 @@ TEST(Batch, SummaryLineSaysTheReportFailed) {
   EXPECT_TRUE(contains(ok.out, "; report " + (rep / "index.html").string())) << ok.out;
 }
 
+// The report's files are outputs like every other (the issue: with the scenario at
+// DIR/summary.json, --report DIR replaced it and the batch exited 0): one that names an input
+// (the default scenario, a scan's own scenario, a scan; also through a link) is refused before
+// any scan is deformed: exit 1, an error naming both, every input intact, no output.
+TEST(Batch, ReportFilesNeverReplaceAnInput) {
+  TempDir dir;
+  const fs::path in = dir.path() / "in", out = dir.path() / "out", rep = dir.path() / "rep";
+  makeScans(in, false);
+  fs::create_directories(rep / "thumbs");
+  const auto inputs = treeHashes(in);
+  // The scenario itself in the report folder, under the name of the summary.
+  fs::copy_file(in / "scenario.json", rep / "summary.json");
+  const std::string scenario = slurp(rep / "summary.json");
+  Result r =
+      cli("batch -s " + q(rep / "summary.json") + " " + q(in) + " -o " + q(out) + " --report " + q(rep));
+  EXPECT_EQ(r.code, 1) << r.out << r.err;
+  EXPECT_TRUE(contains(r.err, (rep / "summary.json").string() + ": refusing to overwrite the input"))
+      << r.err;
+  EXPECT_EQ(slurp(rep / "summary.json"), scenario);
+  fs::remove(rep / "summary.json");
+  // Links in the report folder to a scan, to a scan's own scenario, to the default scenario.
+  const std::vector<std::pair<std::string, fs::path>> links = {
+      {"summary.csv", in / "bar_a.ply"},
+      {"index.html", in / "own_f.json"},
+      {"thumbs/plane_c.ply.png", in / "scenario.json"}};
+  for (const auto& [name, target] : links) {
+    SCOPED_TRACE(name);
+    fs::create_symlink(target, rep / name);
+    r = cli(batch(in, out, "--report " + q(rep)));
+    EXPECT_EQ(r.code, 1) << r.out << r.err;
+    EXPECT_TRUE(
+        contains(r.err, (rep / name).string() + ": refusing to overwrite the input " + target.string()))
+        << r.err;
+    EXPECT_TRUE(fs::is_symlink(rep / name));
+    fs::remove(rep / name);
+  }
+  EXPECT_EQ(treeHashes(in), inputs) << "an input was replaced";
+  if (fs::exists(out)) {
+    EXPECT_EQ(filesUnder(out), std::vector<std::string>{});
+  }
+  EXPECT_EQ(filesUnder(rep), std::vector<std::string>{});
+}
+
+// A scan's output that names an input (a link in OUTPUT_DIR to another scan or to the
+// scenario) fails that scan with the error of every tool; the input stays, the rest go on.
+TEST(Batch, OutputsNeverReplaceAnInput) {
+  TempDir dir;
+  const fs::path in = dir.path() / "in", out = dir.path() / "out";
+  const Folder f = makeScans(in, false);
+  const auto inputs = treeHashes(in);
+  fs::create_directories(out);
+  fs::create_symlink(in / "plane_c.ply", out / "bar_a.ply");
+  fs::create_symlink(in / "scenario.json", out / "plane_b.pcd");
+  const Result r = cli(batch(in, out, "--recursive"));
+  EXPECT_EQ(r.code, 1) << r.out << r.err;
+  EXPECT_TRUE(contains(r.err, (out / "bar_a.ply").string() + ": refusing to overwrite the input " +
+                                  (in / "plane_c.ply").string()))
+      << r.err;
+  EXPECT_TRUE(contains(r.err, (out / "plane_b.pcd").string() + ": refusing to overwrite the input " +
+                                  (in / "scenario.json").string()))
+      << r.err;
+  EXPECT_EQ(countOf(r.out, ": ok "), f.good.size() - 2) << r.out;
+  EXPECT_EQ(treeHashes(in), inputs) << "an input was replaced";
+  EXPECT_TRUE(fs::is_symlink(out / "bar_a.ply"));
+  EXPECT_TRUE(fs::is_symlink(out / "plane_b.pcd"));
+}
+
 TEST(Batch, RemovesStaleTemporaryFiles) {
   TempDir dir;
   const fs::path in = dir.path() / "in", out = dir.path() / "out";

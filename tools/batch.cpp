@@ -175,10 +175,18 @@ int run(const Config& cfg, MpiSession& mpi) {
   ctx.default_scenario_hash = batch::hashBytes(hgd::scenarioToJson(ctx.default_scenario));
 
   std::vector<batch::SkippedEntry> skipped_entries;
-  const std::vector<Scan> all = listScans(cfg, skipped_entries);
+  RunInputs inputs;
+  const std::vector<Scan> all = listScans(cfg, skipped_entries, inputs);
   std::vector<Scan> scans;
   for (std::size_t i = 0; i < all.size(); ++i)
     if (static_cast<int>(i % static_cast<std::size_t>(cfg.shard_n)) == cfg.shard_k) scans.push_back(all[i]);
+  // The report's files are outputs too: one that would replace an input (the scenario saved as
+  // DIR/summary.json, a link to a scan) stops the run before anything is written.
+  if (!cfg.report_dir.empty()) {
+    for (const char* name : {"summary.json", "summary.csv", "index.html"})
+      inputs.refuse((cfg.report_dir / name).string());
+    for (const Scan& s : scans) inputs.refuse((cfg.report_dir / thumbnailName(s.rel)).string());
+  }
   if (all.empty() && root)
     std::fprintf(stderr, "hgdeform batch: warning: no PLY, PCD, OBJ, XYZ, OFF or STL file in %s%s\n",
                  cfg.input_dir.c_str(), cfg.recursive ? "" : " (subfolders are searched with --recursive)");

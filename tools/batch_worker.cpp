@@ -95,10 +95,6 @@ void testHook(const std::string& rel) {
 }
 
 #ifdef HGD_HAVE_RENDER
-std::string thumbnailName(const std::string& rel) {
-  return "thumbs/" + rel + ".png";
-}
-
 std::mutex g_render_mutex;  // VTK is not thread-safe: one picture at a time
 
 void renderThumbnail(const hgd::Shape& before, const hgd::Shape& after, const fs::path& png) {
@@ -150,6 +146,10 @@ std::string thumbnail(const Context& ctx, const Scan& s, const hgd::Shape* befor
 }
 
 }  // namespace
+
+std::string thumbnailName(const std::string& rel) {
+  return "thumbs/" + rel + ".png";
+}
 
 ScanResult processScan(const Scan& s, const Context& ctx) {
   ScanResult r;
