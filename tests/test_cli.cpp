@@ -705,4 +705,21 @@ TEST_F(CliErrors, SymlinkLoopIsRefused) {
   for (const auto& name : links) EXPECT_TRUE(fs::is_symlink(out_.file(name))) << name;
 }
 
+// hgdeform-bench's --json is an output like every other: it never replaces the mesh it reads
+// (the issue: --armadillo m.ply --json m.ply overwrote the mesh with JSON), however spelt.
+TEST(CliBench, JsonNeverReplacesTheMesh) {
+  TempDir dir;
+  const std::string mesh = dir.file("m.ply");
+  hgd::writeShape(mesh, hgd::shapes::barMesh());
+  const std::string before = slurp(mesh);
+  for (const std::string& json : {mesh, (dir.path() / "." / "m.ply").string()}) {
+    const Result r = shell(quote(HGD_BENCH) + " --models armadillo --armadillo " + quote(mesh) + " --json " +
+                           quote(json) + " --sizes 500 --clusters 4 --repeat 1");
+    EXPECT_EQ(r.code, 1) << r.out << r.err;
+    EXPECT_TRUE(contains(r.err, json + ": refusing to overwrite the input " + mesh)) << r.err;
+    EXPECT_TRUE(slurp(mesh) == before) << "the mesh was replaced";
+  }
+  EXPECT_EQ(listing(dir), std::set<std::string>{"m.ply"});
+}
+
 }  // namespace
