@@ -7,6 +7,7 @@
 // The stages live beside it (see batch_internal.h).
 #include <unistd.h>
 
+#include <cctype>
 #include <cerrno>
 #include <chrono>
 #include <cstdio>
@@ -157,10 +158,13 @@ void checkDirectories(const Config& c) {
 }
 
 void writeReport(const Context& ctx, const std::vector<ScanResult>& results, const batch::Totals& totals,
-                 const std::string& note) {
+                 const std::vector<std::string>& warnings) {
   const fs::path& dir = ctx.cfg.report_dir;
+  std::string note;
+  for (const auto& w : warnings) note += (note.empty() ? "" : " ") + w;
+  if (!note.empty()) note[0] = static_cast<char>(std::toupper(static_cast<unsigned char>(note[0])));
   fs::create_directories(dir);
-  hgd::writeFileAtomically((dir / "summary.json").string(), batch::summaryJson(results, totals));
+  hgd::writeFileAtomically((dir / "summary.json").string(), batch::summaryJson(results, totals, warnings));
   hgd::writeFileAtomically((dir / "summary.csv").string(), batch::summaryCsv(results));
   hgd::writeFileAtomically((dir / "index.html").string(), batch::indexHtml(results, totals, note));
 }
@@ -194,18 +198,24 @@ int run(const Config& cfg, MpiSession& mpi) {
     for (const auto& e : skipped_entries)
       std::fprintf(stderr, "hgdeform batch: warning: skipped %s: %s\n", e.path.c_str(), e.why.c_str());
 
+  // Why the report has no thumbnails, if it has none: one warning on stderr, in summary.json's
+  // warnings and at the top of index.html.
   std::string note;
   if (!cfg.report_dir.empty()) {
 #ifdef HGD_HAVE_RENDER
     const std::string problem = hgd::displayProblem();
     ctx.thumbnails = problem.empty();
     if (!ctx.thumbnails)
-      note = "No thumbnails (they need an X display): " + problem +
-             ". Run the batch under xvfb-run -a (or with a display) to get "
-             "before/after pictures.";
+      note = "no thumbnails (they need an X display with OpenGL): " + problem +
+             ". Run the batch under xvfb-run -a (or with a display) to get before/after pictures.";
 #else
-    note = "No thumbnails: this hgdeform was built without PCL visualization (the hgdeform_render target).";
+    note = "no thumbnails: this hgdeform was built without PCL visualization (the hgdeform_render target).";
 #endif
+  }
+  std::vector<std::string> run_warnings;
+  if (!note.empty()) {
+    run_warnings.push_back(note);
+    if (root) std::fprintf(stderr, "hgdeform batch: warning: %s\n", note.c_str());
   }
 
   // One run per output folder (shards of one split excepted). Under MPI rank 0 holds the lock
@@ -268,7 +278,7 @@ int run(const Config& cfg, MpiSession& mpi) {
   bool report_written = false;
   if (!cfg.report_dir.empty()) {
     try {
-      writeReport(ctx, results, totals, note);
+      writeReport(ctx, results, totals, run_warnings);
       report_written = true;
     } catch (const std::exception& e) {
       std::fprintf(stderr, "hgdeform batch: report: %s\n", e.what());
