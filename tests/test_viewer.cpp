@@ -5,12 +5,18 @@
 #include <pcl/point_types.h>
 #include <png.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
+#include <chrono>
+#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <set>
 #include <string>
+#include <thread>
 
 #include "hgdeform/fields.h"
 #include "hgdeform/geometry.h"
@@ -406,6 +412,97 @@ TEST(Viewer, AbsentXServerIsAClearError) {
     EXPECT_NE(out.find("cannot open the X display ':4711'"), std::string::npos) << out;
   }
   EXPECT_FALSE(hgdtest::exists(dir.file("p.png")));
+}
+
+/// An Xvfb started without the GLX extension on a free display number, stopped (by its pid)
+/// when the object dies. display() is "" when Xvfb is not installed or did not start.
+class XvfbWithoutGlx {
+ public:
+  XvfbWithoutGlx() {
+    std::string out;
+    if (hgdtest::run("command -v Xvfb", out) != 0) return;
+    for (int n = 97; n < 200 && display_.empty(); ++n) {
+      const std::string num = std::to_string(n), socket = "/tmp/.X11-unix/X" + num;
+      if (hgdtest::exists("/tmp/.X" + num + "-lock") || hgdtest::exists(socket)) continue;
+      pid_ = ::fork();
+      if (pid_ < 0) return;
+      if (pid_ == 0) {
+        std::freopen("/dev/null", "w", stdout);
+        std::freopen("/dev/null", "w", stderr);
+        const std::string d = ":" + num;
+        ::execlp("Xvfb", "Xvfb", d.c_str(), "-extension", "GLX", "-nolisten", "tcp", "-screen", "0",
+                 "640x480x24", static_cast<char*>(nullptr));
+        ::_exit(127);
+      }
+      for (int i = 0; i < 1000 && display_.empty(); ++i) {  // 10 s at most
+        if (hgdtest::exists(socket)) {
+          display_ = ":" + num;
+        } else if (::waitpid(pid_, nullptr, WNOHANG) == pid_) {
+          pid_ = -1;  // the number was taken meanwhile: the next one
+          break;
+        } else {
+          std::this_thread::sleep_for(std::chrono::milliseconds(10));
+        }
+      }
+      if (display_.empty()) stop();
+    }
+  }
+  ~XvfbWithoutGlx() { stop(); }
+  XvfbWithoutGlx(const XvfbWithoutGlx&) = delete;
+  XvfbWithoutGlx& operator=(const XvfbWithoutGlx&) = delete;
+  const std::string& display() const { return display_; }
+
+ private:
+  void stop() {
+    if (pid_ > 0) {
+      ::kill(pid_, SIGTERM);
+      ::waitpid(pid_, nullptr, 0);
+    }
+    pid_ = -1;
+  }
+  pid_t pid_ = -1;
+  std::string display_;
+};
+
+// An X server without GLX (the issue: VTK found no OpenGL visual and aborted the viewer, the
+// renderer and batch --report, exit 134): the viewer and the renderer exit 1 saying so, and the
+// batch deforms every scan and skips the thumbnails with its one warning.
+TEST(Viewer, XServerWithoutGlxIsAClearError) {
+  const XvfbWithoutGlx x;
+  if (x.display().empty()) GTEST_SKIP() << "Xvfb not installed, or it did not start";
+  namespace fs = std::filesystem;
+  hgdtest::TempDir dir;
+  fs::create_directories(dir.path() / "in");
+  const std::string bar = dir.file("in/bar.ply");
+  hgd::writeShape(bar, hgd::shapes::bar(1.0f, 0.1f, 0.05f));
+  const std::string env = "DISPLAY=" + x.display() + " ";
+  for (const std::string& tool : {std::string(HGD_VIEW) + " " + bar,
+                                  std::string(HGD_RENDER) + " " + bar + " -o " + dir.file("p.png")}) {
+    const hgdtest::CommandResult r = hgdtest::shell(env + tool);
+    EXPECT_EQ(r.code, 1) << tool << "\n" << r.err;
+    EXPECT_TRUE(hgdtest::contains(r.err, "the X display '" + x.display() + "' has no GLX")) << r.err;
+  }
+  EXPECT_FALSE(hgdtest::exists(dir.file("p.png")));
+  hgdtest::writeText(dir.file("s.json"), R"({"format": "hgdeform-scenario/1",
+    "fixed": [{"box": {"min": [-1, -1, -1], "max": [0.1, 1, 1]}}],
+    "manipulated": {"box": {"min": [0.9, -1, -1], "max": [2, 1, 1]}},
+    "move": {"frame": {"translate": [0, 0, 0.1]}}})");
+  const hgdtest::CommandResult b =
+      hgdtest::shell(env + std::string(HGD_TOOL) + " batch -s " + hgdtest::quote(dir.file("s.json")) + " " +
+                     hgdtest::quote(dir.file("in")) + " -o " + hgdtest::quote(dir.file("out")) +
+                     " --report " + hgdtest::quote(dir.file("rep")));
+  EXPECT_EQ(b.code, 0) << b.out << b.err;
+  EXPECT_TRUE(hgdtest::exists(dir.file("out/bar.ply")));
+  EXPECT_TRUE(hgdtest::contains(b.err, "hgdeform batch: warning: no thumbnails")) << b.err;
+  EXPECT_TRUE(hgdtest::contains(b.err, "has no GLX")) << b.err;
+  if (hgdtest::exists(dir.file("rep/summary.json"))) {
+    const auto j = nlohmann::json::parse(hgdtest::slurp(dir.file("rep/summary.json")));
+    ASSERT_EQ(j.at("warnings").size(), 1u);
+    EXPECT_TRUE(hgdtest::contains(j.at("warnings")[0].get<std::string>(), "has no GLX"));
+  } else {
+    ADD_FAILURE() << "no summary.json";
+  }
+  EXPECT_FALSE(hgdtest::exists(dir.file("rep/thumbs")));
 }
 
 // A scenario of field and cylinder regions loaded into the viewer is saved with those regions,

@@ -31,9 +31,10 @@ struct RenderOptions {
   int point_size = 3;
 };
 
-/// Empty when an X display can be opened; else what is wrong ("DISPLAY is not set", "cannot
-/// open the X display ':99'"). VTK aborts the process when its window finds no display, so
-/// every front end asks first.
+/// Empty when an X display can be opened and has the GLX extension (OpenGL); else what is
+/// wrong ("DISPLAY is not set", "cannot open the X display ':99'", "the X display ':97' has no
+/// GLX extension"). VTK aborts the process when its window finds no display or no OpenGL
+/// visual, so every front end asks first.
 std::string displayProblem();
 
 /// The unit vector `up` names for these shapes (see RenderOptions::up). Throws
