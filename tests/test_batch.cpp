@@ -600,15 +600,35 @@ TEST(BatchProvenance, EditedScenarioRedoesEveryScanThatUsesIt) {
   // Options: --format pcd writes other files; --format ply on PLY inputs changes nothing.
   const Result ply = cli(batch(in, out, "--recursive --format ply"));
   EXPECT_EQ(countOf(ply.out, ": skipped (up to date)"), 3u) << ply.out;  // bar_a, plane_c, scenario.ply
-  // A deleted output, an output edited by hand, --force.
+  // A deleted output, an output edited by hand, one whose 12 last bytes were zeroed in place
+  // with its time restored (same size: the issue, "up to date"), one replaced by a copy of
+  // itself (same bytes and time, another inode).
   fs::remove(out / "plane_c.ply");
   writeText((out / "bar_a.ply").string(), "spoilt");
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));  // past the ctime of the last write
+  const fs::path zeroed = out / "sub" / "plane_e.pcd", copied = out / "mesh_d.obj";
+  const auto zeroed_time = fs::last_write_time(zeroed), copied_time = fs::last_write_time(copied);
+  const std::string zeroed_bytes = slurp(zeroed);
+  {
+    std::fstream file(zeroed, std::ios::in | std::ios::out | std::ios::binary);
+    file.seekp(-12, std::ios::end);
+    file.write("\0\0\0\0\0\0\0\0\0\0\0\0", 12);
+  }
+  fs::last_write_time(zeroed, zeroed_time);
+  fs::copy_file(copied, out / "copy.tmp");
+  fs::rename(out / "copy.tmp", copied);
+  fs::last_write_time(copied, copied_time);
   const Result again = cli(batch(in, out, "--recursive --report " + q(rep)));
   EXPECT_EQ(again.code, 0) << again.err;
   EXPECT_EQ(reasons(rep)["plane_c.ply"], "output missing");
   EXPECT_EQ(reasons(rep)["bar_a.ply"], "output changed");
+  EXPECT_EQ(reasons(rep)["sub/plane_e.pcd"], "output changed");
+  EXPECT_EQ(reasons(rep)["mesh_d.obj"], "output changed");
   EXPECT_EQ(reasons(rep)["plane_b.pcd"], "up to date");
-  EXPECT_EQ(countOf(again.out, ": ok "), 2u) << again.out;
+  EXPECT_EQ(countOf(again.out, ": ok "), 4u) << again.out;
+  EXPECT_TRUE(slurp(zeroed) == zeroed_bytes) << "not redone";
+  const Result settled = cli(batch(in, out, "--recursive"));
+  EXPECT_EQ(countOf(settled.out, ": skipped (up to date)"), n) << settled.out;
 }
 
 // The issue: a touched input was redone; a changed one older than its output was not.
@@ -633,6 +653,38 @@ TEST(BatchProvenance, InputsAreComparedByContent) {
   const long long ns = static_cast<long long>(st.st_mtim.tv_sec) * 1000000000LL + st.st_mtim.tv_nsec;
   EXPECT_EQ(record(out, "plane_c.ply").at("input").at("mtime_ns").get<long long>(), ns);
 
+  // Its mode changed (its ctime moves, not its mtime): hashed again, same bytes, up to date;
+  // the record learns the new ctime.
+  fs::permissions(in / "plane_c.ply", fs::perms::owner_exec, fs::perm_options::add);
+  const Result chmodded = cli(batch(in, out, "--recursive --report " + q(rep)));
+  EXPECT_EQ(countOf(chmodded.out, ": skipped (up to date)"), n) << chmodded.out;
+  EXPECT_EQ(treeTimes(out), t1);
+  ASSERT_EQ(::stat((in / "plane_c.ply").c_str(), &st), 0);
+  EXPECT_EQ(record(out, "plane_c.ply").at("input").at("ctime_ns").get<long long>(),
+            static_cast<long long>(st.st_ctim.tv_sec) * 1000000000LL + st.st_ctim.tv_nsec);
+  EXPECT_EQ(record(out, "plane_c.ply").at("input").at("inode").get<unsigned long long>(),
+            static_cast<unsigned long long>(st.st_ino));
+
+  // A byte changed in place, its time put back (touch -r): same size and mtime (the issue: "up
+  // to date"); its ctime gives it away, and its bytes decide.
+  {
+    const auto mtime = fs::last_write_time(in / "bar_a.ply");
+    std::fstream file(in / "bar_a.ply", std::ios::in | std::ios::out | std::ios::binary);
+    file.seekg(-1, std::ios::end);
+    char last = 0;
+    file.get(last);
+    file.seekp(-1, std::ios::end);
+    file.put(static_cast<char>(last ^ 0x40));
+    file.close();
+    fs::last_write_time(in / "bar_a.ply", mtime);
+  }
+  const Result flipped = cli(batch(in, out, "--recursive --report " + q(rep)));
+  EXPECT_EQ(flipped.code, 0) << flipped.err;
+  EXPECT_TRUE(contains(flipped.out, "bar_a.ply: ok ")) << flipped.out;
+  EXPECT_EQ(reasons(rep)["bar_a.ply"], "input changed");
+  EXPECT_EQ(countOf(flipped.out, ": skipped (up to date)"), n - 1) << flipped.out;
+  const auto t2 = treeTimes(out);
+
   // New bytes with an old time (older than the output): only that scan again.
   hgd::writeShape((in / "plane_c.ply").string(), hgd::shapes::bumpyPlane(4, 0.08f, 0.03f));
   fs::last_write_time(in / "plane_c.ply", old - std::chrono::hours(1));
@@ -644,7 +696,7 @@ TEST(BatchProvenance, InputsAreComparedByContent) {
   EXPECT_EQ(reasons(rep)["plane_c.ply"], "input changed");
   EXPECT_EQ(countOf(changed.out, ": skipped (up to date)"), n - 1) << changed.out;
   const auto t3 = treeTimes(out);
-  for (const auto& [rel, t] : t1) {
+  for (const auto& [rel, t] : t2) {
     if (rel == "plane_c.ply")
       EXPECT_NE(t3.at(rel), t) << rel;
     else

@@ -40,14 +40,14 @@ const char* kBatchDescription =
     "results\n"
     "under OUTPUT_DIR with the same relative paths. A scenario beside a scan with the same base\n"
     "name (scan_017.json for scan_017.pcd) replaces S.json for that scan. Outputs are written\n"
-    "atomically and inputs are never modified. Each output's provenance (its input's size, time\n"
-    "and content hash, the scenario, the options, the tool version) is recorded in\n"
-    "OUTPUT_DIR/.hgdeform/; a scan whose record still matches is skipped (up to date), so a rerun\n"
-    "redoes exactly what changed and an interrupted batch resumes where it stopped; each line says\n"
-    "why. A scan that fails is reported and the batch goes on. A second batch writing to the same\n"
-    "OUTPUT_DIR at the same time refuses to start (exit 1); shards of one split may share it.\n"
-    "FIFOs, devices, dangling links and (with --recursive) links to folders are skipped with a\n"
-    "warning; links to folders are not followed.";
+    "atomically and inputs are never modified. Each output's provenance (its input's size, times,\n"
+    "inode and content hash, the scenario, the options, the tool version, the output's size, ctime\n"
+    "and inode) is recorded in OUTPUT_DIR/.hgdeform/; a scan whose record still matches is\n"
+    "skipped (up to date), so a rerun redoes exactly what changed and an interrupted batch\n"
+    "resumes where it stopped; each line says why. A scan that fails is reported and the batch\n"
+    "goes on. A second batch writing to the same OUTPUT_DIR at the same time refuses to start\n"
+    "(exit 1); shards of one split may share it. FIFOs, devices, dangling links and (with\n"
+    "--recursive) links to folders are skipped with a warning; links to folders are not followed.";
 
 const char* kBatchFooter =
     "On a terminal a progress bar shows files done, the current file, the rate and the ETA;\n"
