@@ -91,6 +91,34 @@ hgd::Scenario turnTheFarEnd(double degrees, double from_x = 1.3) {
   return s;
 }
 
+// Each normal `vn` (grid order, i along the strip) against the normal of the deformed strip
+// `v` at its vertex: the cross product of the grid tangents computed here from the written
+// vertices. The far end (turned by about 50 degrees) must have turned.
+void expectNormalsFollowTheStrip(const std::vector<Eigen::Vector3f>& v,
+                                 const std::vector<Eigen::Vector3f>& vn, int nx, int ny, const char* what) {
+  ASSERT_EQ(v.size(), static_cast<std::size_t>(nx * ny));
+  ASSERT_EQ(vn.size(), v.size());
+  double worst = 0, sum = 0;
+  int far_end_turned = 0;
+  for (int i = 0; i < nx; ++i)
+    for (int j = 0; j < ny; ++j) {
+      const auto at = [&](int ii, int jj) { return v[static_cast<std::size_t>(ii * ny + jj)]; };
+      const Eigen::Vector3f du = at(std::min(i + 1, nx - 1), j) - at(std::max(i - 1, 0), j);
+      const Eigen::Vector3f dv = at(i, std::min(j + 1, ny - 1)) - at(i, std::max(j - 1, 0));
+      const Eigen::Vector3f expected = du.cross(dv).normalized();
+      const Eigen::Vector3f got = vn[static_cast<std::size_t>(i * ny + j)].normalized();
+      const double angle =
+          std::acos(std::clamp(static_cast<double>(expected.dot(got)), -1.0, 1.0)) * 180 / M_PI;
+      worst = std::max(worst, angle);
+      sum += angle;
+      if (i == nx - 1 && std::abs(got.x()) > 0.5f) ++far_end_turned;  // turned by about 50 degrees
+    }
+  std::printf("%s: mean %.2f, worst %.2f degrees from the deformed strip's\n", what, sum / (nx * ny), worst);
+  EXPECT_LT(sum / (nx * ny), 3.0);
+  EXPECT_LT(worst, 12.0);  // the strip's ends, where a one-sided difference is coarse
+  EXPECT_EQ(far_end_turned, ny);
+}
+
 // The OBJ written back has every line it had, in order; only v and vn lines change. Each vn
 // is turned as the surface turned: compared with the normal of the deformed strip computed
 // here from the written vertices.
@@ -128,27 +156,49 @@ TEST(Attributes, ObjKeepsEveryLineAndTurnsItsNormals) {
   ASSERT_EQ(v.size(), static_cast<std::size_t>(nx * ny));
   ASSERT_EQ(vn.size(), v.size());
   EXPECT_GT(changed_v, v.size() / 2);
-  // The deformed strip's normal at each vertex: the cross product of its grid tangents.
-  double worst = 0, sum = 0;
-  int far_end_turned = 0;
+  expectNormalsFollowTheStrip(v, vn, nx, ny, "obj normals");
+}
+
+// An OBJ point cloud (v and vn lines, no faces) pairs its normals with its vertices by order,
+// as MeshLab and CloudCompare read one, so they turn with the shape as a mesh's do (the issue:
+// no face paired a vn with a v, so every vn was written back as read).
+TEST(Attributes, ObjCloudNormalsTurnWithTheShape) {
+  TempDir dir;
+  const int nx = 30, ny = 6;
+  std::string text = "# a scanned strip: points and normals\n";
   for (int i = 0; i < nx; ++i)
     for (int j = 0; j < ny; ++j) {
-      const auto at = [&](int ii, int jj) { return v[static_cast<std::size_t>(ii * ny + jj)]; };
-      const Eigen::Vector3f du = at(std::min(i + 1, nx - 1), j) - at(std::max(i - 1, 0), j);
-      const Eigen::Vector3f dv = at(i, std::min(j + 1, ny - 1)) - at(i, std::max(j - 1, 0));
-      const Eigen::Vector3f expected = du.cross(dv).normalized();
-      const Eigen::Vector3f got = vn[static_cast<std::size_t>(i * ny + j)].normalized();
-      const double angle =
-          std::acos(std::clamp(static_cast<double>(expected.dot(got)), -1.0, 1.0)) * 180 / M_PI;
-      worst = std::max(worst, angle);
-      sum += angle;
-      if (i == nx - 1 && std::abs(got.x()) > 0.5f) ++far_end_turned;  // turned by about 50 degrees
+      // The surface z = 0.02 sin(0.7 i) at x = 0.05 i; its normal (-dz/dx, 0, 1).
+      const Eigen::Vector3f n =
+          Eigen::Vector3f(-0.02f * 0.7f / 0.05f * std::cos(0.7f * i), 0, 1).normalized();
+      char b[192];
+      std::snprintf(b, sizeof b, "v %g %g %g\nvn %.7g %.7g %.7g\n", 0.05 * i, 0.05 * j,
+                    0.02 * std::sin(0.7 * i), n.x(), n.y(), n.z());
+      text += b;
     }
-  std::printf("obj normals: mean %.2f, worst %.2f degrees from the deformed strip's\n", sum / (nx * ny),
-              worst);
-  EXPECT_LT(sum / (nx * ny), 3.0);
-  EXPECT_LT(worst, 12.0);  // the strip's ends, where a one-sided difference is coarse
-  EXPECT_EQ(far_end_turned, ny);
+  writeText(dir.file("strip.obj"), text);
+  hgd::Shape shape = hgd::readShape(dir.file("strip.obj"));
+  ASSERT_TRUE(shape.polygons.empty());
+  const hgd::DeformReport rep = hgd::deformShape(shape, turnTheFarEnd(50));
+  EXPECT_TRUE(rep.warnings.empty()) << rep.warnings.front();
+  hgd::writeShape(dir.file("out.obj"), shape);
+  const auto a = lines(text), b = lines(slurp(dir.file("out.obj")));
+  ASSERT_EQ(a.size(), b.size());
+  std::vector<Eigen::Vector3f> v, vn;
+  for (std::size_t k = 0; k < a.size(); ++k) {
+    if (startsWith(a[k], "v ")) {
+      Eigen::Vector3f x;
+      ASSERT_EQ(std::sscanf(b[k].c_str(), "v %f %f %f", &x.x(), &x.y(), &x.z()), 3) << b[k];
+      v.push_back(x);
+    } else if (startsWith(a[k], "vn ")) {
+      Eigen::Vector3f n;
+      ASSERT_EQ(std::sscanf(b[k].c_str(), "vn %f %f %f", &n.x(), &n.y(), &n.z()), 3) << b[k];
+      vn.push_back(n);
+    } else {
+      EXPECT_EQ(a[k], b[k]) << "line " << k + 1;
+    }
+  }
+  expectNormalsFollowTheStrip(v, vn, nx, ny, "obj cloud normals");
 }
 
 // A PLY as scanners and MeshLab write them: comments, a vertex list property, per-face

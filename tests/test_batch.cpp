@@ -350,7 +350,9 @@ TEST(Batch, SurfacePulledApartIsSaid) {
 }
 
 // DISPLAY names an X server that is not there (VTK would abort the process): every scan is
-// still deformed and summarised; the thumbnails are skipped with a note that says why.
+// still deformed and summarised; the thumbnails are skipped with one warning that says why, on
+// stderr, in summary.json's warnings and at the top of index.html (the issue: only the page
+// said it, the run itself said nothing).
 TEST(Batch, AbsentXServerSkipsThumbnailsOnly) {
   const Reference& ref = reference();
   TempDir dir;
@@ -359,8 +361,14 @@ TEST(Batch, AbsentXServerSkipsThumbnailsOnly) {
       shell("DISPLAY=:4711 " + quote(HGD_TOOL) + " " + batch(ref.in, out, "--recursive --report " + q(rep)));
   EXPECT_EQ(r.code, 1) << r.out << r.err;  // the folder's two bad scans
   for (const auto& rel : ref.folder.good) EXPECT_TRUE(fs::exists(out / rel)) << rel;
+  EXPECT_EQ(countOf(r.err, "hgdeform batch: warning: no thumbnails"), 1u) << r.err;
+  EXPECT_TRUE(contains(r.err, "cannot open the X display ':4711'")) << r.err;
   const auto j = nlohmann::json::parse(slurp(rep / "summary.json"));
   EXPECT_EQ(j.at("scans").size(), ref.folder.good.size() + ref.folder.bad.size());
+  ASSERT_TRUE(j.contains("warnings")) << j.dump(2);
+  ASSERT_EQ(j.at("warnings").size(), 1u) << j.at("warnings").dump();
+  EXPECT_TRUE(contains(j.at("warnings")[0].get<std::string>(), "no thumbnails")) << j.at("warnings").dump();
+  EXPECT_TRUE(contains(j.at("warnings")[0].get<std::string>(), "cannot open the X display ':4711'"));
   EXPECT_TRUE(fs::exists(rep / "summary.csv"));
   const std::string html = slurp(rep / "index.html");
   EXPECT_TRUE(contains(html, "cannot open the X display")) << html;
@@ -618,15 +626,35 @@ TEST(BatchProvenance, EditedScenarioRedoesEveryScanThatUsesIt) {
   // Options: --format pcd writes other files; --format ply on PLY inputs changes nothing.
   const Result ply = cli(batch(in, out, "--recursive --format ply"));
   EXPECT_EQ(countOf(ply.out, ": skipped (up to date)"), 3u) << ply.out;  // bar_a, plane_c, scenario.ply
-  // A deleted output, an output edited by hand, --force.
+  // A deleted output, an output edited by hand, one whose 12 last bytes were zeroed in place
+  // with its time restored (same size: the issue, "up to date"), one replaced by a copy of
+  // itself (same bytes and time, another inode).
   fs::remove(out / "plane_c.ply");
   writeText((out / "bar_a.ply").string(), "spoilt");
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));  // past the ctime of the last write
+  const fs::path zeroed = out / "sub" / "plane_e.pcd", copied = out / "mesh_d.obj";
+  const auto zeroed_time = fs::last_write_time(zeroed), copied_time = fs::last_write_time(copied);
+  const std::string zeroed_bytes = slurp(zeroed);
+  {
+    std::fstream file(zeroed, std::ios::in | std::ios::out | std::ios::binary);
+    file.seekp(-12, std::ios::end);
+    file.write("\0\0\0\0\0\0\0\0\0\0\0\0", 12);
+  }
+  fs::last_write_time(zeroed, zeroed_time);
+  fs::copy_file(copied, out / "copy.tmp");
+  fs::rename(out / "copy.tmp", copied);
+  fs::last_write_time(copied, copied_time);
   const Result again = cli(batch(in, out, "--recursive --report " + q(rep)));
   EXPECT_EQ(again.code, 0) << again.err;
   EXPECT_EQ(reasons(rep)["plane_c.ply"], "output missing");
   EXPECT_EQ(reasons(rep)["bar_a.ply"], "output changed");
+  EXPECT_EQ(reasons(rep)["sub/plane_e.pcd"], "output changed");
+  EXPECT_EQ(reasons(rep)["mesh_d.obj"], "output changed");
   EXPECT_EQ(reasons(rep)["plane_b.pcd"], "up to date");
-  EXPECT_EQ(countOf(again.out, ": ok "), 2u) << again.out;
+  EXPECT_EQ(countOf(again.out, ": ok "), 4u) << again.out;
+  EXPECT_TRUE(slurp(zeroed) == zeroed_bytes) << "not redone";
+  const Result settled = cli(batch(in, out, "--recursive"));
+  EXPECT_EQ(countOf(settled.out, ": skipped (up to date)"), n) << settled.out;
 }
 
 // The issue: a touched input was redone; a changed one older than its output was not.
@@ -651,6 +679,38 @@ TEST(BatchProvenance, InputsAreComparedByContent) {
   const long long ns = static_cast<long long>(st.st_mtim.tv_sec) * 1000000000LL + st.st_mtim.tv_nsec;
   EXPECT_EQ(record(out, "plane_c.ply").at("input").at("mtime_ns").get<long long>(), ns);
 
+  // Its mode changed (its ctime moves, not its mtime): hashed again, same bytes, up to date;
+  // the record learns the new ctime.
+  fs::permissions(in / "plane_c.ply", fs::perms::owner_exec, fs::perm_options::add);
+  const Result chmodded = cli(batch(in, out, "--recursive --report " + q(rep)));
+  EXPECT_EQ(countOf(chmodded.out, ": skipped (up to date)"), n) << chmodded.out;
+  EXPECT_EQ(treeTimes(out), t1);
+  ASSERT_EQ(::stat((in / "plane_c.ply").c_str(), &st), 0);
+  EXPECT_EQ(record(out, "plane_c.ply").at("input").at("ctime_ns").get<long long>(),
+            static_cast<long long>(st.st_ctim.tv_sec) * 1000000000LL + st.st_ctim.tv_nsec);
+  EXPECT_EQ(record(out, "plane_c.ply").at("input").at("inode").get<unsigned long long>(),
+            static_cast<unsigned long long>(st.st_ino));
+
+  // A byte changed in place, its time put back (touch -r): same size and mtime (the issue: "up
+  // to date"); its ctime gives it away, and its bytes decide.
+  {
+    const auto mtime = fs::last_write_time(in / "bar_a.ply");
+    std::fstream file(in / "bar_a.ply", std::ios::in | std::ios::out | std::ios::binary);
+    file.seekg(-1, std::ios::end);
+    char last = 0;
+    file.get(last);
+    file.seekp(-1, std::ios::end);
+    file.put(static_cast<char>(last ^ 0x40));
+    file.close();
+    fs::last_write_time(in / "bar_a.ply", mtime);
+  }
+  const Result flipped = cli(batch(in, out, "--recursive --report " + q(rep)));
+  EXPECT_EQ(flipped.code, 0) << flipped.err;
+  EXPECT_TRUE(contains(flipped.out, "bar_a.ply: ok ")) << flipped.out;
+  EXPECT_EQ(reasons(rep)["bar_a.ply"], "input changed");
+  EXPECT_EQ(countOf(flipped.out, ": skipped (up to date)"), n - 1) << flipped.out;
+  const auto t2 = treeTimes(out);
+
   // New bytes with an old time (older than the output): only that scan again.
   hgd::writeShape((in / "plane_c.ply").string(), hgd::shapes::bumpyPlane(4, 0.08f, 0.03f));
   fs::last_write_time(in / "plane_c.ply", old - std::chrono::hours(1));
@@ -662,7 +722,7 @@ TEST(BatchProvenance, InputsAreComparedByContent) {
   EXPECT_EQ(reasons(rep)["plane_c.ply"], "input changed");
   EXPECT_EQ(countOf(changed.out, ": skipped (up to date)"), n - 1) << changed.out;
   const auto t3 = treeTimes(out);
-  for (const auto& [rel, t] : t1) {
+  for (const auto& [rel, t] : t2) {
     if (rel == "plane_c.ply")
       EXPECT_NE(t3.at(rel), t) << rel;
     else
@@ -803,6 +863,73 @@ TEST(Batch, SummaryLineSaysTheReportFailed) {
   const Result ok = cli(batch(in, dir.path() / "out", "--report " + q(rep)));
   EXPECT_EQ(ok.code, 0) << ok.err;
   EXPECT_TRUE(contains(ok.out, "; report " + (rep / "index.html").string())) << ok.out;
+}
+
+// The report's files are outputs like every other (the issue: with the scenario at
+// DIR/summary.json, --report DIR replaced it and the batch exited 0): one that names an input
+// (the default scenario, a scan's own scenario, a scan; also through a link) is refused before
+// any scan is deformed: exit 1, an error naming both, every input intact, no output.
+TEST(Batch, ReportFilesNeverReplaceAnInput) {
+  TempDir dir;
+  const fs::path in = dir.path() / "in", out = dir.path() / "out", rep = dir.path() / "rep";
+  makeScans(in, false);
+  fs::create_directories(rep / "thumbs");
+  const auto inputs = treeHashes(in);
+  // The scenario itself in the report folder, under the name of the summary.
+  fs::copy_file(in / "scenario.json", rep / "summary.json");
+  const std::string scenario = slurp(rep / "summary.json");
+  Result r =
+      cli("batch -s " + q(rep / "summary.json") + " " + q(in) + " -o " + q(out) + " --report " + q(rep));
+  EXPECT_EQ(r.code, 1) << r.out << r.err;
+  EXPECT_TRUE(contains(r.err, (rep / "summary.json").string() + ": refusing to overwrite the input"))
+      << r.err;
+  EXPECT_EQ(slurp(rep / "summary.json"), scenario);
+  fs::remove(rep / "summary.json");
+  // Links in the report folder to a scan, to a scan's own scenario, to the default scenario.
+  const std::vector<std::pair<std::string, fs::path>> links = {
+      {"summary.csv", in / "bar_a.ply"},
+      {"index.html", in / "own_f.json"},
+      {"thumbs/plane_c.ply.png", in / "scenario.json"}};
+  for (const auto& [name, target] : links) {
+    SCOPED_TRACE(name);
+    fs::create_symlink(target, rep / name);
+    r = cli(batch(in, out, "--report " + q(rep)));
+    EXPECT_EQ(r.code, 1) << r.out << r.err;
+    EXPECT_TRUE(
+        contains(r.err, (rep / name).string() + ": refusing to overwrite the input " + target.string()))
+        << r.err;
+    EXPECT_TRUE(fs::is_symlink(rep / name));
+    fs::remove(rep / name);
+  }
+  EXPECT_EQ(treeHashes(in), inputs) << "an input was replaced";
+  if (fs::exists(out)) {
+    EXPECT_EQ(filesUnder(out), std::vector<std::string>{});
+  }
+  EXPECT_EQ(filesUnder(rep), std::vector<std::string>{});
+}
+
+// A scan's output that names an input (a link in OUTPUT_DIR to another scan or to the
+// scenario) fails that scan with the error of every tool; the input stays, the rest go on.
+TEST(Batch, OutputsNeverReplaceAnInput) {
+  TempDir dir;
+  const fs::path in = dir.path() / "in", out = dir.path() / "out";
+  const Folder f = makeScans(in, false);
+  const auto inputs = treeHashes(in);
+  fs::create_directories(out);
+  fs::create_symlink(in / "plane_c.ply", out / "bar_a.ply");
+  fs::create_symlink(in / "scenario.json", out / "plane_b.pcd");
+  const Result r = cli(batch(in, out, "--recursive"));
+  EXPECT_EQ(r.code, 1) << r.out << r.err;
+  EXPECT_TRUE(contains(r.err, (out / "bar_a.ply").string() + ": refusing to overwrite the input " +
+                                  (in / "plane_c.ply").string()))
+      << r.err;
+  EXPECT_TRUE(contains(r.err, (out / "plane_b.pcd").string() + ": refusing to overwrite the input " +
+                                  (in / "scenario.json").string()))
+      << r.err;
+  EXPECT_EQ(countOf(r.out, ": ok "), f.good.size() - 2) << r.out;
+  EXPECT_EQ(treeHashes(in), inputs) << "an input was replaced";
+  EXPECT_TRUE(fs::is_symlink(out / "bar_a.ply"));
+  EXPECT_TRUE(fs::is_symlink(out / "plane_b.pcd"));
 }
 
 TEST(Batch, RemovesStaleTemporaryFiles) {

@@ -682,4 +682,108 @@ TEST_F(CliErrors, ReportToStdoutLinksAndFifos) {
   EXPECT_TRUE(fs::is_symlink(out_.file("stdout.json")));
 }
 
+// A full disk (/dev/full: every write fails with ENOSPC). The report cannot be written: exit 1
+// and the shape written before it is taken back. The shape cannot be written (a link named .ply
+// to /dev/full, as outputs are told by their extension): exit 1 and no report.
+TEST_F(CliErrors, FullDiskLeavesNoOutput) {
+  if (!fs::exists("/dev/full")) GTEST_SKIP() << "no /dev/full";
+  const std::string base = "deform " + quote(bar_) + " -s " + quote(scenario_) + " -o ";
+  Result r = cli(base + quote(out_.file("o.ply")) + " --report /dev/full");
+  EXPECT_EQ(r.code, 1) << r.err;
+  EXPECT_TRUE(contains(r.err, "/dev/full: cannot write: No space left on device")) << r.err;
+  EXPECT_TRUE(listing(out_).empty()) << "left " << *listing(out_).begin();
+
+  fs::create_symlink("/dev/full", out_.file("full.ply"));
+  for (const char* cmd : {"field", "deform"}) {
+    r = cli(std::string(cmd) + " " + quote(bar_) + " -s " + quote(scenario_) + " -o " +
+            quote(out_.file("full.ply")) +
+            (cmd == std::string("deform") ? " --report " + quote(out_.file("r.json")) : ""));
+    EXPECT_EQ(r.code, 1) << cmd << ": " << r.err;
+    EXPECT_TRUE(contains(r.err, "full.ply: cannot write: No space left on device")) << cmd << ": " << r.err;
+    EXPECT_EQ(listing(out_), std::set<std::string>{"full.ply"}) << cmd;
+    EXPECT_TRUE(fs::is_symlink(out_.file("full.ply")));
+  }
+}
+
+// A report at /dev/stdout, /dev/stderr, /dev/fd/N or /proc/self/fd/N is written to that
+// descriptor, as "-" is (the issue: with stdout redirected to a file, /dev/stdout led through
+// /proc/self/fd/1 to that file, which was replaced: `>> log.txt` lost the log's earlier lines).
+TEST_F(CliErrors, ReportAtADescriptorPathIsWrittenToTheDescriptor) {
+  const std::string earlier = "an earlier line of the log\n";
+  fs::create_symlink("/dev/stdout", out_.file("stdout.json"));
+  struct Case {
+    std::string report, redirect;
+  };
+  const std::vector<Case> cases = {
+      {"/dev/stdout", ">>"},           {"/dev/stderr", "2>>"}, {"/dev/fd/1", ">>"},
+      {"/proc/self/fd/1", ">>"},       {"/dev/fd/3", "3>>"},   {"/proc/self/fd/3", "3>>"},
+      {out_.file("stdout.json"), ">>"}};
+  int k = 0;
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.report + " " + c.redirect);
+    const std::string log = in_.file("log.txt");
+    writeText(log, earlier);
+    struct stat before {};
+    ASSERT_EQ(::stat(log.c_str(), &before), 0);
+    const std::string output = out_.file("o" + std::to_string(k++) + ".ply");
+    const Result r =
+        shell("( " + quote(HGD_TOOL) + " deform " + quote(bar_) + " -s " + quote(scenario_) + " -o " +
+              quote(output) + " -q --report " + quote(c.report) + " " + c.redirect + " " + quote(log) + " )");
+    EXPECT_EQ(r.code, 0) << r.err;
+    EXPECT_TRUE(fs::exists(output));
+    struct stat after {};
+    ASSERT_EQ(::stat(log.c_str(), &after), 0);
+    EXPECT_EQ(after.st_ino, before.st_ino) << "the log was replaced";
+    const std::string text = slurp(log);
+    ASSERT_EQ(text.rfind(earlier, 0), 0u) << text.substr(0, 200);
+    std::string json = text.substr(earlier.size());
+    json = json.substr(
+        0, json.find("\nhgdeform: ") == std::string::npos ? json.size() : json.find("\nhgdeform: "));
+    EXPECT_GT(nlohmann::json::parse(json).at("points").get<int>(), 0);
+  }
+  EXPECT_TRUE(fs::is_symlink(out_.file("stdout.json")));
+}
+
+// A loop of symbolic links is refused, naming the path (the issue: the report replaced l1 with
+// a regular file); the shape written before the report is taken back.
+TEST_F(CliErrors, SymlinkLoopIsRefused) {
+  fs::create_symlink("l1", out_.file("l2"));
+  fs::create_symlink("l2", out_.file("l1"));
+  fs::create_symlink("b.ply", out_.file("a.ply"));
+  fs::create_symlink("a.ply", out_.file("b.ply"));
+  const std::string base = "deform " + quote(bar_) + " -s " + quote(scenario_) + " -o ";
+  const std::set<std::string> links = {"l1", "l2", "a.ply", "b.ply"};
+  Result r = cli(base + quote(out_.file("o.ply")) + " --report " + quote(out_.file("l1")));
+  EXPECT_EQ(r.code, 1) << r.err;
+  EXPECT_TRUE(contains(r.err, out_.file("l1") + ": cannot write: Too many levels of symbolic links"))
+      << r.err;
+  EXPECT_EQ(listing(out_), links);
+  for (const char* cmd : {"field", "deform"}) {
+    r = cli(std::string(cmd) + " " + quote(bar_) + " -s " + quote(scenario_) + " -o " +
+            quote(out_.file("a.ply")));
+    EXPECT_EQ(r.code, 1) << cmd << ": " << r.err;
+    EXPECT_TRUE(contains(r.err, out_.file("a.ply") + ": cannot write: Too many levels of symbolic links"))
+        << cmd << ": " << r.err;
+    EXPECT_EQ(listing(out_), links) << cmd;
+  }
+  for (const auto& name : links) EXPECT_TRUE(fs::is_symlink(out_.file(name))) << name;
+}
+
+// hgdeform-bench's --json is an output like every other: it never replaces the mesh it reads
+// (the issue: --armadillo m.ply --json m.ply overwrote the mesh with JSON), however spelt.
+TEST(CliBench, JsonNeverReplacesTheMesh) {
+  TempDir dir;
+  const std::string mesh = dir.file("m.ply");
+  hgd::writeShape(mesh, hgd::shapes::barMesh());
+  const std::string before = slurp(mesh);
+  for (const std::string& json : {mesh, (dir.path() / "." / "m.ply").string()}) {
+    const Result r = shell(quote(HGD_BENCH) + " --models armadillo --armadillo " + quote(mesh) + " --json " +
+                           quote(json) + " --sizes 500 --clusters 4 --repeat 1");
+    EXPECT_EQ(r.code, 1) << r.out << r.err;
+    EXPECT_TRUE(contains(r.err, json + ": refusing to overwrite the input " + mesh)) << r.err;
+    EXPECT_TRUE(slurp(mesh) == before) << "the mesh was replaced";
+  }
+  EXPECT_EQ(listing(dir), std::set<std::string>{"m.ply"});
+}
+
 }  // namespace

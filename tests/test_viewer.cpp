@@ -4,10 +4,19 @@
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
 #include <png.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
+#include <chrono>
+#include <csignal>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
+#include <set>
 #include <string>
+#include <thread>
 
 #include "hgdeform/fields.h"
 #include "hgdeform/geometry.h"
@@ -218,6 +227,68 @@ TEST(Viewer, NoOutputReplacesAnInput) {
   EXPECT_EQ(hgdtest::slurp(sc), sc_before);
 }
 
+// A PNG is written like every other output (the issue: the picture went to a fixed temporary
+// OUT.tmp.png renamed over OUT, so an input of that name was lost, and a link or a FIFO at OUT
+// was replaced by a file): an input named like that temporary stays, a symbolic link is
+// followed and stays a link, a FIFO is written to, and nothing else is left beside the output.
+TEST(Render, PngIsWrittenLikeEveryOtherOutput) {
+  if (!haveXvfb()) GTEST_SKIP() << "xvfb-run not installed";
+  namespace fs = std::filesystem;
+  hgdtest::TempDir dir;
+  const std::string bar = dir.file("bar.ply"), shot = dir.file("shot.png"), in = dir.file("shot.png.tmp.png");
+  hgd::writeShape(bar, hgd::shapes::bar(1.0f, 0.1f, 0.05f));
+  fs::copy_file(bar, in);
+  const std::string in_before = hgdtest::slurp(in);
+  fs::create_directories(dir.path() / "pics");
+  fs::create_symlink("pics/real.png", dir.file("link.png"));
+  const std::string fifo = dir.file("pipe.png"), got = dir.file("got.png");
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  const std::string render = std::string(HGD_RENDER) + " ";
+  const std::string script =
+      render + hgdtest::quote(in) + " -o " + hgdtest::quote(shot) + " --size 64x48 && " + render +
+      hgdtest::quote(bar) + " -o " + hgdtest::quote(dir.file("link.png")) +
+      " --size 64x48 && { timeout 20 cat " + hgdtest::quote(fifo) + " > " + hgdtest::quote(got) + " & " +
+      render + hgdtest::quote(bar) + " -o " + hgdtest::quote(fifo) + " --size 64x48; s=$?; wait; exit $s; }";
+  const hgdtest::CommandResult r =
+      hgdtest::shell("xvfb-run -a -s '-screen 0 1280x1024x24' sh -c " + hgdtest::quote(script));
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(hgdtest::slurp(in) == in_before) << "the input named like the temporary file was replaced";
+  EXPECT_EQ(readPng(shot).width, 64);
+  EXPECT_TRUE(fs::is_symlink(dir.file("link.png")));
+  EXPECT_EQ(readPng(dir.file("pics/real.png")).width, 64);
+  EXPECT_TRUE(fs::is_fifo(fifo));
+  EXPECT_EQ(readPng(got).width, 64);
+  const std::vector<std::string> names = dir.list();
+  EXPECT_EQ(std::set<std::string>(names.begin(), names.end()),
+            (std::set<std::string>{"bar.ply", "shot.png.tmp.png", "shot.png", "pics", "link.png", "pipe.png",
+                                   "got.png"}));
+  std::vector<std::string> pics;
+  for (const auto& e : fs::directory_iterator(dir.path() / "pics"))
+    pics.push_back(e.path().filename().string());
+  EXPECT_EQ(pics, std::vector<std::string>{"real.png"});
+}
+
+// A full disk (a link named .png to /dev/full): the picture cannot be written, exit 1, the
+// link stays and nothing is left beside it.
+TEST(Render, FullDiskIsAnError) {
+  if (!haveXvfb()) GTEST_SKIP() << "xvfb-run not installed";
+  if (!hgdtest::exists("/dev/full")) GTEST_SKIP() << "no /dev/full";
+  namespace fs = std::filesystem;
+  hgdtest::TempDir dir;
+  const std::string bar = dir.file("bar.ply"), full = dir.file("full.png");
+  hgd::writeShape(bar, hgd::shapes::bar(1.0f, 0.1f, 0.05f));
+  fs::create_symlink("/dev/full", full);
+  const hgdtest::CommandResult r =
+      hgdtest::shell("xvfb-run -a -s '-screen 0 1280x1024x24' " + std::string(HGD_RENDER) + " " +
+                     hgdtest::quote(bar) + " -o " + hgdtest::quote(full) + " --size 64x48");
+  EXPECT_EQ(r.code, 1) << r.err;
+  EXPECT_TRUE(hgdtest::contains(r.err, full + ": cannot write: No space left on device")) << r.err;
+  EXPECT_TRUE(fs::is_symlink(full));
+  const std::vector<std::string> names = dir.list();
+  EXPECT_EQ(std::set<std::string>(names.begin(), names.end()),
+            (std::set<std::string>{"bar.ply", "full.png"}));
+}
+
 // A malformed replay (docs/replay.md) is refused as a whole before any event runs: exit 1 (no
 // crash: run() gives -1 for a signal), the JSON path of the problem on stderr, and no output of
 // the valid events before the bad one.
@@ -367,6 +438,97 @@ TEST(Viewer, AbsentXServerIsAClearError) {
     EXPECT_NE(out.find("cannot open the X display ':4711'"), std::string::npos) << out;
   }
   EXPECT_FALSE(hgdtest::exists(dir.file("p.png")));
+}
+
+/// An Xvfb started without the GLX extension on a free display number, stopped (by its pid)
+/// when the object dies. display() is "" when Xvfb is not installed or did not start.
+class XvfbWithoutGlx {
+ public:
+  XvfbWithoutGlx() {
+    std::string out;
+    if (hgdtest::run("command -v Xvfb", out) != 0) return;
+    for (int n = 97; n < 200 && display_.empty(); ++n) {
+      const std::string num = std::to_string(n), socket = "/tmp/.X11-unix/X" + num;
+      if (hgdtest::exists("/tmp/.X" + num + "-lock") || hgdtest::exists(socket)) continue;
+      pid_ = ::fork();
+      if (pid_ < 0) return;
+      if (pid_ == 0) {
+        std::freopen("/dev/null", "w", stdout);
+        std::freopen("/dev/null", "w", stderr);
+        const std::string d = ":" + num;
+        ::execlp("Xvfb", "Xvfb", d.c_str(), "-extension", "GLX", "-nolisten", "tcp", "-screen", "0",
+                 "640x480x24", static_cast<char*>(nullptr));
+        ::_exit(127);
+      }
+      for (int i = 0; i < 1000 && display_.empty(); ++i) {  // 10 s at most
+        if (hgdtest::exists(socket)) {
+          display_ = ":" + num;
+        } else if (::waitpid(pid_, nullptr, WNOHANG) == pid_) {
+          pid_ = -1;  // the number was taken meanwhile: the next one
+          break;
+        } else {
+          std::this_thread::sleep_for(std::chrono::milliseconds(10));
+        }
+      }
+      if (display_.empty()) stop();
+    }
+  }
+  ~XvfbWithoutGlx() { stop(); }
+  XvfbWithoutGlx(const XvfbWithoutGlx&) = delete;
+  XvfbWithoutGlx& operator=(const XvfbWithoutGlx&) = delete;
+  const std::string& display() const { return display_; }
+
+ private:
+  void stop() {
+    if (pid_ > 0) {
+      ::kill(pid_, SIGTERM);
+      ::waitpid(pid_, nullptr, 0);
+    }
+    pid_ = -1;
+  }
+  pid_t pid_ = -1;
+  std::string display_;
+};
+
+// An X server without GLX (the issue: VTK found no OpenGL visual and aborted the viewer, the
+// renderer and batch --report, exit 134): the viewer and the renderer exit 1 saying so, and the
+// batch deforms every scan and skips the thumbnails with its one warning.
+TEST(Viewer, XServerWithoutGlxIsAClearError) {
+  const XvfbWithoutGlx x;
+  if (x.display().empty()) GTEST_SKIP() << "Xvfb not installed, or it did not start";
+  namespace fs = std::filesystem;
+  hgdtest::TempDir dir;
+  fs::create_directories(dir.path() / "in");
+  const std::string bar = dir.file("in/bar.ply");
+  hgd::writeShape(bar, hgd::shapes::bar(1.0f, 0.1f, 0.05f));
+  const std::string env = "DISPLAY=" + x.display() + " ";
+  for (const std::string& tool : {std::string(HGD_VIEW) + " " + bar,
+                                  std::string(HGD_RENDER) + " " + bar + " -o " + dir.file("p.png")}) {
+    const hgdtest::CommandResult r = hgdtest::shell(env + tool);
+    EXPECT_EQ(r.code, 1) << tool << "\n" << r.err;
+    EXPECT_TRUE(hgdtest::contains(r.err, "the X display '" + x.display() + "' has no GLX")) << r.err;
+  }
+  EXPECT_FALSE(hgdtest::exists(dir.file("p.png")));
+  hgdtest::writeText(dir.file("s.json"), R"({"format": "hgdeform-scenario/1",
+    "fixed": [{"box": {"min": [-1, -1, -1], "max": [0.1, 1, 1]}}],
+    "manipulated": {"box": {"min": [0.9, -1, -1], "max": [2, 1, 1]}},
+    "move": {"frame": {"translate": [0, 0, 0.1]}}})");
+  const hgdtest::CommandResult b =
+      hgdtest::shell(env + std::string(HGD_TOOL) + " batch -s " + hgdtest::quote(dir.file("s.json")) + " " +
+                     hgdtest::quote(dir.file("in")) + " -o " + hgdtest::quote(dir.file("out")) +
+                     " --report " + hgdtest::quote(dir.file("rep")));
+  EXPECT_EQ(b.code, 0) << b.out << b.err;
+  EXPECT_TRUE(hgdtest::exists(dir.file("out/bar.ply")));
+  EXPECT_TRUE(hgdtest::contains(b.err, "hgdeform batch: warning: no thumbnails")) << b.err;
+  EXPECT_TRUE(hgdtest::contains(b.err, "has no GLX")) << b.err;
+  if (hgdtest::exists(dir.file("rep/summary.json"))) {
+    const auto j = nlohmann::json::parse(hgdtest::slurp(dir.file("rep/summary.json")));
+    ASSERT_EQ(j.at("warnings").size(), 1u);
+    EXPECT_TRUE(hgdtest::contains(j.at("warnings")[0].get<std::string>(), "has no GLX"));
+  } else {
+    ADD_FAILURE() << "no summary.json";
+  }
+  EXPECT_FALSE(hgdtest::exists(dir.file("rep/thumbs")));
 }
 
 // A scenario of field and cylinder regions loaded into the viewer is saved with those regions,

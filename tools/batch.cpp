@@ -7,6 +7,7 @@
 // The stages live beside it (see batch_internal.h).
 #include <unistd.h>
 
+#include <cctype>
 #include <cerrno>
 #include <chrono>
 #include <cstdio>
@@ -39,14 +40,14 @@ const char* kBatchDescription =
     "results\n"
     "under OUTPUT_DIR with the same relative paths. A scenario beside a scan with the same base\n"
     "name (scan_017.json for scan_017.pcd) replaces S.json for that scan. Outputs are written\n"
-    "atomically and inputs are never modified. Each output's provenance (its input's size, time\n"
-    "and content hash, the scenario, the options, the tool version) is recorded in\n"
-    "OUTPUT_DIR/.hgdeform/; a scan whose record still matches is skipped (up to date), so a rerun\n"
-    "redoes exactly what changed and an interrupted batch resumes where it stopped; each line says\n"
-    "why. A scan that fails is reported and the batch goes on. A second batch writing to the same\n"
-    "OUTPUT_DIR at the same time refuses to start (exit 1); shards of one split may share it.\n"
-    "FIFOs, devices, dangling links and (with --recursive) links to folders are skipped with a\n"
-    "warning; links to folders are not followed.";
+    "atomically and inputs are never modified. Each output's provenance (its input's size, times,\n"
+    "inode and content hash, the scenario, the options, the tool version, the output's size, ctime\n"
+    "and inode) is recorded in OUTPUT_DIR/.hgdeform/; a scan whose record still matches is\n"
+    "skipped (up to date), so a rerun redoes exactly what changed and an interrupted batch\n"
+    "resumes where it stopped; each line says why. A scan that fails is reported and the batch\n"
+    "goes on. A second batch writing to the same OUTPUT_DIR at the same time refuses to start\n"
+    "(exit 1); shards of one split may share it. FIFOs, devices, dangling links and (with\n"
+    "--recursive) links to folders are skipped with a warning; links to folders are not followed.";
 
 const char* kBatchFooter =
     "On a terminal a progress bar shows files done, the current file, the rate and the ETA;\n"
@@ -157,10 +158,13 @@ void checkDirectories(const Config& c) {
 }
 
 void writeReport(const Context& ctx, const std::vector<ScanResult>& results, const batch::Totals& totals,
-                 const std::string& note) {
+                 const std::vector<std::string>& warnings) {
   const fs::path& dir = ctx.cfg.report_dir;
+  std::string note;
+  for (const auto& w : warnings) note += (note.empty() ? "" : " ") + w;
+  if (!note.empty()) note[0] = static_cast<char>(std::toupper(static_cast<unsigned char>(note[0])));
   fs::create_directories(dir);
-  hgd::writeFileAtomically((dir / "summary.json").string(), batch::summaryJson(results, totals));
+  hgd::writeFileAtomically((dir / "summary.json").string(), batch::summaryJson(results, totals, warnings));
   hgd::writeFileAtomically((dir / "summary.csv").string(), batch::summaryCsv(results));
   hgd::writeFileAtomically((dir / "index.html").string(), batch::indexHtml(results, totals, note));
 }
@@ -175,10 +179,18 @@ int run(const Config& cfg, MpiSession& mpi) {
   ctx.default_scenario_hash = batch::hashBytes(hgd::scenarioToJson(ctx.default_scenario));
 
   std::vector<batch::SkippedEntry> skipped_entries;
-  const std::vector<Scan> all = listScans(cfg, skipped_entries);
+  RunInputs inputs;
+  const std::vector<Scan> all = listScans(cfg, skipped_entries, inputs);
   std::vector<Scan> scans;
   for (std::size_t i = 0; i < all.size(); ++i)
     if (static_cast<int>(i % static_cast<std::size_t>(cfg.shard_n)) == cfg.shard_k) scans.push_back(all[i]);
+  // The report's files are outputs too: one that would replace an input (the scenario saved as
+  // DIR/summary.json, a link to a scan) stops the run before anything is written.
+  if (!cfg.report_dir.empty()) {
+    for (const char* name : {"summary.json", "summary.csv", "index.html"})
+      inputs.refuse((cfg.report_dir / name).string());
+    for (const Scan& s : scans) inputs.refuse((cfg.report_dir / thumbnailName(s.rel)).string());
+  }
   if (all.empty() && root)
     std::fprintf(stderr, "hgdeform batch: warning: no PLY, PCD, OBJ, XYZ, OFF or STL file in %s%s\n",
                  cfg.input_dir.c_str(), cfg.recursive ? "" : " (subfolders are searched with --recursive)");
@@ -186,18 +198,24 @@ int run(const Config& cfg, MpiSession& mpi) {
     for (const auto& e : skipped_entries)
       std::fprintf(stderr, "hgdeform batch: warning: skipped %s: %s\n", e.path.c_str(), e.why.c_str());
 
+  // Why the report has no thumbnails, if it has none: one warning on stderr, in summary.json's
+  // warnings and at the top of index.html.
   std::string note;
   if (!cfg.report_dir.empty()) {
 #ifdef HGD_HAVE_RENDER
     const std::string problem = hgd::displayProblem();
     ctx.thumbnails = problem.empty();
     if (!ctx.thumbnails)
-      note = "No thumbnails (they need an X display): " + problem +
-             ". Run the batch under xvfb-run -a (or with a display) to get "
-             "before/after pictures.";
+      note = "no thumbnails (they need an X display with OpenGL): " + problem +
+             ". Run the batch under xvfb-run -a (or with a display) to get before/after pictures.";
 #else
-    note = "No thumbnails: this hgdeform was built without PCL visualization (the hgdeform_render target).";
+    note = "no thumbnails: this hgdeform was built without PCL visualization (the hgdeform_render target).";
 #endif
+  }
+  std::vector<std::string> run_warnings;
+  if (!note.empty()) {
+    run_warnings.push_back(note);
+    if (root) std::fprintf(stderr, "hgdeform batch: warning: %s\n", note.c_str());
   }
 
   // One run per output folder (shards of one split excepted). Under MPI rank 0 holds the lock
@@ -260,7 +278,7 @@ int run(const Config& cfg, MpiSession& mpi) {
   bool report_written = false;
   if (!cfg.report_dir.empty()) {
     try {
-      writeReport(ctx, results, totals, note);
+      writeReport(ctx, results, totals, run_warnings);
       report_written = true;
     } catch (const std::exception& e) {
       std::fprintf(stderr, "hgdeform batch: report: %s\n", e.what());

@@ -12,9 +12,11 @@
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
+#include <map>
 #include <mutex>
 #include <set>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "batch_report.h"
@@ -50,6 +52,21 @@ struct Scan {
   std::string error;  // known before processing (e.g. two scans writing one output)
 };
 
+/// Every file the run reads (the scans, the default scenario, the scans' own scenarios), so
+/// that no output of the run replaces one. refuse() asks hgd::refuseInputs, the one check of
+/// every tool; the index only saves comparing each output with every input: an output that is
+/// one of them is that very file (the same device and inode, through any link or spelling).
+class RunInputs {
+ public:
+  void add(const fs::path& input);
+  /// Throws hgd::IoError "<output>: refusing to overwrite the input <input>" when `output`
+  /// names one of the inputs.
+  void refuse(const std::string& output) const;
+
+ private:
+  std::map<std::pair<std::uint64_t, std::uint64_t>, std::string> by_id_;  // (st_dev, st_ino) -> path
+};
+
 /// The extension of `p`, lower case, with its dot (".ply").
 std::string lowerExtension(const fs::path& p);
 
@@ -58,7 +75,9 @@ fs::path normalisedAbsolute(const fs::path& p);
 /// Every scan of the input, sorted by relative path (the order shards and ranks agree on).
 /// Entries that look like scans but cannot be one (FIFOs, devices, dangling links) and, with
 /// --recursive, links to folders (not followed: they could make cycles) go to `skipped`, with why.
-std::vector<Scan> listScans(const Config& c, std::vector<batch::SkippedEntry>& skipped);
+/// The scans and their scenarios go to `inputs`; a scan whose output would replace one of them
+/// gets that error.
+std::vector<Scan> listScans(const Config& c, std::vector<batch::SkippedEntry>& skipped, RunInputs& inputs);
 
 // --- one scan (batch_worker.cpp) -------------------------------------------------------------
 
@@ -69,6 +88,9 @@ struct Context {
   bool thumbnails = false;
   int rank = 0;
 };
+
+/// A scan's thumbnail, relative to the report directory: "thumbs/<rel>.png".
+std::string thumbnailName(const std::string& rel);
 
 /// The whole pipeline of one scan: read, deform, write (and thumbnail). Never throws.
 ScanResult processScan(const Scan& s, const Context& ctx);

@@ -27,7 +27,9 @@ namespace {
 
 namespace fs = std::filesystem;
 
-const char* kRecordFormat = "hgdeform-batch-record/1";
+// /2: the input's ctime and inode, the output's ctime and inode. A /1 record is no record (its
+// scan is redone once).
+const char* kRecordFormat = "hgdeform-batch-record/2";
 
 std::string hex(XXH64_hash_t h) {
   char buf[17];
@@ -138,15 +140,42 @@ std::string hashBytes(std::string_view bytes) {
   return hex(XXH3_64bits(bytes.data(), bytes.size()));
 }
 
+bool sameInput(const Provenance& p, const FileState& now) {
+  return now.exists && p.input_size == now.size && p.input_mtime_ns == now.mtime_ns &&
+         p.input_ctime_ns == now.ctime_ns && p.input_ino == now.ino;
+}
+
+bool sameOutput(const Provenance& p, const FileState& now) {
+  return now.exists && p.output_size == now.size && p.output_ctime_ns == now.ctime_ns &&
+         p.output_ino == now.ino;
+}
+
+void recordInput(Provenance& p, const FileState& s) {
+  p.input_size = s.size;
+  p.input_mtime_ns = s.mtime_ns;
+  p.input_ctime_ns = s.ctime_ns;
+  p.input_ino = s.ino;
+}
+
+void recordOutput(Provenance& p, const FileState& s) {
+  p.output_size = s.size;
+  p.output_ctime_ns = s.ctime_ns;
+  p.output_ino = s.ino;
+}
+
 std::string recordText(const Provenance& p) {
   nlohmann::json j;
   j["format"] = kRecordFormat;
-  j["input"] = {
-      {"file", p.input}, {"size", p.input_size}, {"mtime_ns", p.input_mtime_ns}, {"xxh3", p.input_hash}};
+  j["input"] = {{"file", p.input},
+                {"size", p.input_size},
+                {"mtime_ns", p.input_mtime_ns},
+                {"ctime_ns", p.input_ctime_ns},
+                {"inode", p.input_ino},
+                {"xxh3", p.input_hash}};
   j["scenario"] = {{"file", p.scenario}, {"xxh3", p.scenario_hash}};
   j["options"] = p.options.is_null() ? nlohmann::json::object() : p.options;
   j["tool"] = p.tool;
-  j["output"] = {{"size", p.output_size}};
+  j["output"] = {{"size", p.output_size}, {"ctime_ns", p.output_ctime_ns}, {"inode", p.output_ino}};
   if (!p.invalid.empty()) j["invalid"] = p.invalid;
   return j.dump(2) + "\n";
 }
@@ -164,12 +193,16 @@ std::optional<Provenance> readRecord(const std::string& path) {
     p.input = input.at("file").get<std::string>();
     p.input_size = input.at("size").get<std::uint64_t>();
     p.input_mtime_ns = input.at("mtime_ns").get<std::int64_t>();
+    p.input_ctime_ns = input.at("ctime_ns").get<std::int64_t>();
+    p.input_ino = input.at("inode").get<std::uint64_t>();
     p.input_hash = input.at("xxh3").get<std::string>();
     p.scenario = j.at("scenario").at("file").get<std::string>();
     p.scenario_hash = j.at("scenario").at("xxh3").get<std::string>();
     p.options = j.at("options");
     p.tool = j.at("tool").get<std::string>();
     p.output_size = j.at("output").at("size").get<std::uint64_t>();
+    p.output_ctime_ns = j.at("output").at("ctime_ns").get<std::int64_t>();
+    p.output_ino = j.at("output").at("inode").get<std::uint64_t>();
     p.invalid = j.value("invalid", std::string());
     return p;
   } catch (const std::exception&) {

@@ -34,17 +34,33 @@ std::string hashBytes(std::string_view bytes);
 struct Provenance {
   std::string input;  ///< relative to INPUT_DIR
   std::uint64_t input_size = 0;
-  std::int64_t input_mtime_ns = 0;
+  /// The input's times and inode: when any differs its bytes are hashed again (and decide).
+  /// The ctime cannot be set back (touch -r, a restored mtime), and moves on every write.
+  std::int64_t input_mtime_ns = 0, input_ctime_ns = 0;
+  std::uint64_t input_ino = 0;
   std::string input_hash;     ///< hashFile() of the input
   std::string scenario;       ///< the scenario file (for people)
   std::string scenario_hash;  ///< hashBytes(hgd::scenarioToJson(effective scenario))
   nlohmann::json options;     ///< the options that change the output, e.g. {"output_format": "ply"}
   std::string tool;           ///< "hgdeform 0.1.0"
+  /// The output as written: another size, ctime or inode means something else changed or
+  /// replaced it (even with its time set back), and the scan is redone.
   std::uint64_t output_size = 0;
+  std::int64_t output_ctime_ns = 0;
+  std::uint64_t output_ino = 0;
   /// Not empty: the output does not match this record (e.g. the input changed while it was
   /// being deformed); the next run redoes it.
   std::string invalid;
 };
+
+/// The input as recorded: the same size, times and inode as `now` (then its bytes are taken to
+/// be the recorded ones, without hashing).
+bool sameInput(const Provenance& p, const FileState& now);
+/// The output as recorded: the same size, ctime and inode as `now`.
+bool sameOutput(const Provenance& p, const FileState& now);
+/// Sets the record's input / output state (size, times, inode) from `s`.
+void recordInput(Provenance& p, const FileState& s);
+void recordOutput(Provenance& p, const FileState& s);
 
 std::string recordText(const Provenance& p);
 /// nullopt when the file is missing or is not a record.

@@ -117,7 +117,8 @@ ScanResult fromJson(const nlohmann::json& j) {
   return r;
 }
 
-std::string summaryJson(const std::vector<ScanResult>& results, const Totals& t) {
+std::string summaryJson(const std::vector<ScanResult>& results, const Totals& t,
+                        const std::vector<std::string>& warnings) {
   nlohmann::json j;
   j["format"] = "hgdeform-batch-summary/1";
   j["tool"] = "hgdeform batch";
@@ -137,6 +138,7 @@ std::string summaryJson(const std::vector<ScanResult>& results, const Totals& t)
                  {"skipped_entries", t.skipped_entries.size()}};
   j["skipped_entries"] = nlohmann::json::array();
   for (const auto& e : t.skipped_entries) j["skipped_entries"].push_back({{"path", e.path}, {"why", e.why}});
+  j["warnings"] = warnings;
   return j.dump(2) + "\n";
 }
 

@@ -55,8 +55,10 @@ Totals countResults(const std::vector<ScanResult>& results);
 nlohmann::json toJson(const ScanResult& r);
 ScanResult fromJson(const nlohmann::json& j);
 
-/// {"scans": [per-scan objects, sorted by file], "totals": {...}, "skipped_entries": [{path, why}]}
-std::string summaryJson(const std::vector<ScanResult>& results, const Totals& totals);
+/// {"scans": [per-scan objects, sorted by file], "totals": {...}, "skipped_entries": [{path, why}],
+/// "warnings": [what the whole run could not do, e.g. why there are no thumbnails]}
+std::string summaryJson(const std::vector<ScanResult>& results, const Totals& totals,
+                        const std::vector<std::string>& warnings = {});
 
 /// Header file,status,error,points,clusters,iterations,handle_error,ms_build,ms_field,ms_sampling,
 /// ms_clusters,ms_solve,ms_interpolation,ms_total,reason, then one row per scan (RFC 4180 quoting).

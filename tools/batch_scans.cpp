@@ -1,15 +1,18 @@
 // hgdeform batch: the scans of INPUT_DIR (top level or, with --recursive, the tree), each with
 // its output path, its scenario (its own beside it, else the default) and its size.
+#include <sys/stat.h>
+
 #include <algorithm>
 #include <cctype>
+#include <exception>
 #include <map>
-#include <set>
 #include <stdexcept>
 #include <string>
 #include <system_error>
 #include <vector>
 
 #include "batch_internal.h"
+#include "hgdeform/io.h"
 
 namespace hgdcli {
 namespace batch {
@@ -29,6 +32,21 @@ bool hidden(const fs::path& p) {
 
 }  // namespace
 
+void RunInputs::add(const fs::path& input) {
+  struct stat st {};
+  if (::stat(input.c_str(), &st) == 0)
+    by_id_.emplace(
+        std::make_pair(static_cast<std::uint64_t>(st.st_dev), static_cast<std::uint64_t>(st.st_ino)),
+        input.string());
+}
+
+void RunInputs::refuse(const std::string& output) const {
+  struct stat st {};
+  if (::stat(output.c_str(), &st) != 0) return;  // no file there: none of the inputs
+  const auto it = by_id_.find({static_cast<std::uint64_t>(st.st_dev), static_cast<std::uint64_t>(st.st_ino)});
+  if (it != by_id_.end()) hgd::refuseInputs(output, {it->second});
+}
+
 fs::path normalisedAbsolute(const fs::path& p) {
   fs::path n = fs::weakly_canonical(fs::absolute(p)).lexically_normal();
   if (!n.has_filename() && n.has_parent_path() && n != n.root_path()) n = n.parent_path();
@@ -41,7 +59,7 @@ std::string lowerExtension(const fs::path& p) {
   return e;
 }
 
-std::vector<Scan> listScans(const Config& c, std::vector<batch::SkippedEntry>& skipped) {
+std::vector<Scan> listScans(const Config& c, std::vector<batch::SkippedEntry>& skipped, RunInputs& inputs) {
   std::vector<fs::path> files;
   std::error_code ec;
   auto consider = [&](const fs::directory_entry& e) {
@@ -99,7 +117,7 @@ std::vector<Scan> listScans(const Config& c, std::vector<batch::SkippedEntry>& s
   }
 
   std::vector<Scan> scans;
-  std::set<std::string> inputs;  // canonical input paths, so that no output overwrites an input
+  inputs.add(c.scenario_path);
   for (const auto& f : files) {
     Scan s;
     s.input = f;
@@ -113,12 +131,13 @@ std::vector<Scan> listScans(const Config& c, std::vector<batch::SkippedEntry>& s
     if (fs::is_regular_file(own, e1) && !fs::equivalent(own, c.scenario_path, e2)) {
       s.scenario = own;
       s.own_scenario = true;
+      inputs.add(own);
     } else {
       s.scenario = c.scenario_path;
     }
     s.size = fs::file_size(f, e1);
     if (e1) s.size = 0;
-    inputs.insert(normalisedAbsolute(f).string());
+    inputs.add(f);
     scans.push_back(std::move(s));
   }
   std::sort(scans.begin(), scans.end(), [](const Scan& a, const Scan& b) { return a.rel < b.rel; });
@@ -127,10 +146,15 @@ std::vector<Scan> listScans(const Config& c, std::vector<batch::SkippedEntry>& s
   std::map<std::string, std::string> writer;  // output -> the scan writing it
   for (auto& s : scans) {
     auto [it, fresh] = writer.emplace(s.out_rel, s.rel);
-    if (!fresh)
+    if (!fresh) {
       s.error = "output " + s.out_rel + " would also be written by " + it->second + " (use --format same)";
-    else if (inputs.count(normalisedAbsolute(s.output).string()))
-      s.error = "output " + s.output.string() + " would overwrite an input scan";
+      continue;
+    }
+    try {
+      inputs.refuse(s.output.string());
+    } catch (const std::exception& e) {
+      s.error = e.what();
+    }
   }
   return scans;
 }

@@ -50,8 +50,9 @@ nlohmann::json outputOptions(const Scan& s) {
 }
 
 /// Why the scan must be (re)done: reasons joined by ", ", "" when its output is up to date.
-/// Hashes the input (into `input_hash`) only when its size is the recorded one but its time is
-/// not; `refresh` then says that only the record's input time is out of date.
+/// Hashes the input (into `input_hash`) only when its size is the recorded one but its times
+/// (mtime, ctime) or inode are not; `refresh` then says that only the record's input state is
+/// out of date. An output whose size, ctime or inode is not the recorded one has changed.
 std::string whyRedo(const Scan& s, const batch::FileState& input, const std::optional<batch::Provenance>& rec,
                     const std::string& scenario_hash, const nlohmann::json& options, std::string& input_hash,
                     bool& refresh) {
@@ -61,7 +62,7 @@ std::string whyRedo(const Scan& s, const batch::FileState& input, const std::opt
   std::vector<std::string> why;
   if (!rec->invalid.empty() || rec->input != s.rel || rec->input_size != input.size) {
     why.push_back("input changed");
-  } else if (rec->input_mtime_ns != input.mtime_ns) {
+  } else if (!batch::sameInput(*rec, input)) {
     input_hash = batch::hashFile(s.input.string());
     if (input_hash != rec->input_hash)
       why.push_back("input changed");
@@ -71,7 +72,7 @@ std::string whyRedo(const Scan& s, const batch::FileState& input, const std::opt
   if (scenario_hash != rec->scenario_hash) why.push_back("scenario changed");
   if (options != rec->options) why.push_back("options changed");
   if (batch::toolVersion() != rec->tool) why.push_back("tool version changed");
-  if (out.size != rec->output_size) why.push_back("output changed");
+  if (!batch::sameOutput(*rec, out)) why.push_back("output changed");
   std::string text;
   for (const auto& w : why) text += (text.empty() ? "" : ", ") + w;
   return text;
@@ -95,10 +96,6 @@ void testHook(const std::string& rel) {
 }
 
 #ifdef HGD_HAVE_RENDER
-std::string thumbnailName(const std::string& rel) {
-  return "thumbs/" + rel + ".png";
-}
-
 std::mutex g_render_mutex;  // VTK is not thread-safe: one picture at a time
 
 void renderThumbnail(const hgd::Shape& before, const hgd::Shape& after, const fs::path& png) {
@@ -151,6 +148,10 @@ std::string thumbnail(const Context& ctx, const Scan& s, const hgd::Shape* befor
 
 }  // namespace
 
+std::string thumbnailName(const std::string& rel) {
+  return "thumbs/" + rel + ".png";
+}
+
 ScanResult processScan(const Scan& s, const Context& ctx) {
   ScanResult r;
   r.file = s.rel;
@@ -177,9 +178,9 @@ ScanResult processScan(const Scan& s, const Context& ctx) {
     if (r.reason.empty()) {
       r.reason = "up to date";
       r.status = "skipped";
-      if (refresh) {  // touched, same bytes: remember the new time so as not to hash it again
+      if (refresh) {  // touched, same bytes: remember its new state so as not to hash it again
         batch::Provenance p = *rec;
-        p.input_mtime_ns = in_before.mtime_ns;
+        batch::recordInput(p, in_before);
         try {
           hgd::writeFileAtomically(record_path, batch::recordText(p));
         } catch (const std::exception& e) {
@@ -192,8 +193,8 @@ ScanResult processScan(const Scan& s, const Context& ctx) {
     }
     // Hash before reading: a change from here to the end shows in the input's stat below.
     if (input_hash.empty()) {
-      const bool recorded = rec && rec->invalid.empty() && rec->input == s.rel &&
-                            rec->input_size == in_before.size && rec->input_mtime_ns == in_before.mtime_ns;
+      const bool recorded =
+          rec && rec->invalid.empty() && rec->input == s.rel && batch::sameInput(*rec, in_before);
       input_hash = recorded ? rec->input_hash : batch::hashFile(s.input.string());
     }
     hgd::ScenarioRunner run = hgd::ScenarioRunner::read(s.input.string());
@@ -207,14 +208,13 @@ ScanResult processScan(const Scan& s, const Context& ctx) {
     testHook(s.rel);
     batch::Provenance p;
     p.input = s.rel;
-    p.input_size = in_before.size;
-    p.input_mtime_ns = in_before.mtime_ns;
+    batch::recordInput(p, in_before);
     p.input_hash = input_hash;
     p.scenario = s.scenario.string();
     p.scenario_hash = scenario_hash;
     p.options = options;
     p.tool = batch::toolVersion();
-    p.output_size = batch::fileState(s.output.string()).size;
+    batch::recordOutput(p, batch::fileState(s.output.string()));
     if (!batch::fileState(s.input.string()).unchangedFrom(in_before)) {
       p.invalid = "the input changed while it was being deformed";
       appendWarning(r.warning,

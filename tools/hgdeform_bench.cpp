@@ -226,7 +226,8 @@ int parseArgs(int argc, char** argv, BenchArgs& a) {
   app.add_option("--armadillo", a.armadillo,
                  "the Armadillo mesh (default ../shared/datasets/meshes/armadillo_49990.ply)")
       ->type_name("PATH");
-  app.add_option("--json", a.json, "also write every measurement (with the tool and its version) as JSON")
+  app.add_option("--json", a.json,
+                 "also write every measurement (with the tool and its version) as JSON; never the mesh")
       ->type_name("OUT");
   // A list keeps all its values (the tools' default policy, the last value wins, would keep one).
   for (const char* name : {"--sizes", "--clusters", "--models"})
@@ -246,6 +247,12 @@ int main(int argc, char** argv) {
   std::vector<std::string> models = args.models;
   const int repeat = args.repeat;
   const std::string& json_path = args.json;
+  try {  // before any work: --json never replaces the mesh read
+    if (!json_path.empty()) hgd::refuseInputs(json_path, {armadillo});
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "hgdeform-bench: %s\n", e.what());
+    return 1;
+  }
   nlohmann::json all = nlohmann::json::array();
   if (std::find(models.begin(), models.end(), "armadillo") != models.end() &&
       !std::filesystem::exists(armadillo)) {

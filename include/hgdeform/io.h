@@ -56,7 +56,9 @@ std::string extrasLost(const Shape& shape, FileFormat format);
 /// Writes bytes to `path` the same way: temporary file in the same directory, then rename.
 /// Throws IoError naming the path. Every writer here treats special paths alike: a symbolic
 /// link is followed (the file it names is replaced atomically, the link stays); a FIFO or a
-/// device (/dev/stdout) is written to directly.
+/// device is written to directly; a path that names a descriptor (/dev/stdout, /dev/stderr,
+/// /dev/fd/N, /proc/self/fd/N, also through links) is written to that descriptor, whatever it
+/// is open on (a file stdout was redirected to is appended to, never replaced).
 void writeFileAtomically(const std::string& path, std::string_view bytes);
 
 /// Whether two paths name the same file, however spelt (links, hard links, "..", relative);
@@ -68,7 +70,8 @@ bool samePath(const std::string& a, const std::string& b);
 void refuseInputs(const std::string& output, const std::vector<std::string>& inputs);
 
 /// Removes an output a failed run wrote (a regular file, or the file a link names; never a
-/// FIFO or a device). For "a failed run leaves no output".
+/// FIFO, a device or what a descriptor path such as /dev/stdout leads to). For "a failed run
+/// leaves no output".
 void removeOutput(const std::string& path) noexcept;
 
 /// Removes the temporary files of writes in progress (in any thread). Async-signal-safe: a

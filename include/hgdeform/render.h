@@ -31,9 +31,10 @@ struct RenderOptions {
   int point_size = 3;
 };
 
-/// Empty when an X display can be opened; else what is wrong ("DISPLAY is not set", "cannot
-/// open the X display ':99'"). VTK aborts the process when its window finds no display, so
-/// every front end asks first.
+/// Empty when an X display can be opened and has the GLX extension (OpenGL); else what is
+/// wrong ("DISPLAY is not set", "cannot open the X display ':99'", "the X display ':97' has no
+/// GLX extension"). VTK aborts the process when its window finds no display or no OpenGL
+/// visual, so every front end asks first.
 std::string displayProblem();
 
 /// The unit vector `up` names for these shapes (see RenderOptions::up). Throws
@@ -45,11 +46,13 @@ Eigen::Vector3f upAxis(const std::string& up, const std::vector<const Shape*>& s
 void renderPng(const std::vector<const Shape*>& shapes, const std::string& png_path,
                const RenderOptions& options);
 
-/// Writes what `window` shows (its back buffer, as last rendered) as a PNG, atomically: a
-/// temporary file beside the target, then a rename, so never a half-written picture. Refuses
-/// (hgd::refuseInputs) to replace one of `inputs`. Throws std::runtime_error
-/// "<png_path>: cannot write the <what>" on failure. renderPng and the viewer's screenshots
-/// both write through it.
+/// Writes what `window` shows (its back buffer, as last rendered) as a PNG: encoded in memory,
+/// then written by hgd::writeFileAtomically like every other output (a temporary file beside the
+/// target renamed over it, a symbolic link followed, a FIFO or a device written to directly;
+/// never a half-written picture, nothing left behind on failure). Refuses (hgd::refuseInputs)
+/// to replace one of `inputs`. Throws std::runtime_error ("<png_path>: cannot write the <what>:
+/// …", or the writer's hgd::IoError "<png_path>: cannot write: …") on failure. renderPng and the
+/// viewer's screenshots both write through it.
 void writeWindowPng(vtkRenderWindow* window, const std::string& png_path,
                     const std::vector<std::string>& inputs = {}, const std::string& what = "picture");
 

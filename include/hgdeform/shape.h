@@ -49,8 +49,10 @@ struct FileExtras {
   std::vector<std::string> obj_lines;
   std::vector<Eigen::Vector3f> obj_normals;      ///< the 'vn' values as read, in order
   std::vector<Eigen::Vector3f> obj_normals_out;  ///< turned with the shape (else written as read)
-  std::vector<int> obj_normal_vertex;            ///< per 'vn': the first vertex a face pairs it with, or -1
-  bool pcd_compressed = false;                   ///< PCD read as binary_compressed
+  /// Per 'vn': the first vertex a face pairs it with, or -1; in a point cloud (no faces) with
+  /// as many 'vn' as 'v', the vertex of the same rank (as MeshLab and CloudCompare read one).
+  std::vector<int> obj_normal_vertex;
+  bool pcd_compressed = false;  ///< PCD read as binary_compressed
   /// XYZ/TXT without a line of column names: the names its columns were given (written back
   /// without such a line while the fields are these). And the separator of its values.
   std::vector<std::string> xyz_names;

@@ -43,11 +43,65 @@ void unregisterTemp(int slot) {
   if (slot >= 0) g_temp_slots[slot].state.store(0);
 }
 
+/// The descriptor an absolute, normalised path names: /dev/stdin, /dev/stdout, /dev/stderr,
+/// /dev/fd/N, /proc/self/fd/N, /proc/thread-self/fd/N or /proc/<this process>/fd/N; else -1.
+int descriptorNamed(const std::string& p) {
+  if (p == "/dev/stdin") return 0;
+  if (p == "/dev/stdout") return 1;
+  if (p == "/dev/stderr") return 2;
+  for (const std::string& dir :
+       {std::string("/dev/fd/"), std::string("/proc/self/fd/"), std::string("/proc/thread-self/fd/"),
+        "/proc/" + std::to_string(::getpid()) + "/fd/"}) {
+    if (p.size() <= dir.size() || p.compare(0, dir.size(), dir) != 0 || p.size() - dir.size() > 9) continue;
+    int fd = 0;
+    for (std::size_t i = dir.size(); i < p.size(); ++i) {
+      if (p[i] < '0' || p[i] > '9') return -1;
+      fd = fd * 10 + (p[i] - '0');
+    }
+    return fd;
+  }
+  return -1;
+}
+
 }  // namespace
 
+int descriptorPath(const std::string& path) {
+  fs::path p(path);
+  for (int hops = 0; hops < 40; ++hops) {
+    std::error_code ec;
+    const fs::path abs = fs::absolute(p, ec).lexically_normal();
+    if (ec) return -1;
+    if (const int fd = descriptorNamed(abs.string()); fd >= 0) return fd;
+    struct stat st {};
+    if (::lstat(p.c_str(), &st) != 0 || !S_ISLNK(st.st_mode)) return -1;
+    const fs::path to = fs::read_symlink(p, ec);
+    if (ec) return -1;
+    p = to.is_absolute() ? to : p.parent_path() / to;
+  }
+  return -1;
+}
+
 AtomicWriter::AtomicWriter(const std::string& target) : target_(target) {
+  if (const int fd = descriptorPath(target); fd >= 0) {
+    // Written to the descriptor itself (as "-" is to stdout): whatever it is open on, a file
+    // that stdout was redirected to (appended to with >>) included, is never replaced.
+    if (fd == STDOUT_FILENO) std::fflush(stdout);  // what the program printed comes first
+    if (fd == STDERR_FILENO) std::fflush(stderr);
+    const int copy = ::fcntl(fd, F_DUPFD_CLOEXEC, 0);
+    if (copy < 0) fail(target_, "cannot write: " + errnoText(errno));
+    file_ = ::fdopen(copy, "wb");
+    if (!file_) {
+      const int e = errno;
+      ::close(copy);
+      fail(target_, "cannot write: " + errnoText(e));
+    }
+    return;  // direct: commit only flushes
+  }
   struct stat st {};
-  if (::stat(target.c_str(), &st) == 0 && !S_ISREG(st.st_mode) && !S_ISDIR(st.st_mode)) {
+  const int found = ::stat(target.c_str(), &st);
+  // A loop of links (l1 -> l2 -> l1) names no file: refused, not replaced by one.
+  if (found != 0 && errno == ELOOP) fail(target_, "cannot write: " + errnoText(ELOOP));
+  if (found == 0 && !S_ISREG(st.st_mode) && !S_ISDIR(st.st_mode)) {
     const int fd = ::open(target.c_str(), O_WRONLY | O_CLOEXEC);
     if (fd < 0) fail(target_, "cannot write: " + errnoText(errno));
     file_ = ::fdopen(fd, "wb");
@@ -61,8 +115,9 @@ AtomicWriter::AtomicWriter(const std::string& target) : target_(target) {
   if (struct stat lst{}; ::lstat(target.c_str(), &lst) == 0 && S_ISLNK(lst.st_mode)) {
     // Follow the link (and links to links) to the file it names, existing or not.
     fs::path t(target);
-    for (int hops = 0; hops < 40 && fs::is_symlink(t); ++hops) {
-      std::error_code ec;
+    int hops = 0;
+    for (std::error_code ec; fs::is_symlink(t, ec); ++hops) {
+      if (hops == 40) fail(target_, "cannot write: " + errnoText(ELOOP));
       const fs::path to = fs::read_symlink(t, ec);
       if (ec) fail(target_, "cannot write: cannot read the symbolic link: " + ec.message());
       t = to.is_absolute() ? to : t.parent_path() / to;
@@ -148,6 +203,7 @@ void refuseInputs(const std::string& output, const std::vector<std::string>& inp
 }
 
 void removeOutput(const std::string& path) noexcept {
+  if (io_internal::descriptorPath(path) >= 0) return;  // written to a descriptor: nothing to take back
   struct stat st {};
   if (::lstat(path.c_str(), &st) != 0) return;
   if (S_ISLNK(st.st_mode)) {  // what the writer wrote is the link's target

@@ -221,8 +221,10 @@ class Lexer {
 /// Writes a file so that no reader ever sees it half written, and no path is replaced by
 /// something else: a regular file (or a new one) is written to a temporary file beside it and
 /// renamed over it; a symbolic link is followed (the temporary file goes beside its target, and
-/// the link stays); a FIFO, a character or block device or a socket (/dev/stdout, a pipe) is
-/// written to directly, as no rename could replace it. Destroyed without commit(), it removes
+/// the link stays); a FIFO, a character or block device or a socket (a pipe) is written to
+/// directly, as no rename could replace it; a path naming a descriptor (/dev/stdout,
+/// /dev/stderr, /dev/fd/N, /proc/self/fd/N: descriptorPath) is written to that descriptor,
+/// whatever it is open on. Destroyed without commit(), it removes
 /// the temporary file: a failed write leaves no output. (atomic_file.cpp)
 class AtomicWriter {
  public:
@@ -243,6 +245,13 @@ class AtomicWriter {
   std::FILE* file_ = nullptr;
   int slot_ = -1;
 };
+
+/// The descriptor `path` names, possibly through symbolic links: 0, 1, 2 for /dev/stdin,
+/// /dev/stdout, /dev/stderr, N for /dev/fd/N, /proc/self/fd/N, /proc/thread-self/fd/N and
+/// /proc/<this process>/fd/N; -1 for any other path. Such a path leads to whatever the
+/// descriptor is open on (a file stdout was redirected to), so the writers write to the
+/// descriptor, as they do for "-", and never replace or remove it. (atomic_file.cpp)
+int descriptorPath(const std::string& path);
 
 /// Checks that the shape's cloud is self-consistent and returns the fields to write.
 std::vector<const Field*> checkShape(const std::string& path, const Shape& shape, bool keep_padding);

@@ -1,5 +1,7 @@
 // OBJ reading and writing: 'v' and 'f' lines, per-vertex colours, and every other line
 // (texture coordinates, normals, groups, materials, face corners) kept to be written back.
+// Normals ('vn') are paired with the vertices that faces give them, or, in a point cloud
+// without faces and with one 'vn' per 'v', by order.
 #include <charconv>
 #include <cstring>
 #include <limits>
@@ -108,6 +110,10 @@ Shape readObj(const std::string& path) {
                    num(nverts) + " vertices)");
   if (nverts > std::numeric_limits<std::uint32_t>::max())
     fail(path, "unsupported: more than 4294967295 vertices");
+  // A point cloud (no faces) with one 'vn' per 'v': the k-th normal is the k-th vertex's, as
+  // MeshLab and CloudCompare read it, so that it turns with the shape as a mesh's does.
+  if (shape.polygons.empty() && normals.size() == nverts)
+    for (std::size_t k = 0; k < nverts; ++k) normal_vertex[k] = static_cast<int>(k);
 
   pcl::PCLPointCloud2& cloud = shape.cloud;
   const bool colour = all_rgb && rgb.size() == xyz.size();

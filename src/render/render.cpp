@@ -5,12 +5,14 @@
 #include <vtkPNGWriter.h>
 #include <vtkRenderWindow.h>
 #include <vtkSmartPointer.h>
+#include <vtkUnsignedCharArray.h>
 #include <vtkWindowToImageFilter.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <stdexcept>
+#include <string_view>
 
 #include "hgdeform/colormap.h"
 #include "hgdeform/fields.h"
@@ -145,16 +147,18 @@ void writeWindowPng(vtkRenderWindow* window, const std::string& png_path,
   grab->SetInputBufferTypeToRGB();
   grab->ReadFrontBufferOff();
   grab->Update();
-  // Written next to the target, then renamed: never a half-written picture.
-  const std::string tmp = png_path + ".tmp.png";
+  // Encoded in memory, then written by the one atomic writer as every other output is: a
+  // temporary file beside the target renamed over it (a link followed), a FIFO or a device
+  // written to directly, nothing left behind on failure.
   auto writer = vtkSmartPointer<vtkPNGWriter>::New();
-  writer->SetFileName(tmp.c_str());
+  writer->SetWriteToMemory(1);
   writer->SetInputConnection(grab->GetOutputPort());
   writer->Write();
-  if (writer->GetErrorCode() != 0 || std::rename(tmp.c_str(), png_path.c_str()) != 0) {
-    std::remove(tmp.c_str());
-    throw std::runtime_error(png_path + ": cannot write the " + what);
-  }
+  vtkUnsignedCharArray* png = writer->GetResult();
+  if (writer->GetErrorCode() != 0 || !png || png->GetNumberOfValues() == 0)
+    throw std::runtime_error(png_path + ": cannot write the " + what + ": the PNG could not be encoded");
+  writeFileAtomically(png_path, std::string_view(reinterpret_cast<const char*>(png->GetPointer(0)),
+                                                 static_cast<std::size_t>(png->GetNumberOfValues())));
 }
 
 }  // namespace hgd
