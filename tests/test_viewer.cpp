@@ -151,6 +151,53 @@ TEST(Viewer, ReplayedDragSavesWhatDeformGivesAndScreenshotsShowIt) {
   EXPECT_LT(countNear(after, 89, 204, 230, 30), 20);
 }
 
+// `l`: drags keep the handle's orientation. The saved scenario records it, `hgdeform deform`
+// replays it to the same shape, and the handle's far end translated without turning: its
+// corners all moved by one vector (computed here from the rest and saved shapes).
+TEST(Viewer, KeepOrientationKeyMakesDragsTranslateTheHandle) {
+  if (!haveXvfb()) GTEST_SKIP() << "xvfb-run not installed";
+  hgdtest::TempDir dir;
+  hgd::writeShape(dir.file("bar.ply"), hgd::shapes::bar(1.0f, 0.1f, 0.01f));
+  const std::string d = dir.path().string() + "/";
+  hgdtest::writeText(dir.file("events.json"), R"({"events": [
+    {"pick": {"world": [0, 0, 0.05], "radius": 0.06}}, {"key": "f"},
+    {"pick": {"world": [1, 0, 0.05], "radius": 0.06}}, {"key": "m"}, {"key": "l"},
+    {"drag": {"from": {"world": [1, 0, 0.05]}, "to": {"world": [0.8, 0.4, 0.05]}, "steps": 15}},
+    {"save": ")" + d + R"(viewer.ply"}, {"save_scenario": ")" +
+                                                  d + R"(session.json"}
+  ]})");
+  std::string out;
+  ASSERT_EQ(
+      hgdtest::run(viewer(dir.file("bar.ply") + " --replay " + dir.file("events.json") + " --quiet"), out), 0)
+      << out;
+  EXPECT_NE(hgdtest::slurp(dir.file("session.json")).find("\"keep_orientation\": true"), std::string::npos)
+      << hgdtest::slurp(dir.file("session.json"));
+  ASSERT_EQ(hgdtest::run(std::string(HGD_TOOL) + " deform " + dir.file("bar.ply") + " -s " +
+                             dir.file("session.json") + " -o " + dir.file("cli.ply") + " -q",
+                         out),
+            0)
+      << out;
+  double diag = 1;
+  EXPECT_LE(maxDistance(dir.file("viewer.ply"), dir.file("cli.ply"), diag), 1e-5 * diag);
+  // The handle's points (within the pick's radius, 0.06, of (1, 0, 0.05) at rest; 0.05 for a
+  // margin) all moved by the same vector.
+  const hgd::Geometry rest = hgd::extractGeometry(hgd::readShape(dir.file("bar.ply"))),
+                      moved = hgd::extractGeometry(hgd::readShape(dir.file("viewer.ply")));
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(INFINITY), hi = -lo;
+  for (std::size_t i = 0; i < rest.size(); ++i) {
+    if ((rest.world(i) - Eigen::Vector3d(1, 0, 0.05)).norm() > 0.05) continue;
+    const int j = moved.finite_index[static_cast<std::size_t>(rest.raw_index[i])];
+    ASSERT_GE(j, 0);
+    const Eigen::Vector3d shift = moved.world(static_cast<std::size_t>(j)) - rest.world(i);
+    lo = lo.cwiseMin(shift);
+    hi = hi.cwiseMax(shift);
+  }
+  std::printf("keep orientation in the viewer: handle shift (%.3f, %.3f, %.3f), spread %.2e\n", lo.x(),
+              lo.y(), lo.z(), (hi - lo).norm());
+  EXPECT_LE((hi - lo).norm(), 1e-5);  // one translation (a turn of 1 degree would spread 1.7e-3)
+  EXPECT_GT(lo.y(), 0.1);             // and it moved
+}
+
 TEST(Viewer, FrameKeysAndUndoReplayThroughTheScenario) {
   if (!haveXvfb()) GTEST_SKIP() << "xvfb-run not installed";
   hgdtest::TempDir dir;
