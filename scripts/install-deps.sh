@@ -5,6 +5,7 @@ set -euo pipefail
 
 packages=(
   build-essential cmake ninja-build pkg-config git
+  ccache                                    # scripts/ccache.sh: rebuilds from the cache, in any clone
   libpcl-dev libeigen3-dev libflann-dev libboost-dev
   liblz4-dev                                # FLANN's headers call LZ4: libhgdeform links it
   libsuitesparse-dev libopenblas0-pthread   # CHOLMOD for the exact field solve; OpenBLAS ~3x faster than reference BLAS

@@ -7,7 +7,9 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 build=build-asan
 
-cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DHGDEFORM_SANITIZE=ON -DHGDEFORM_WERROR=ON
+source scripts/ccache.sh
+cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DHGDEFORM_SANITIZE=ON -DHGDEFORM_WERROR=ON \
+  "${HGD_LAUNCHER[@]}"
 cmake --build "$build" -j "${JOBS:-2}"
 
 # Suppressions cover third-party code only; each entry is explained in its file.

@@ -4,6 +4,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/install-deps.sh
-cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DHGDEFORM_WERROR=ON
+source scripts/ccache.sh
+cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DHGDEFORM_WERROR=ON "${HGD_LAUNCHER[@]}"
 cmake --build build -j 2
 ctest --test-dir build --output-on-failure -j 2
