@@ -324,18 +324,18 @@ TEST(BatchUsage, BadOptions) {
 // --- a whole folder --------------------------------------------------------------------------
 
 // A scan whose handles touch (fixed x <= 0.5, manipulated beyond, lifted by 0.3) comes apart
-// along x = 0.5: the batch says so on stderr and in the scan's warning in summary.json, and
-// the other scan of the folder is not warned about.
-TEST(Batch, SurfacePulledApartIsSaid) {
+// along x = 0.5, and an object beside it stays: the batch says both on stderr and in the
+// scan's warning in summary.json, and the other scan of the folder is not warned about.
+TEST(Batch, SurfacePulledApartAndObjectLeftAreSaid) {
   TempDir dir;
   const fs::path in = dir.path() / "in", out = dir.path() / "out", rep = dir.path() / "rep";
   fs::create_directories(in);
   writeText((in / "scenario.json").string(), R"({
-    "fixed": [ { "box": { "min": [-1, -1, -1], "max": [0.5, 1, 1] } } ],
-    "manipulated": { "box": { "min": [0.5001, -1, -1], "max": [2, 1, 1] } },
+    "fixed": [ { "box": { "min": [-1, -1, -1], "max": [0.5, 0.3, 1] } } ],
+    "manipulated": { "box": { "min": [0.5001, -1, -1], "max": [2, 0.3, 1] } },
     "move": { "frame": { "translate": [0, 0.3, 0] } }
   })");
-  hgd::writeShape((in / "torn.ply").string(), hgd::shapes::bar(1.0f, 0.1f, 0.0125f));
+  hgd::writeShape((in / "torn.ply").string(), hgd::shapes::barBesideABox(0.0125f));
   writeText((in / "whole.json").string(), kScenario);
   hgd::writeShape((in / "whole.ply").string(), hgd::shapes::bar(1.0f, 0.1f, 0.0125f));
   const Result r = cli(batch(in, out, "--report " + q(rep)));
@@ -346,6 +346,8 @@ TEST(Batch, SurfacePulledApartIsSaid) {
   std::map<std::string, std::string> warning;
   for (const auto& s : j.at("scans")) warning[s.at("file").get<std::string>()] = s.value("warning", "");
   EXPECT_TRUE(contains(warning["torn.ply"], "the surface is pulled apart at")) << j.dump();
+  EXPECT_TRUE(contains(warning["torn.ply"], "that touch no handle lie apart")) << j.dump();
+  EXPECT_EQ(countOf(r.err, "that touch no handle lie apart"), 1u) << r.err;
   EXPECT_FALSE(contains(warning["whole.ply"], "pulled apart")) << j.dump();
 }
 

@@ -363,17 +363,18 @@ TEST(CliDeform, FrameMoveIsExactOnManipulatedHandle) {
 }
 
 // A bar whose fixed and manipulated handles touch at x = 0.5, the manipulated half lifted by
-// 0.3: the surface has to come apart along x = 0.5. The deform says so on stderr and in the
-// report (surface.split_points, surface.max_stretch, a warning), and exits 0: the result is
-// what was asked for, but a user must not find the split by looking first.
-TEST(CliDeform, SurfacePulledApartIsSaid) {
+// 0.3: the surface has to come apart along x = 0.5. Beside it, a box no handle reaches. The
+// deform says both on stderr and in the report (surface.split_points, surface.max_stretch,
+// pieces, warnings), and exits 0: the result is what was asked for, but a user must not find
+// the split or the object left behind by looking first.
+TEST(CliDeform, SurfacePulledApartAndObjectLeftAreSaid) {
   TempDir dir;
   const std::string input = dir.file("bar.ply"), output = dir.file("out.ply"), scenario = dir.file("s.json"),
                     report = dir.file("r.json");
-  hgd::writeShape(input, hgd::shapes::bar());
+  hgd::writeShape(input, hgd::shapes::barBesideABox());
   writeText(scenario, R"({
-    "fixed": [ { "box": { "min": [-1, -1, -1], "max": [0.5, 1, 1] } } ],
-    "manipulated": { "box": { "min": [0.5001, -1, -1], "max": [2, 1, 1] } },
+    "fixed": [ { "box": { "min": [-1, -1, -1], "max": [0.5, 0.3, 1] } } ],
+    "manipulated": { "box": { "min": [0.5001, -1, -1], "max": [2, 0.3, 1] } },
     "move": { "frame": { "translate": [0, 0.3, 0] } }
   })");
   const Result r = cli("deform " + quote(input) + " -s " + quote(scenario) + " -o " + quote(output) +
@@ -392,6 +393,14 @@ TEST(CliDeform, SurfacePulledApartIsSaid) {
   bool warned = false;
   for (const auto& w : j.at("warnings")) warned = warned || contains(w.get<std::string>(), "pulled apart");
   EXPECT_TRUE(warned) << j.dump();
+  // The box: 2 x (0.3 x 0.2 + 0.3 x 0.1 + 0.2 x 0.1) at spacing 0.01 (counted from the file).
+  const hgd::Shape in = hgd::readShape(input);
+  std::size_t box = 0;
+  for (std::size_t i = 0; i < in.size(); ++i) box += value(in, i, "y") > 0.5;
+  EXPECT_EQ(j.at("pieces").at("stayed_points").get<std::size_t>(), box);
+  EXPECT_TRUE(contains(
+      r.err, "warning: " + std::to_string(box) + " points in 1 piece that touch no handle lie apart"))
+      << r.err;
 }
 
 // `deform --mesh-ring`: the field's graph is the faces' 1-ring. Its output is the library's

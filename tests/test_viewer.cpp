@@ -418,16 +418,16 @@ TEST(Viewer, MalformedReplayIsRefusedBeforeAnyEventRuns) {
 }
 
 // A scenario whose handles touch (fixed x <= 0.5, manipulated beyond, lifted by 0.3) pulls the
-// bar apart along x = 0.5: the viewer says so on stderr (and on its status line) as soon as
-// the scenario's move is applied.
-TEST(Viewer, SurfacePulledApartIsSaid) {
+// bar apart along x = 0.5, and a box beside it stays: the viewer says both on stderr (and on
+// its status line) once, as soon as the scenario's move is applied.
+TEST(Viewer, SurfacePulledApartAndObjectLeftAreSaid) {
   if (!haveXvfb()) GTEST_SKIP() << "xvfb-run not installed";
   hgdtest::TempDir dir;
   const std::string bar = dir.file("bar.ply"), scenario = dir.file("s.json"), ev = dir.file("e.json");
-  hgd::writeShape(bar, hgd::shapes::bar());
+  hgd::writeShape(bar, hgd::shapes::barBesideABox());
   hgdtest::writeText(scenario, R"({
-    "fixed": [ { "box": { "min": [-1, -1, -1], "max": [0.5, 1, 1] } } ],
-    "manipulated": { "box": { "min": [0.5001, -1, -1], "max": [2, 1, 1] } },
+    "fixed": [ { "box": { "min": [-1, -1, -1], "max": [0.5, 0.3, 1] } } ],
+    "manipulated": { "box": { "min": [0.5001, -1, -1], "max": [2, 0.3, 1] } },
     "move": { "frame": { "translate": [0, 0.3, 0] } }
   })");
   hgdtest::writeText(ev, R"({"events": []})");
@@ -435,6 +435,7 @@ TEST(Viewer, SurfacePulledApartIsSaid) {
       hgdtest::shell(viewer(bar + " --scenario " + scenario + " --replay " + ev + " --quiet"));
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_EQ(countOf(r.err, "hgdeform-view: warning: the surface is pulled apart at"), 1u) << r.err;
+  EXPECT_EQ(countOf(r.err, "that touch no handle lie apart"), 1u) << r.err;
 }
 
 // The example of README.md and docs/replay.md replays, with --screenshot, --size and --stats

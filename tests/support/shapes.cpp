@@ -80,6 +80,13 @@ Shape bar(float length, float width, float h) {
   return cloudShape(p, n);
 }
 
+Shape barBesideABox(float h) {
+  std::vector<Eigen::Vector3f> p, n;
+  boxSurface({0, -0.05f, -0.05f}, {1, 0.05f, 0.05f}, h, p, n);
+  boxSurface({0.3f, 0.55f, -0.05f}, {0.6f, 0.75f, 0.05f}, h, p, n);
+  return cloudShape(p, n);
+}
+
 Shape cylinder(float length, float radius, float h) {
   std::vector<Eigen::Vector3f> p, n;
   const int around = std::max(8, static_cast<int>(std::lround(2 * M_PI * radius / h)));

@@ -46,6 +46,10 @@ struct PointsAndNormals {
 };
 PointsAndNormals sampledFork(std::size_t n, unsigned seed, double noise = 0, double outliers = 0);
 
+/// The bar of bar() and, 0.5 beside it (y from 0.55), another object that no handle on the bar
+/// reaches: the surface of a box 0.3 x 0.2 x 0.1, sampled at spacing h.
+Shape barBesideABox(float h = 0.01f);
+
 /// Triangle mesh of the same bar as bar(): vertices on the grid, two triangles per cell.
 Shape barMesh(float length = 1.0f, float width = 0.1f, float h = 0.01f);
 
