@@ -6,7 +6,12 @@
 // Each (model, size) runs in its own child process, so that the peak memory (RSS) reported is
 // its own. Models: a procedural bumpy sphere of exactly N points (fixed: the bottom cap;
 // manipulated: a cap on the side) and the Armadillo of ../shared/datasets resampled to N points
-// (fixed: the feet; manipulated: the top of the head), when that file is there.
+// in random order (fixed: the feet; manipulated: the top of the head), when that file is there:
+// `armadillo` with the faces' normals stored, `armadillo-bare` positions only (normals
+// estimated), `armadillo-outliers` with 1% stray points around it.
+// Beside every row, references measured in the same process on the same cloud: PCL's
+// NormalEstimationOMP (k = 10) and a streaming pass (bench_references.h); the ratios printed
+// (build / PCL normals, interpolation / stream) and the peak memory per point are the targets.
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -19,9 +24,11 @@
 #include <filesystem>
 #include <iostream>
 #include <nlohmann/json.hpp>
+#include <random>
 #include <string>
 #include <vector>
 
+#include "bench_references.h"
 #include "blas_guard.h"
 #include "cli_common.h"
 #include "hgdeform/deformer.h"
@@ -62,8 +69,23 @@ nlohmann::json runSize(const std::string& model, const std::string& armadillo, s
   hgd::Geometry g;
   hgd::Handles h;
   h.fixed.emplace_back();
-  if (model == "armadillo") {
-    g = hgd::extractGeometry(hgd::shapes::sampleMesh(hgd::readShape(armadillo), n, 7));
+  if (model.rfind("armadillo", 0) == 0) {
+    hgd::Shape sampled = hgd::shapes::sampleMesh(hgd::readShape(armadillo), n, 7);
+    if (model != "armadillo") {
+      const hgd::Geometry s = hgd::extractGeometry(sampled);
+      std::vector<Eigen::Vector3f> p(s.size()), none;
+      for (std::size_t i = 0; i < s.size(); ++i) p[i] = s.world(i).cast<float>();
+      if (model == "armadillo-outliers") {  // 1% strays, uniform in the box grown by 20%
+        const Eigen::AlignedBox3f box = hgd::boundingBox(*s.points);
+        const Eigen::Vector3f lo = box.min() + s.origin.cast<float>(), size = box.max() - box.min();
+        std::mt19937 rng(13);
+        std::uniform_real_distribution<float> u(-0.1f, 1.1f);
+        for (std::size_t k = 0; k < n / 100; ++k)
+          p.push_back(lo + Eigen::Vector3f(u(rng), u(rng), u(rng)).cwiseProduct(size));
+      }
+      sampled = hgd::shapes::cloudShape(p, none);
+    }
+    g = hgd::extractGeometry(sampled);
     const Eigen::AlignedBox3f box = hgd::boundingBox(*g.points);
     const Eigen::Vector3d lo = box.min().cast<double>() + g.origin, hi = box.max().cast<double>() + g.origin;
     const double height = hi.y() - lo.y();
@@ -82,7 +104,9 @@ nlohmann::json runSize(const std::string& model, const std::string& armadillo, s
   }
   json out;
   out["model"] = model;
-  out["points"] = n;
+  out["points"] = g.size();
+  out["reference"] = {{"pcl_normal_estimation_ms", hgdbench::pclNormalEstimationMs(g.points, 10, repeat)},
+                      {"stream_ms", hgdbench::streamingReferenceMs(g.size(), repeat)}};
   // Field build: normals (file normals are ignored here so that estimation is measured),
   // kNN, graph, Laplacian, solve; a fresh HarmonicField each time.
   std::vector<double> knn, normals, graph, lap, solve, field_total;
@@ -180,6 +204,9 @@ nlohmann::json runSize(const std::string& model, const std::string& armadillo, s
                 {"interpolation_linear_ms", median(interp_linear)},
                 {"interpolation_rotation_ms", median(interp_rotation)},
                 {"frame_ms", median(frame)},
+                {"build_over_pcl_normals",
+                 median(build) / out["reference"]["pcl_normal_estimation_ms"].get<double>()},
+                {"interpolation_over_stream", median(interp) / out["reference"]["stream_ms"].get<double>()},
                 {"paper_model", paper.model},
                 {"build_speedup", paper.build / std::max(1e-9, median(build))},
                 {"interpolation_speedup", paper.interpolation / std::max(1e-9, median(interp))}};
@@ -219,9 +246,11 @@ int parseArgs(int argc, char** argv, BenchArgs& a) {
   app.add_option("--repeat", a.repeat, "runs per measurement, the median is shown (default 5)")
       ->check(hgdcli::integerFrom(1, 1000))
       ->type_name("R");
-  app.add_option("--models", a.models, "sphere and/or armadillo (default sphere,armadillo)")
+  app.add_option("--models", a.models,
+                 "sphere, armadillo (face normals stored), armadillo-bare (no normals), armadillo-outliers "
+                 "(1% strays) (default sphere,armadillo)")
       ->delimiter(',')
-      ->check(hgdcli::oneOf({"sphere", "armadillo"}))
+      ->check(hgdcli::oneOf({"sphere", "armadillo", "armadillo-bare", "armadillo-outliers"}))
       ->type_name("M,M");
   app.add_option("--armadillo", a.armadillo,
                  "the Armadillo mesh (default ../shared/datasets/meshes/armadillo_49990.ply)")
@@ -254,14 +283,19 @@ int main(int argc, char** argv) {
     return 1;
   }
   nlohmann::json all = nlohmann::json::array();
-  if (std::find(models.begin(), models.end(), "armadillo") != models.end() &&
-      !std::filesystem::exists(armadillo)) {
-    std::printf("(no %s: the Armadillo rows are left out)\n", armadillo.c_str());
-    models.erase(std::find(models.begin(), models.end(), "armadillo"));
+  if (!std::filesystem::exists(armadillo)) {
+    const auto was = models.size();
+    models.erase(std::remove_if(models.begin(), models.end(),
+                                [](const std::string& m) { return m.rfind("armadillo", 0) == 0; }),
+                 models.end());
+    if (models.size() != was) std::printf("(no %s: the Armadillo rows are left out)\n", armadillo.c_str());
   }
-  std::printf("%9s %9s %10s | %6s %6s %6s %6s %6s %7s | %5s %6s %6s %6s %8s %5s %7s %7s %7s | %7s %6s\n",
-              "model", "points", "solver", "knn", "normal", "graph", "lapl", "solve", "field", "clus",
-              "build", "sample", "clust", "ms/iter", "iters", "i.lin", "i.rot", "frame", "RSS MB", "xpaper");
+  std::printf(
+      "%18s %9s %10s | %6s %6s %6s %6s %6s %7s | %5s %6s %6s %6s %8s %5s %7s %7s %7s | %7s %6s | %6s %6s %6s "
+      "%6s %6s\n",
+      "model", "points", "solver", "knn", "normal", "graph", "lapl", "solve", "field", "clus", "build",
+      "sample", "clust", "ms/iter", "iters", "i.lin", "i.rot", "frame", "RSS MB", "xpaper", "pclN", "b/pclN",
+      "stream", "i/strm", "B/pt");
   for (const std::string& model : models)
     for (long n : sizes) {
       int pipefd[2];
@@ -293,20 +327,23 @@ int main(int argc, char** argv) {
       r["tool"] = "hgdeform-bench";
       r["version"] = hgd::version();
       const auto& f = r["field"];
+      const double pcl_ms = r["reference"]["pcl_normal_estimation_ms"].get<double>(),
+                   stream_ms = r["reference"]["stream_ms"].get<double>();
+      r["peak_bytes_per_point"] = static_cast<double>(ru.ru_maxrss) * 1024.0 / r["points"].get<double>();
       for (const auto& d : r["deform"]) {
         std::printf(
-            "%9s %9ld %10s | %6.0f %6.0f %6.0f %6.0f %6.0f %7.0f | %5ld %6.0f %6.1f %6.0f %8.3f %5d %7.2f "
-            "%7.2f "
-            "%7.2f | "
-            "%7.0f "
-            "%6.1f\n",
-            model.c_str(), n, f["solver"].get<std::string>().c_str(), f["knn_ms"].get<double>(),
-            f["normals_ms"].get<double>(), f["graph_ms"].get<double>(), f["laplacian_ms"].get<double>(),
-            f["solve_ms"].get<double>(), f["total_ms"].get<double>(), d["isoclusters"].get<long>(),
-            d["build_ms"].get<double>(), d["sampling_ms"].get<double>(), d["clusters_ms"].get<double>(),
-            d["gn_iteration_ms"].get<double>(), d["max_frame_iterations"].get<int>(),
-            d["interpolation_linear_ms"].get<double>(), d["interpolation_rotation_ms"].get<double>(),
-            d["frame_ms"].get<double>(), r["peak_rss_mb"].get<double>(), d["build_speedup"].get<double>());
+            "%18s %9ld %10s | %6.0f %6.0f %6.0f %6.0f %6.0f %7.0f | %5ld %6.0f %6.1f %6.0f %8.3f %5d %7.2f "
+            "%7.2f %7.2f | %7.0f %6.1f | %6.0f %6.2f %6.2f %6.1f %6.0f\n",
+            model.c_str(), r["points"].get<long>(), f["solver"].get<std::string>().c_str(),
+            f["knn_ms"].get<double>(), f["normals_ms"].get<double>(), f["graph_ms"].get<double>(),
+            f["laplacian_ms"].get<double>(), f["solve_ms"].get<double>(), f["total_ms"].get<double>(),
+            d["isoclusters"].get<long>(), d["build_ms"].get<double>(), d["sampling_ms"].get<double>(),
+            d["clusters_ms"].get<double>(), d["gn_iteration_ms"].get<double>(),
+            d["max_frame_iterations"].get<int>(), d["interpolation_linear_ms"].get<double>(),
+            d["interpolation_rotation_ms"].get<double>(), d["frame_ms"].get<double>(),
+            r["peak_rss_mb"].get<double>(), d["build_speedup"].get<double>(), pcl_ms,
+            d["build_over_pcl_normals"].get<double>(), stream_ms,
+            d["interpolation_over_stream"].get<double>(), r["peak_bytes_per_point"].get<double>());
       }
       std::fflush(stdout);
       all.push_back(r);
@@ -318,8 +355,10 @@ int main(int argc, char** argv) {
       "= most "
       "iterations in one frame; i.lin / i.rot = interpolation to all points with the linear / rotation-aware "
       "(default) blend; frame = solve + interpolation per frame (default blend); xpaper = the paper's build "
-      "time "
-      "(nearest model in Table 1) / ours\n",
+      "time (nearest model in Table 1) / ours; references in the same run on the same cloud: pclN = PCL "
+      "NormalEstimationOMP (k = 10, every thread) ms, b/pclN = build / pclN, stream = a streaming pass (20 "
+      "bytes read, 12 written, two 3x4 transforms blended per point) ms, i/strm = interpolation (default "
+      "blend) / stream; B/pt = peak RSS bytes per point\n",
       repeat);
   if (!json_path.empty()) hgd::writeTextAtomically(json_path, all.dump(2) + "\n");
   return 0;

@@ -1,0 +1,23 @@
+// The references hgdeform-bench measures in the same run, on the same cloud, so that its targets
+// are ratios (issue: "targets are ratios printed by the benchmark against references measured
+// in the same run"): PCL's own normal estimation, and a streaming pass as cheap as a blend can be.
+#pragma once
+
+#include <pcl/point_cloud.h>
+#include <pcl/point_types.h>
+
+#include <cstddef>
+
+namespace hgdbench {
+
+/// Median ms of pcl::NormalEstimationOMP (k nearest neighbours, a k-d tree, every OpenMP
+/// thread) over `repeat` runs on `cloud`.
+double pclNormalEstimationMs(const pcl::PointCloud<pcl::PointXYZ>::ConstPtr& cloud, int k, int repeat);
+
+/// Median ms of the streaming reference over `repeat` runs on n points: each point reads its
+/// 12-byte position and an 8-byte record (two 16-bit transform ids and a float weight), blends
+/// the two 3x4 transforms it names (of 32) by the weight, applies the blend and writes 12 bytes;
+/// OpenMP over every thread. What an interpolation costs when it does nothing else.
+double streamingReferenceMs(std::size_t n, int repeat);
+
+}  // namespace hgdbench
