@@ -3,9 +3,10 @@
 //
 //   hgdeform-scan-figures gen DIR [ARMADILLO_MESH]
 //       writes scan-shaped inputs, a scenario for each, and DIR/cases.txt (one line per case:
-//       name input scenario drag-distance)
-//   hgdeform-scan-figures measure REST DEFORMED DRAG
-//       prints "torn N split N stretch X" for a deformed output against its input:
+//       name input scenario drag-distance surface-points)
+//   hgdeform-scan-figures measure REST DEFORMED DRAG [SURFACE]
+//       prints "torn N split N stretch X" for a deformed output against its input, over its
+//       first SURFACE points (all by default: the stray points a case adds come last):
 //       - torn: a point whose displacement differs from the median displacement of its 10
 //         nearest rest neighbours by more than 0.25x the drag distance;
 //       - split: a point whose distance to one of its 10 nearest rest neighbours more than
@@ -18,6 +19,7 @@
 #include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <cstring>
 #include <exception>
@@ -82,7 +84,7 @@ int gen(const std::filesystem::path& dir, const std::string& armadillo) {
     const hgd::shapes::PointsAndNormals s = hgd::shapes::sampledFork(f.n, 11, f.noise, f.outliers);
     const std::string file = std::string(f.name) + ".ply";
     hgd::writeShape((dir / file).string(), hgd::shapes::cloudShape(s.p, s.n));
-    cases << f.name << ' ' << file << " fork.json " << (to - from).norm() << '\n';
+    cases << f.name << ' ' << file << " fork.json " << (to - from).norm() << ' ' << f.n << '\n';
   }
   if (armadillo.empty() || !std::filesystem::exists(armadillo)) return 0;
   // The Armadillo: the feet fixed (lowest 12% of its height), the top of the head dragged by
@@ -107,7 +109,7 @@ int gen(const std::filesystem::path& dir, const std::string& armadillo) {
   const double drag = (dto - top).norm();
   std::filesystem::copy_file(armadillo, dir / "armadillo_mesh.ply",
                              std::filesystem::copy_options::overwrite_existing);
-  cases << "armadillo_mesh armadillo_mesh.ply armadillo.json " << drag << '\n';
+  cases << "armadillo_mesh armadillo_mesh.ply armadillo.json " << drag << ' ' << mp.size() << '\n';
   std::mt19937 rng(5);
   for (const auto& [name, n] : {std::pair<const char*, std::size_t>{"armadillo_200k_random_signs", 200000},
                                 {"armadillo_1M_random_signs", 1000000}}) {
@@ -120,18 +122,18 @@ int gen(const std::filesystem::path& dir, const std::string& armadillo) {
     }
     const std::string file = std::string(name) + ".ply";
     hgd::writeShape((dir / file).string(), hgd::shapes::cloudShape(p, nrm));
-    cases << name << ' ' << file << " armadillo.json " << drag << '\n';
+    cases << name << ' ' << file << " armadillo.json " << drag << ' ' << n << '\n';
   }
   return 0;
 }
 
-int measure(const std::string& rest_file, const std::string& out_file, double drag) {
+int measure(const std::string& rest_file, const std::string& out_file, double drag, std::size_t surface) {
   const std::vector<V3> rest = positions(hgd::readShape(rest_file)),
                         out = positions(hgd::readShape(out_file));
   if (rest.size() != out.size()) throw std::runtime_error("the two files differ in point count");
   pcl::PointCloud<pcl::PointXYZ>::Ptr cloud(new pcl::PointCloud<pcl::PointXYZ>);
   std::vector<int> at;
-  for (std::size_t i = 0; i < rest.size(); ++i)
+  for (std::size_t i = 0; i < std::min(rest.size(), surface); ++i)
     if (rest[i].allFinite()) {
       cloud->push_back(pcl::PointXYZ(rest[i].x(), rest[i].y(), rest[i].z()));
       at.push_back(static_cast<int>(i));
@@ -177,10 +179,11 @@ int main(int argc, char** argv) {
   try {
     const std::string mode = argc > 1 ? argv[1] : "";
     if (mode == "gen" && (argc == 3 || argc == 4)) return gen(argv[2], argc == 4 ? argv[3] : "");
-    if (mode == "measure" && argc == 5) return measure(argv[2], argv[3], std::stod(argv[4]));
+    if (mode == "measure" && (argc == 5 || argc == 6))
+      return measure(argv[2], argv[3], std::stod(argv[4]), argc == 6 ? std::stoul(argv[5]) : SIZE_MAX);
     std::fprintf(stderr,
                  "usage: hgdeform-scan-figures gen DIR [ARMADILLO_MESH]\n"
-                 "       hgdeform-scan-figures measure REST DEFORMED DRAG\n");
+                 "       hgdeform-scan-figures measure REST DEFORMED DRAG [SURFACE]\n");
     return 2;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "hgdeform-scan-figures: %s\n", e.what());
