@@ -10,6 +10,8 @@
 #include "hgdeform/deformer.h"
 #include "hgdeform/io.h"
 #include "hgdeform/neighbors.h"
+#include "hgdeform/regions.h"
+#include "hgdeform/scenario.h"
 #include "support/shapes.h"
 #include "test_util.h"
 
@@ -17,6 +19,34 @@ using hgdtest::pointsWhere;
 using hgdtest::rigidResidual;
 
 namespace {
+
+// The points just outside a handle: those (not in it) with a handle point among their 10
+// nearest neighbours.
+std::vector<int> nextTo(const hgd::Geometry& g, const std::vector<int>& handle) {
+  std::vector<char> in(g.size(), 0);
+  for (int i : handle) in[static_cast<std::size_t>(i)] = 1;
+  const hgd::KnnTable knn = hgd::computeKnn(*g.points, 10);
+  std::vector<int> out;
+  for (std::size_t i = 0; i < g.size(); ++i) {
+    if (in[i]) continue;
+    for (int m = 0; m < knn.k; ++m)
+      if (in[static_cast<std::size_t>(knn.row(i)[m])]) {
+        out.push_back(static_cast<int>(i));
+        break;
+      }
+  }
+  return out;
+}
+
+// How far the points just outside the fixed handle moved (the largest).
+double movedNextTo(const hgd::Deformer& d, const std::vector<int>& handle) {
+  double worst = 0;
+  for (int i : nextTo(d.geometry(), handle))
+    worst = std::max(worst, (d.deformedWorld(static_cast<std::size_t>(i)) -
+                             d.geometry().world(static_cast<std::size_t>(i)))
+                                .norm());
+  return worst;
+}
 
 // Bar (Fig. 2): one end fixed, the other dragged sideways by half the bar's length.
 TEST(Deform, BarDragBendsSmoothly) {
@@ -28,17 +58,18 @@ TEST(Deform, BarDragBendsSmoothly) {
   hgd::DeformOptions opt;
   opt.clusters.isoclusters = 10;
   hgd::Deformer d(g, h, opt);
-  const double diag = hgd::boundingBoxDiagonal(g);
   const Eigen::Vector3d from(1.0, 0.0, 0.05);
   const Eigen::Vector3d to = from + Eigen::Vector3d(0, 0.5, 0);
   const hgd::DragResult r = d.dragTo(from, to);
   std::printf("bar: %d frames, %d iterations (max %d/frame), error %.3g, clusters %zu\n", r.frames,
               r.iterations, r.max_frame_iterations, r.error, d.clustering().clusters.size());
-  EXPECT_TRUE(r.reached);
-  EXPECT_LE(r.error, 1e-3 * diag);
-  for (int i : h.fixed[0])
-    EXPECT_LE((d.deformedWorld(static_cast<std::size_t>(i)) - g.world(static_cast<std::size_t>(i))).norm(),
-              1e-6 * diag);
+  EXPECT_TRUE(r.reached);  // within the drag tolerance, 1e-4 of the diagonal
+  // The fixed handle's points are pinned; just outside it the bar barely moves (no step at the
+  // handle's edge): measured 0.43% of the drag.
+  const double next_to_fixed = movedNextTo(d, h.fixed[0]);
+  std::printf("bar: points next to the fixed handle moved at most %.2f%% of the drag\n",
+              100 * next_to_fixed / (to - from).norm());
+  EXPECT_LE(next_to_fixed, 0.0065 * (to - from).norm());  // 1.5 times the measured
   // Displacement grows monotonically along the bar (binned by x).
   std::vector<double> sum(20, 0), cnt(20, 0);
   for (std::size_t i = 0; i < g.size(); ++i) {
@@ -50,12 +81,16 @@ TEST(Deform, BarDragBendsSmoothly) {
     EXPECT_GE(sum[static_cast<std::size_t>(b)] / cnt[static_cast<std::size_t>(b)],
               sum[static_cast<std::size_t>(b - 1)] / cnt[static_cast<std::size_t>(b - 1)] - 1e-6)
         << "bin " << b;
-  // Reaching 0.5 sideways forces the bar (0.9 long between its handles) to stretch by ~10%:
-  // Rot(A) stays within that, and no cluster folds.
+  // Reaching 0.5 sideways forces the bar (0.9 long between its handles) to stretch: no cluster
+  // folds or shrinks, and Rot(A) stays bounded.
+  double worst_rot = 0, least_det = INFINITY;
   for (const auto& t : d.clusterTransforms()) {
-    EXPECT_GT(t.A.determinant(), 0);
-    EXPECT_LT(hgd::rotationResidual(t.A), 0.1);
+    worst_rot = std::max(worst_rot, hgd::rotationResidual(t.A));
+    least_det = std::min(least_det, t.A.determinant());
   }
+  std::printf("bar: worst Rot(A) %.4f, least det(A) %.4f\n", worst_rot, least_det);
+  EXPECT_LT(worst_rot, 0.11);  // measured 0.0895, in the most stretched cluster
+  EXPECT_GT(least_det, 0.99);  // measured 1 (the clusters stretch, none shrinks)
 }
 
 // The same bar dragged to where a bent bar of unchanged length can reach: every cluster
@@ -72,13 +107,14 @@ TEST(Deform, BarArcDragKeepsClustersRigid) {
   // An arc of length 0.95 leaving x = 0.05 along +x, bent by 1.19 rad, ends near (0.79, 0.5).
   const hgd::DragResult r = d.dragTo({1.0, 0.0, 0.05}, {0.79, 0.5, 0.05});
   EXPECT_TRUE(r.reached);
-  double worst = 0;
+  double worst = 0, least_det = INFINITY;
   for (const auto& t : d.clusterTransforms()) {
-    EXPECT_GT(t.A.determinant(), 0);
+    least_det = std::min(least_det, t.A.determinant());
     worst = std::max(worst, hgd::rotationResidual(t.A));
   }
-  std::printf("arc drag: worst Rot(A) %.4g\n", worst);
-  EXPECT_LT(worst, 0.01);  // singular values within about 5% of 1
+  std::printf("arc drag: worst Rot(A) %.4g, least det(A) %.4f\n", worst, least_det);
+  EXPECT_LT(worst, 0.0065);   // measured 0.0048: singular values within about 4% of 1
+  EXPECT_GT(least_det, 0.9);  // measured 0.958
 }
 
 }  // namespace
@@ -97,6 +133,28 @@ std::vector<Eigen::Vector3d> deformedPoints(const hgd::Deformer& d) {
   return out;
 }
 
+// Local rigidity residual: best rigid fit of each point's k-neighbourhood from rest to
+// deformed, RMS residual, averaged over the points listed.
+double localRigidity(const hgd::KnnTable& knn, const std::vector<Eigen::Vector3d>& rest,
+                     const std::vector<Eigen::Vector3d>& deformed, const std::vector<int>& points) {
+  double sum = 0;
+  for (int i : points) {
+    std::vector<Eigen::Vector3d> a{rest[static_cast<std::size_t>(i)]},
+        b{deformed[static_cast<std::size_t>(i)]};
+    for (int m = 0; m < knn.k; ++m) {
+      const auto j = static_cast<std::size_t>(knn.row(static_cast<std::size_t>(i))[m]);
+      a.push_back(rest[j]);
+      b.push_back(deformed[j]);
+    }
+    sum += rigidResidual(a, b);
+  }
+  return sum / static_cast<double>(points.size());
+}
+
+// Frame metaphor: the handle gets its transform exactly (through the solver's unit-diagonal
+// frame and back), and the rest of the bar follows: no step at either handle's edge, and the
+// part between them stays locally rigid, well under a plain blend of the handle's transform by
+// the harmonic field, x + phi (T x - x).
 TEST(Deform, FrameMetaphorMovesHandleExactly) {
   const hgd::Geometry g = hgd::extractGeometry(hgd::shapes::bar(1.0f, 0.1f, 0.01f));
   hgd::Handles h;
@@ -116,30 +174,40 @@ TEST(Deform, FrameMetaphorMovesHandleExactly) {
         (d.deformedWorld(static_cast<std::size_t>(i)) - t * g.world(static_cast<std::size_t>(i))).norm());
   std::printf("frame: %d iterations, worst handle deviation %.2e (diagonal %.3f)\n", st.iterations, worst,
               diag);
-  EXPECT_LE(worst, 1e-5 * diag);  // float positions: exact up to rounding
-  for (int i : h.fixed[0])
-    EXPECT_LE((d.deformedWorld(static_cast<std::size_t>(i)) - g.world(static_cast<std::size_t>(i))).norm(),
-              1e-6 * diag);
+  EXPECT_LE(worst, 1e-5 * diag);  // float positions: exact up to rounding (measured 2e-8)
   // The transform reads back as given.
   EXPECT_LE((d.handleTransform().matrix() - t.matrix()).norm(), 1e-9);
-}
 
-// Local rigidity residual: best rigid fit of each point's k-neighbourhood from rest to
-// deformed, RMS residual, averaged over the points listed.
-double localRigidity(const hgd::KnnTable& knn, const std::vector<Eigen::Vector3d>& rest,
-                     const std::vector<Eigen::Vector3d>& deformed, const std::vector<int>& points) {
-  double sum = 0;
-  for (int i : points) {
-    std::vector<Eigen::Vector3d> a{rest[static_cast<std::size_t>(i)]},
-        b{deformed[static_cast<std::size_t>(i)]};
-    for (int m = 0; m < knn.k; ++m) {
-      const auto j = static_cast<std::size_t>(knn.row(static_cast<std::size_t>(i))[m]);
-      a.push_back(rest[j]);
-      b.push_back(deformed[j]);
-    }
-    sum += rigidResidual(a, b);
-  }
-  return sum / static_cast<double>(points.size());
+  double move = 0;  // the handle's largest displacement
+  for (int i : h.manipulated)
+    move = std::max(move,
+                    (t * g.world(static_cast<std::size_t>(i)) - g.world(static_cast<std::size_t>(i))).norm());
+  const double next_to_fixed = movedNextTo(d, h.fixed[0]);
+  double next_to_handle = 0;  // off the handle's motion
+  for (int i : nextTo(g, h.manipulated))
+    next_to_handle = std::max(
+        next_to_handle,
+        (d.deformedWorld(static_cast<std::size_t>(i)) - t * g.world(static_cast<std::size_t>(i))).norm());
+  const auto rest = worldPoints(g), ours = deformedPoints(d);
+  std::vector<Eigen::Vector3d> plain(rest.size());
+  for (std::size_t i = 0; i < rest.size(); ++i) plain[i] = rest[i] + d.field()[i] * (t * rest[i] - rest[i]);
+  std::vector<char> handle(g.size(), 0);
+  for (int i : h.manipulated) handle[static_cast<std::size_t>(i)] = 1;
+  for (int i : h.fixed[0]) handle[static_cast<std::size_t>(i)] = 1;
+  std::vector<int> between;
+  for (std::size_t i = 0; i < g.size(); ++i)
+    if (!handle[i]) between.push_back(static_cast<int>(i));
+  const hgd::KnnTable knn = hgd::computeKnn(*g.points, 12);
+  const double rigid = localRigidity(knn, rest, ours, between),
+               rigid_plain = localRigidity(knn, rest, plain, between);
+  std::printf(
+      "frame: handle moved up to %.3f; next to the fixed handle moved %.2f%% of that,\n"
+      "  next to the manipulated one off its motion by %.2f%%; local rigidity residual between them %.2e\n"
+      "  (plain blend %.2e)\n",
+      move, 100 * next_to_fixed / move, 100 * next_to_handle / move, rigid, rigid_plain);
+  EXPECT_LE(next_to_fixed, 0.012 * move);    // measured 0.81%
+  EXPECT_LE(next_to_handle, 0.0075 * move);  // measured 0.51%
+  EXPECT_LE(rigid, 0.5 * rigid_plain);       // measured 0.41 times
 }
 
 // Bumpy plane (Fig. 8): left edge fixed, right edge translated up (and in). The bumps bend with the
@@ -164,7 +232,7 @@ TEST(Deform, BumpyPlaneKeepsBumps) {
   std::vector<Eigen::Vector3d> blend(rest.size());
   for (std::size_t i = 0; i < rest.size(); ++i) blend[i] = rest[i] + d.field()[i] * move;
   const hgd::KnnTable knn = hgd::computeKnn(*g.points, 12);
-  double sum_ours = 0, sum_blend = 0;
+  double sum_ours = 0, sum_blend = 0, worst_ratio = 0;
   for (int bi = 0; bi < bumps; ++bi)
     for (int bj = 0; bj < bumps; ++bj) {
       const Eigen::Vector2d c((bi + 0.5) / bumps, (bj + 0.5) / bumps);
@@ -174,10 +242,14 @@ TEST(Deform, BumpyPlaneKeepsBumps) {
       const double eo = localRigidity(knn, rest, ours, bump), eb = localRigidity(knn, rest, blend, bump);
       sum_ours += eo;
       sum_blend += eb;
-      EXPECT_LT(eo, 0.5 * eb) << "bump " << bi << "," << bj;
+      worst_ratio = std::max(worst_ratio, eo / eb);
+      EXPECT_LT(eo, 0.2 * eb) << "bump " << bi << "," << bj;
     }
-  std::printf("bumpy plane: mean local rigidity residual on the bumps %.2e (linear blend %.2e)\n",
-              sum_ours / (bumps * bumps), sum_blend / (bumps * bumps));
+  // Measured: the worst bump's residual is 0.134 of the plain blend's.
+  std::printf(
+      "bumpy plane: mean local rigidity residual on the bumps %.2e (linear blend %.2e); worst bump %.3f of "
+      "its plain blend's\n",
+      sum_ours / (bumps * bumps), sum_blend / (bumps * bumps), worst_ratio);
 }
 
 // Two prongs (Fig. 9, the camel's hind legs): the base fixed, one prong's tip dragged; the
@@ -197,12 +269,14 @@ TEST(Deform, TwoProngsAreIndependent) {
   for (std::size_t i = 0; i < g.size(); ++i)
     if (g.world(i).x() > 0.45 && g.world(i).y() < 0)
       worst = std::max(worst, (d.deformedWorld(i) - g.world(i)).norm());
-  std::printf("two prongs: the other prong moved %.4f for a drag of %.3f (%.2f%%)\n", worst, drag,
+  std::printf("two prongs: the other prong moved %.2e for a drag of %.3f (%.2e%%)\n", worst, drag,
               100 * worst / drag);
-  EXPECT_LT(worst, 0.02 * drag);
+  // The other prong hangs off the fixed base: the field is 0 on it, so it stays exactly (measured
+  // 0) unless the neighbour graph bridges the 0.04 gap between the prongs.
+  EXPECT_LE(worst, 1e-6 * drag);
 }
 
-// Large drag (Fig. 3): dragging far with the MHC-preferential weight stays stable.
+// Large drags converge in few iterations and no cluster folds.
 TEST(Deform, LargeDragStaysStable) {
   const hgd::Geometry g = hgd::extractGeometry(hgd::shapes::bar(1.0f, 0.1f, 0.01f));
   hgd::Handles h;
@@ -214,19 +288,75 @@ TEST(Deform, LargeDragStaysStable) {
   // Curl the bar's end round over its base and back behind it (reachable without stretching:
   // at most 4 iterations a frame, as in the paper), then pull it 30% beyond its length (forced
   // stretch: slower convergence, but still stable).
-  int worst_iterations = 0;
+  int worst_iterations = 0, stretch_iterations = 0;
+  double least_det = INFINITY;
   const Eigen::Vector3d targets[] = {{0.6, 0.6, 0.0}, {0.1, 0.7, 0.0}, {-0.2, 0.4, 0.2}, {0.9, -0.9, 0.3}};
   for (int k = 0; k < 4; ++k) {
     const Eigen::Vector3d from =
         d.deformedWorld(static_cast<std::size_t>(d.picked() >= 0 ? d.picked() : h.manipulated[0]));
     const hgd::DragResult r = d.dragTo(from, targets[k]);
-    if (k < 3) worst_iterations = std::max(worst_iterations, r.max_frame_iterations);
+    int& most = k < 3 ? worst_iterations : stretch_iterations;
+    most = std::max(most, r.max_frame_iterations);
     EXPECT_TRUE(r.reached) << "target " << k;
-    for (const auto& t : d.clusterTransforms()) EXPECT_GT(t.A.determinant(), 0.1) << "target " << k;
+    for (const auto& t : d.clusterTransforms()) least_det = std::min(least_det, t.A.determinant());
     for (std::size_t i = 0; i < g.size(); ++i) ASSERT_TRUE(d.deformedWorld(i).allFinite());
   }
-  std::printf("large drag: at most %d Gauss-Newton iterations per frame\n", worst_iterations);
-  EXPECT_LE(worst_iterations, 4);
+  std::printf(
+      "large drag: at most %d Gauss-Newton iterations per frame (%d when stretched), least det(A) %.3f\n",
+      worst_iterations, stretch_iterations, least_det);
+  EXPECT_LE(worst_iterations, 4);    // measured 4
+  EXPECT_LE(stretch_iterations, 8);  // measured 5, of the 20 allowed
+  EXPECT_GT(least_det, 0.75);        // measured 0.859 (the curl over the base squeezes the bend)
+}
+
+// The paper's Fig. 3: a handle dragged far, with the MHC-preferential weight on the manipulated
+// cluster's rigidity (w_MHC = 1.2 n_IC) and with uniform weights (w_MHC = 1, as in embedded
+// deformation). The bunny's ears are dragged down, forwards and round to the side, 0.78 of the
+// diagonal: with uniform weights the handle's cluster turns inside out (det A_MC < 0: the ears
+// are mirrored) and shears, and one frame needs all 20 Gauss-Newton iterations; with w_MHC it
+// stays a rotation.
+TEST(Deform, MhcWeightKeepsAFarDraggedHandleRigid) {
+  const hgd::Shape shape = hgd::readShape(hgdtest::datasetsDir() + "/bunny_1839.ply");
+  const hgd::Geometry g = hgd::extractGeometry(shape);
+  const hgd::Handles h =
+      hgd::resolveHandles(hgd::readScenario(hgdtest::datasetsDir() + "/bunny_ears.json"), g, shape);
+  const double diag = hgd::boundingBoxDiagonal(g);
+  const Eigen::Vector3d from(0.0027, 9.6547, -1.3556), to(-8, 4, 6);
+  double det[2], residual[2], spread[2];
+  int iterations[2];
+  const double mhc[2] = {1.2, 0.0};  // 0: w_MHC = 1 (SolverWeights::mhc_per_cluster)
+  for (int k = 0; k < 2; ++k) {
+    hgd::DeformOptions opt;
+    opt.clusters.isoclusters = 12;  // as bunny_ears.json
+    opt.weights.mhc_per_cluster = mhc[k];
+    hgd::Deformer d(g, h, opt);
+    const hgd::DragResult r = d.dragTo(from, to);
+    EXPECT_TRUE(r.reached);
+    iterations[k] = r.max_frame_iterations;
+    const Eigen::Matrix3d a = d.clusterTransforms()[static_cast<std::size_t>(d.clustering().manipulated)].A;
+    det[k] = a.determinant();
+    const Eigen::Vector3d sv = Eigen::JacobiSVD<Eigen::Matrix3d>(a).singularValues();
+    spread[k] = sv[0] / sv[2];
+    std::vector<Eigen::Vector3d> before, after;  // the handle's own points
+    for (int i : h.manipulated) {
+      before.push_back(g.world(static_cast<std::size_t>(i)));
+      after.push_back(d.deformedWorld(static_cast<std::size_t>(i)));
+    }
+    residual[k] = rigidResidual(before, after) / diag;
+  }
+  std::printf(
+      "far drag (%.2f diagonals), w_MHC / uniform: det(A_MC) %.3f / %.3f;\n"
+      "  singular values within %.3f / %.3f; handle's rigid-fit residual %.2e / %.2e of the diagonal;\n"
+      "  at most %d / %d iterations a frame\n",
+      (to - from).norm() / diag, det[0], det[1], spread[0], spread[1], residual[0], residual[1],
+      iterations[0], iterations[1]);
+  EXPECT_GT(det[0], 0.9);                    // measured 1.011
+  EXPECT_LT(spread[0], 1.05);                // measured 1.026
+  EXPECT_LE(residual[0], 1.5e-3);            // measured 9e-4
+  EXPECT_LT(det[1], 0);                      // measured -1.095: folded
+  EXPECT_GE(residual[1], 20 * residual[0]);  // measured 4.4e-2: 49 times
+  EXPECT_LE(iterations[0], 4);               // measured 3
+  EXPECT_EQ(iterations[1], 20);              // measured 20: the cap
 }
 
 }  // namespace
@@ -285,8 +415,8 @@ TEST(Deform, UnevenlySampledTubeHasOneClusterPerLevel) {
 }
 
 // The Botsch-Sorkine deformation benchmark (../shared/datasets/deformation_survey): the handle
-// gets its .def transform exactly, fixed vertices stay, and the local rigidity residual is no
-// worse than the survey's own Laplacian-editing result.
+// gets its .def transform exactly, the vertices just outside the fixed region barely move, and
+// the local rigidity residual is well under the survey's own Laplacian-editing result.
 std::vector<int> readSelection(const std::string& path) {
   std::ifstream in(path);
   std::vector<int> sel;
@@ -326,7 +456,7 @@ double ringRigidity(const hgd::NeighborGraph& ring, const std::vector<Eigen::Vec
 
 class Survey : public ::testing::TestWithParam<const char*> {};
 
-TEST_P(Survey, HandleReachedFixedStayRigidAsLaplacianEditing) {
+TEST_P(Survey, HandleReachedRestMoreRigidThanLaplacianEditing) {
   const std::string dir = hgdtest::sharedDatasetsDir() + "/deformation_survey/";
   const std::string name = GetParam();
   if (!hgdtest::exists(dir + name + ".ply"))
@@ -349,9 +479,24 @@ TEST_P(Survey, HandleReachedFixedStayRigidAsLaplacianEditing) {
     ASSERT_LE(
         (d.deformedWorld(static_cast<std::size_t>(i)) - t * g.world(static_cast<std::size_t>(i))).norm(),
         1e-5 * diag);
-  for (int i : h.fixed[0])
-    ASSERT_LE((d.deformedWorld(static_cast<std::size_t>(i)) - g.world(static_cast<std::size_t>(i))).norm(),
-              1e-6 * diag);
+  // The fixed vertices are pinned; their mesh neighbours outside the fixed region move little
+  // for the handle's move.
+  double move = 0, next_to_fixed = 0;
+  for (int i : h.manipulated)
+    move = std::max(move,
+                    (t * g.world(static_cast<std::size_t>(i)) - g.world(static_cast<std::size_t>(i))).norm());
+  {
+    std::vector<char> fixed(g.size(), 0);
+    for (int i : h.fixed[0]) fixed[static_cast<std::size_t>(i)] = 1;
+    const hgd::NeighborGraph ring = oneRing(g);
+    for (int i : h.fixed[0])
+      for (const int* j = ring.begin(static_cast<std::size_t>(i)); j != ring.end(static_cast<std::size_t>(i));
+           ++j)
+        if (!fixed[static_cast<std::size_t>(*j)])
+          next_to_fixed = std::max(
+              next_to_fixed,
+              (d.deformedWorld(static_cast<std::size_t>(*j)) - g.world(static_cast<std::size_t>(*j))).norm());
+  }
 
   const hgd::Geometry reference = hgd::extractGeometry(hgd::readShape(dir + name + "-laplacian_editing.ply"));
   ASSERT_EQ(reference.size(), g.size());
@@ -370,10 +515,16 @@ TEST_P(Survey, HandleReachedFixedStayRigidAsLaplacianEditing) {
   const double rotation = ringRigidity(ring, rest, deformedPoints(d));
   std::printf(
       "%s: local rigidity residual %.3e (rotation-aware blend %.3e, linear blend %.3e; Laplacian editing "
-      "%.3e), "
-      "%zu clusters\n",
-      name.c_str(), ours, rotation, linear, theirs, d.clustering().clusters.size());
-  EXPECT_LE(ours, theirs);
+      "%.3e: %.2f times ours), %zu clusters; next to the fixed region moved %.2f%% of the handle's move\n",
+      name.c_str(), ours, rotation, linear, theirs, theirs / ours, d.clustering().clusters.size(),
+      100 * next_to_fixed / move);
+  EXPECT_LE(ours, 0.7 * theirs);  // measured 0.55 (bar), 0.49, 0.33, 0.20 (bumpy plane) times
+  // Measured 1.67% (bar), 0.14% (cylinder), 0.27% (cactus), 0.07% (bumpy plane) of the move.
+  const double bound = name == "bar"        ? 0.025
+                       : name == "cactus"   ? 0.004
+                       : name == "cylinder" ? 0.0021
+                                            : 0.0011;
+  EXPECT_LE(next_to_fixed, bound * move);
 }
 
 INSTANTIATE_TEST_SUITE_P(DeformationSurvey, Survey,
@@ -414,31 +565,105 @@ TEST(Deform, UnitsDoNotMatter) {
   for (std::size_t i = 0; i < results[0].size(); ++i)
     worst = std::max(worst, (results[0][i] - results[1][i]).norm());
   std::printf("metres vs millimetres: max difference %.2e of the bar's length\n", worst);
-  EXPECT_LE(worst, 1e-5);
+  EXPECT_LE(worst, 1e-6);  // measured 2.3e-7: float rounding at either scale
 }
 
-// Normals turn with the shape: under a frame motion the handle's normals are rotated by R.
-TEST(Deform, NormalsFollowTheTransform) {
+// The unit normal of the plane fitted (PCA) to a set of points; its sign is arbitrary.
+Eigen::Vector3d planeNormal(const std::vector<Eigen::Vector3d>& pts) {
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const auto& p : pts) mean += p;
+  mean /= static_cast<double>(pts.size());
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (const auto& p : pts) cov += (p - mean) * (p - mean).transpose();
+  return Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov).eigenvectors().col(0);
+}
+
+// Normals turn with the shape: on the flat faces of a bar between its handles (points whose 10
+// nearest neighbours' plane is within 2 degrees of the file's normal at rest), each blended normal is
+// compared with a fresh plane fit of the same neighbours after the deformation, for a turn of the handle and
+// a drag, with both blends; none may point inwards (its sign is checked against the rest normal turned by the
+// neighbourhood's best rigid rotation). The rest normals, not turned, are measured too: the check can tell
+// them apart.
+TEST(Deform, NormalsAreThoseOfTheDeformedSurface) {
   const hgd::Geometry g = hgd::extractGeometry(hgd::shapes::bar(1.0f, 0.1f, 0.01f));
   ASSERT_TRUE(g.hasFileNormals());
   hgd::Handles h;
   h.fixed.push_back(pointsWhere(g, 0, -1, 0.05));
-  h.manipulated = pointsWhere(g, 0, 0.9, 2);
-  hgd::Deformer d(g, h);
-  Eigen::Affine3d t = Eigen::Affine3d::Identity();
-  t.rotate(Eigen::AngleAxisd(0.8, Eigen::Vector3d::UnitZ()));
-  d.setHandleTransform(t);
-  for (int i : h.manipulated) {
-    const Eigen::Vector3f expected =
-        (t.linear().cast<float>() * (*g.file_normals)[static_cast<std::size_t>(i)].getNormalVector3fMap())
-            .normalized();
-    EXPECT_LE((d.deformedNormals()[static_cast<std::size_t>(i)] - expected).norm(), 1e-5f);
-  }
-  for (int i : h.fixed[0])
-    EXPECT_LE((d.deformedNormals()[static_cast<std::size_t>(i)] -
-               (*g.file_normals)[static_cast<std::size_t>(i)].getNormalVector3fMap())
-                  .norm(),
-              1e-6f);
+  h.manipulated = pointsWhere(g, 0, 0.95, 2);
+  const hgd::KnnTable knn = hgd::computeKnn(*g.points, 10);
+  auto neighbourhood = [&](std::size_t i, bool deformed, const hgd::Deformer* d) {
+    std::vector<Eigen::Vector3d> pts{deformed ? d->deformedWorld(i) : g.world(i)};
+    for (int m = 0; m < knn.k; ++m) {
+      const auto j = static_cast<std::size_t>(knn.row(i)[m]);
+      pts.push_back(deformed ? d->deformedWorld(j) : g.world(j));
+    }
+    return pts;
+  };
+  auto degrees = [](const Eigen::Vector3d& a, const Eigen::Vector3d& b) {  // between two lines
+    return std::acos(std::min(1.0, std::abs(a.normalized().dot(b.normalized())))) * 180 / M_PI;
+  };
+  std::vector<std::size_t> flat;
+  for (std::size_t i = 0; i < g.size(); ++i)
+    if (g.world(i).x() > 0.05 && g.world(i).x() < 0.95 &&
+        degrees(planeNormal(neighbourhood(i, false, nullptr)),
+                (*g.file_normals)[i].getNormalVector3fMap().cast<double>()) <= 2)
+      flat.push_back(i);
+  ASSERT_GT(flat.size(), g.size() / 2);
+  auto mean = [](const std::vector<double>& v) {
+    double sum = 0;
+    for (double x : v) sum += x;
+    return sum / static_cast<double>(v.size());
+  };
+
+  hgd::Deformer turned(g, h);
+  turned.setHandleTransform(Eigen::Affine3d(Eigen::AngleAxisd(0.8, Eigen::Vector3d::UnitZ())));
+  hgd::Deformer dragged(g, h);
+  ASSERT_TRUE(dragged.dragTo({1.0, 0.0, 0.05}, {0.79, 0.5, 0.05}).reached);
+  hgd::Deformer* shapes[2] = {&turned, &dragged};
+  const char* names[2] = {"handle turned 46 degrees", "bar dragged into an arc"};
+  for (int s = 0; s < 2; ++s)
+    for (const hgd::Blend blend : {hgd::Blend::Linear, hgd::Blend::Rotation}) {
+      hgd::Deformer& d = *shapes[s];
+      d.setBlend(blend);
+      std::vector<double> ours, unturned;
+      int inwards = 0;
+      for (std::size_t i : flat) {
+        const std::vector<Eigen::Vector3d> before = neighbourhood(i, false, nullptr),
+                                           after = neighbourhood(i, true, &d);
+        const Eigen::Vector3d fresh = planeNormal(after);
+        const Eigen::Vector3d n0 = (*g.file_normals)[i].getNormalVector3fMap().cast<double>();
+        const Eigen::Vector3d n1 = d.deformedNormals()[i].cast<double>();
+        // The neighbourhood's best rotation (Kabsch) tells which side is out.
+        Eigen::Vector3d cb = Eigen::Vector3d::Zero(), ca = Eigen::Vector3d::Zero();
+        for (std::size_t k = 0; k < before.size(); ++k) {
+          cb += before[k];
+          ca += after[k];
+        }
+        cb /= static_cast<double>(before.size());
+        ca /= static_cast<double>(after.size());
+        Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+        for (std::size_t k = 0; k < before.size(); ++k) cov += (after[k] - ca) * (before[k] - cb).transpose();
+        Eigen::JacobiSVD<Eigen::Matrix3d> svd(cov, Eigen::ComputeFullU | Eigen::ComputeFullV);
+        Eigen::Matrix3d u = svd.matrixU();  // a flat neighbourhood: a rotation, not the mirror
+        if ((u * svd.matrixV().transpose()).determinant() < 0) u.col(2) *= -1;
+        const Eigen::Vector3d out = u * svd.matrixV().transpose() * n0;
+        inwards += n1.dot(out) <= 0;
+        ours.push_back(degrees(n1, fresh));
+        unturned.push_back(degrees(n0, fresh));
+      }
+      std::sort(ours.begin(), ours.end());
+      std::sort(unturned.begin(), unturned.end());
+      const double average = mean(ours), p99 = ours[ours.size() * 99 / 100],
+                   unturned_average = mean(unturned);
+      std::printf(
+          "%s, %s blend: %zu flat points; normal vs the deformed surface's: mean %.3f, 99th percentile %.2f, "
+          "largest %.2f degrees (rest normals: mean %.2f); %d inwards\n",
+          names[s], hgd::blendName(blend), flat.size(), average, p99, ours.back(), unturned_average, inwards);
+      EXPECT_EQ(inwards, 0);
+      EXPECT_LE(average, 2);                      // measured 0.32 to 1.29 degrees
+      EXPECT_LE(p99, 8.5);                        // measured 1.6 to 5.8 (edges of the faces)
+      EXPECT_GE(unturned_average, 10 * average);  // measured 17 to 37 times
+    }
 }
 
 }  // namespace
