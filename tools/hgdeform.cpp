@@ -131,7 +131,8 @@ int parseDeform(int argc, const char* const* argv, DeformArgs& a) {
       ->check(hgdcli::integerFrom(1, 100))
       ->type_name("N");
   addSolver(app, a.solver, "field solver: ");
-  app.add_flag("--mesh-ring", a.mesh_ring, "on meshes, the field's graph is the faces' 1-ring instead of kNN");
+  app.add_flag("--mesh-ring", a.mesh_ring,
+               "on meshes, the field's graph is the faces' 1-ring instead of kNN");
   app.add_flag("--ascii", a.ascii, "write ascii instead of binary");
   app.add_flag("-q,--quiet", a.quiet, "no summary line");
   return hgdcli::parse(app, argc, argv);
