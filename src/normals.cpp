@@ -146,15 +146,20 @@ bool consistentlyOriented(const pcl::PointCloud<pcl::PointXYZ>& points,
                           const pcl::PointCloud<pcl::Normal>& normals, const KnnTable& knn, int k) {
   // Neighbours beside each other on a smooth surface (offset in both tangent planes) have
   // normals that agree when the orientation is consistent; with random signs half disagree.
-  // A statistic: every point of a small cloud, an even spread of 50,000 of a large one.
+  // A statistic: every point of a small cloud; of a large one, about 12,000 points in runs of
+  // 256 spread evenly through it (about 100,000 pairs: 2% of them is 2,000 +- 45, and random
+  // signs give half). Runs, not single points: the geometry is in space-filling-curve order,
+  // so a run and its neighbours are a patch in cache, where scattered points each miss it.
   const std::size_t n = points.size();
   const int kk = std::max(0, std::min(k, knn.k));
-  const std::size_t stride = std::max<std::size_t>(1, n / 50000);
-  const long long nn = static_cast<long long>(n / stride);
+  constexpr std::size_t kRun = 256, kSample = 12000;
+  const std::size_t runs = n <= kSample ? 1 : kSample / kRun, run_len = n <= kSample ? n : kRun;
+  const std::size_t gap = n / runs;  // run r starts at r * gap
+  const long long nn = static_cast<long long>(runs * run_len);
   long long beside = 0, disagree = 0;
 #pragma omp parallel for schedule(static) reduction(+ : beside, disagree) if (nn > kParallelMin)
   for (long long ii = 0; ii < nn; ++ii) {
-    const auto i = static_cast<std::size_t>(ii) * stride;
+    const auto i = static_cast<std::size_t>(ii) / run_len * gap + static_cast<std::size_t>(ii) % run_len;
     const Eigen::Vector3f ni = normals[i].getNormalVector3fMap();
     const float li = ni.norm();
     if (!(li > 0)) continue;
