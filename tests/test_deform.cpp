@@ -15,6 +15,7 @@
 #include "support/shapes.h"
 #include "test_util.h"
 
+using hgdtest::endHandles;
 using hgdtest::pointsWhere;
 using hgdtest::rigidResidual;
 
@@ -52,9 +53,7 @@ double movedNextTo(const hgd::Deformer& d, const std::vector<int>& handle) {
 TEST(Deform, BarDragBendsSmoothly) {
   const hgd::Shape shape = hgd::shapes::bar(1.0f, 0.1f, 0.01f);
   const hgd::Geometry g = hgd::extractGeometry(shape);
-  hgd::Handles h;
-  h.fixed.push_back(pointsWhere(g, 0, -1, 0.05));
-  h.manipulated = pointsWhere(g, 0, 0.95, 2);
+  hgd::Handles h = endHandles(g, 0.05, 0.95);
   hgd::DeformOptions opt;
   opt.clusters.isoclusters = 10;
   hgd::Deformer d(g, h, opt);
@@ -98,9 +97,7 @@ TEST(Deform, BarDragBendsSmoothly) {
 TEST(Deform, BarArcDragKeepsClustersRigid) {
   const hgd::Shape shape = hgd::shapes::bar(1.0f, 0.1f, 0.01f);
   const hgd::Geometry g = hgd::extractGeometry(shape);
-  hgd::Handles h;
-  h.fixed.push_back(pointsWhere(g, 0, -1, 0.05));
-  h.manipulated = pointsWhere(g, 0, 0.95, 2);
+  hgd::Handles h = endHandles(g, 0.05, 0.95);
   hgd::DeformOptions opt;
   opt.clusters.isoclusters = 10;
   hgd::Deformer d(g, h, opt);
@@ -157,9 +154,7 @@ double localRigidity(const hgd::KnnTable& knn, const std::vector<Eigen::Vector3d
 // the harmonic field, x + phi (T x - x).
 TEST(Deform, FrameMetaphorMovesHandleExactly) {
   const hgd::Geometry g = hgd::extractGeometry(hgd::shapes::bar(1.0f, 0.1f, 0.01f));
-  hgd::Handles h;
-  h.fixed.push_back(pointsWhere(g, 0, -1, 0.05));
-  h.manipulated = pointsWhere(g, 0, 0.9, 2);
+  hgd::Handles h = endHandles(g, 0.05, 0.9);
   hgd::Deformer d(g, h);
   Eigen::Affine3d t = Eigen::Affine3d::Identity();
   t.translate(Eigen::Vector3d(0.95, 0.2, 0.1));
@@ -217,9 +212,7 @@ TEST(Deform, FrameMetaphorMovesHandleExactly) {
 TEST(Deform, BumpyPlaneKeepsBumps) {
   const int bumps = 4;
   const hgd::Geometry g = hgd::extractGeometry(hgd::shapes::bumpyPlane(bumps, 0.06f, 0.01f));
-  hgd::Handles h;
-  h.fixed.push_back(pointsWhere(g, 0, -1, 0.02));
-  h.manipulated = pointsWhere(g, 0, 0.98, 2);
+  hgd::Handles h = endHandles(g, 0.02, 0.98);
   hgd::Deformer d(g, h);
   Eigen::Affine3d t = Eigen::Affine3d::Identity();
   // Up by 0.4 and in by 0.1: an S-bend of about the plane's own length, so that no stretch is
@@ -279,9 +272,7 @@ TEST(Deform, TwoProngsAreIndependent) {
 // Large drags converge in few iterations and no cluster folds.
 TEST(Deform, LargeDragStaysStable) {
   const hgd::Geometry g = hgd::extractGeometry(hgd::shapes::bar(1.0f, 0.1f, 0.01f));
-  hgd::Handles h;
-  h.fixed.push_back(pointsWhere(g, 0, -1, 0.05));
-  h.manipulated = pointsWhere(g, 0, 0.95, 2);
+  hgd::Handles h = endHandles(g, 0.05, 0.95);
   hgd::DeformOptions opt;
   opt.clusters.isoclusters = 16;
   hgd::Deformer d(g, h, opt);
@@ -367,9 +358,7 @@ namespace {
 // clusters: no isocluster spans both prongs.
 TEST(Deform, BranchesAtSameValueGetSeparateClusters) {
   const hgd::Geometry g = hgd::extractGeometry(hgd::shapes::fork(0.04f, 0.06f, 0.01f));
-  hgd::Handles h;
-  h.fixed.push_back(pointsWhere(g, 0, -1, 0.05));
-  h.manipulated = pointsWhere(g, 0, 1.15, 2);  // both tips
+  hgd::Handles h = endHandles(g, 0.05, 1.15);  // both tips
   hgd::Deformer d(g, h);
   int on_prongs = 0;
   for (const auto& cl : d.clustering().clusters) {
@@ -403,9 +392,7 @@ TEST(Deform, UnevenlySampledTubeHasOneClusterPerLevel) {
       pts.push_back(fine.world(i).cast<float>() + Eigen::Vector3f(u(rng), u(rng), u(rng)) * 0.00045f);
   std::shuffle(pts.begin(), pts.end(), rng);
   const hgd::Geometry g = hgd::extractGeometry(hgd::shapes::cloudShape(pts, {}));
-  hgd::Handles h;
-  h.fixed.push_back(pointsWhere(g, 0, -1, 0.03));
-  h.manipulated = pointsWhere(g, 0, 0.97, 2);
+  hgd::Handles h = endHandles(g, 0.03, 0.97);
   hgd::Deformer d(g, h);
   std::map<int, int> per_level;
   for (const auto& cl : d.clustering().clusters)
@@ -587,9 +574,7 @@ Eigen::Vector3d planeNormal(const std::vector<Eigen::Vector3d>& pts) {
 TEST(Deform, NormalsAreThoseOfTheDeformedSurface) {
   const hgd::Geometry g = hgd::extractGeometry(hgd::shapes::bar(1.0f, 0.1f, 0.01f));
   ASSERT_TRUE(g.hasFileNormals());
-  hgd::Handles h;
-  h.fixed.push_back(pointsWhere(g, 0, -1, 0.05));
-  h.manipulated = pointsWhere(g, 0, 0.95, 2);
+  hgd::Handles h = endHandles(g, 0.05, 0.95);
   const hgd::KnnTable knn = hgd::computeKnn(*g.points, 10);
   auto neighbourhood = [&](std::size_t i, bool deformed, const hgd::Deformer* d) {
     std::vector<Eigen::Vector3d> pts{deformed ? d->deformedWorld(i) : g.world(i)};
@@ -674,9 +659,7 @@ namespace {
 // same shape.
 TEST(Deform, NewHandlesReuseTheGraphAndStatesRestore) {
   const hgd::Geometry g = hgd::extractGeometry(hgd::shapes::bar(1.0f, 0.1f, 0.01f));
-  hgd::Handles h;
-  h.fixed.push_back(pointsWhere(g, 0, -1, 0.05));
-  h.manipulated = pointsWhere(g, 0, 0.95, 2);
+  hgd::Handles h = endHandles(g, 0.05, 0.95);
   hgd::Deformer d(g, h);
   const int* graph_before = d.harmonicField().graph().adj.data();
   h.fixed[0] = pointsWhere(g, 0, -1, 0.3);

@@ -1284,10 +1284,7 @@ TEST(RobustGeometry, CoordinatesWhoseSquaredDistancesOverflowFloat) {
 }
 
 hgd::Handles barHandles(const hgd::Geometry& g) {
-  hgd::Handles h;
-  h.fixed.push_back(hgdtest::pointsWhere(g, 0, -1, 0.045));
-  h.manipulated = hgdtest::pointsWhere(g, 0, 0.955, 2);
-  return h;
+  return hgdtest::endHandles(g, 0.045, 0.955);
 }
 
 void expectFinite(const hgd::Deformer& d) {

@@ -10,6 +10,7 @@
 #include "support/shapes.h"
 #include "test_util.h"
 
+using hgdtest::endHandles;
 using hgdtest::pointsWhere;
 
 namespace {
@@ -423,9 +424,7 @@ TEST(Skeletal, TheSnapToARotationChangesBonesLittle) {
 
 TEST(Skeletal, OverlappingJointsMergeWithANote) {
   const hgd::Geometry g = hgd::extractGeometry(hgd::shapes::cylinder(1.0f, 0.08f, 0.02f));
-  hgd::Handles h;
-  h.fixed.push_back(pointsWhere(g, 0, -1, 0.04));
-  h.manipulated = pointsWhere(g, 0, 0.96, 2);
+  hgd::Handles h = endHandles(g, 0.04, 0.96);
   h.joints.push_back(pointsWhere(g, 0, 0.40, 0.50));
   h.joints.push_back(pointsWhere(g, 0, 0.45, 0.60));
   hgd::Deformer d(g, h);
@@ -481,9 +480,7 @@ TEST(Blend, EveryPointIsTheBlendOfItsTwoClusters) {
 // the cross-section between clusters; the rotation-aware blend keeps it.
 TEST(Blend, RotationAwareBlendKeepsTheCrossSectionOfATwistedBar) {
   const hgd::Geometry g = hgd::extractGeometry(hgd::shapes::bar(1.0f, 0.1f, 0.01f));
-  hgd::Handles h;
-  h.fixed.push_back(pointsWhere(g, 0, -1, 0.02));
-  h.manipulated = pointsWhere(g, 0, 0.98, 2);
+  hgd::Handles h = endHandles(g, 0.02, 0.98);
   hgd::DeformOptions opt;
   opt.clusters.isoclusters = 4;
   hgd::Deformer d(g, h, opt);

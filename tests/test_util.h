@@ -125,6 +125,15 @@ inline std::vector<int> pointsWhere(const hgd::Geometry& g, int axis, double lo,
   return out;
 }
 
+/// The set-up of most bar and fork tests: fixed where x <= `fixed_below`, manipulated where
+/// x >= `manipulated_from` (pointsWhere along x).
+inline hgd::Handles endHandles(const hgd::Geometry& g, double fixed_below, double manipulated_from) {
+  hgd::Handles h;
+  h.fixed.push_back(pointsWhere(g, 0, -1, fixed_below));
+  h.manipulated = pointsWhere(g, 0, manipulated_from, 2);
+  return h;
+}
+
 // Best rigid fit (Kabsch) of `after` to `before`; RMS residual.
 inline double rigidResidual(const std::vector<Eigen::Vector3d>& before,
                             const std::vector<Eigen::Vector3d>& after) {
