@@ -297,6 +297,9 @@ TEST(Off, MalformedAndTruncated) {
   expectReadError(p, "'x' at line 4");
   hgdtest::writeText(p, "OFF\n3000000 1 0\n0 0 0\n");
   expectReadError(p, "truncated");
+  // A face count of 2^64 - 1 (k + 1 wrapped to 0 and passed the check; found by fuzz_off).
+  hgdtest::writeText(p, "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n18446744073709551615 0 1 2\n");
+  expectReadError(p, "bad face: line 6");
 }
 
 // --- STL -----------------------------------------------------------------------------------

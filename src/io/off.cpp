@@ -85,7 +85,7 @@ Shape readOff(const std::string& path) {
     if (!nextWords(lex, &w))
       fail(path, "truncated data: the header declares " + num(nf) + " faces, the file holds " + num(f));
     std::uint64_t k = 0;
-    if (!parseU64(w[0], &k) || k < 3 || k + 1 > w.size())
+    if (!parseU64(w[0], &k) || k < 3 || k >= w.size())  // (k + 1 would wrap at 2^64 - 1)
       fail(path, "bad face: line " + num(lex.line()) + " " + excerpt(lex.lineText()) +
                      " (expected '<k> <i1> ... <ik>', k at least 3)");
     pcl::Vertices poly;
