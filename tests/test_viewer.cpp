@@ -100,28 +100,41 @@ double maxDistance(const std::string& a, const std::string& b, double& diag) {
   return worst;
 }
 
-TEST(Viewer, ReplayedDragSavesWhatDeformGivesAndScreenshotsShowIt) {
-  if (!haveXvfb()) GTEST_SKIP() << "xvfb-run not installed";
-  hgdtest::TempDir dir;
+// The bar session of the drag tests: the bar written to DIR/bar.ply, its ends picked as fixed
+// and manipulated handles, `keys` pressed, the far end dragged; `before` and `after` are more
+// events around the drag. The viewer saves DIR/viewer.ply and DIR/session.json, and
+// `hgdeform deform` replays the session into DIR/cli.ply. Returns the viewer's exit code and
+// its output (the deform's on failure).
+int barDragSession(hgdtest::TempDir& dir, const std::string& keys, const std::string& before,
+                   const std::string& after, std::string& out) {
   hgd::writeShape(dir.file("bar.ply"), hgd::shapes::bar(1.0f, 0.1f, 0.01f));
   const std::string d = dir.path().string() + "/";
   hgdtest::writeText(dir.file("events.json"), R"({"events": [
     {"pick": {"world": [0, 0, 0.05], "radius": 0.06}}, {"key": "f"},
-    {"pick": {"world": [1, 0, 0.05], "radius": 0.06}}, {"key": "m"},
-    {"screenshot": ")" + d + R"(before.png"},
+    {"pick": {"world": [1, 0, 0.05], "radius": 0.06}}, {"key": "m"}, )" +
+                                                  keys + before + R"(
     {"drag": {"from": {"world": [1, 0, 0.05]}, "to": {"world": [0.8, 0.4, 0.05]}, "steps": 15}},
     {"save": ")" + d + R"(viewer.ply"}, {"save_scenario": ")" +
-                                                  d + R"(session.json"},
-    {"screenshot": ")" + d + R"(after.png"},
-    {"view": "field"}, {"screenshot": ")" + d + R"(field.png"}
+                                                  d + R"(session.json"})" + after + R"(
   ]})");
+  const int code =
+      hgdtest::run(viewer(dir.file("bar.ply") + " --replay " + dir.file("events.json") + " --quiet"), out);
+  if (code != 0) return code;
+  return hgdtest::run(std::string(HGD_TOOL) + " deform " + dir.file("bar.ply") + " -s " +
+                          dir.file("session.json") + " -o " + dir.file("cli.ply") + " -q",
+                      out);
+}
+
+TEST(Viewer, ReplayedDragSavesWhatDeformGivesAndScreenshotsShowIt) {
+  if (!haveXvfb()) GTEST_SKIP() << "xvfb-run not installed";
+  hgdtest::TempDir dir;
+  const std::string d = dir.path().string() + "/";
   std::string out;
-  ASSERT_EQ(
-      hgdtest::run(viewer(dir.file("bar.ply") + " --replay " + dir.file("events.json") + " --quiet"), out), 0)
-      << out;
-  ASSERT_EQ(hgdtest::run(std::string(HGD_TOOL) + " deform " + dir.file("bar.ply") + " -s " +
-                             dir.file("session.json") + " -o " + dir.file("cli.ply") + " -q",
-                         out),
+  ASSERT_EQ(barDragSession(
+                dir, "",
+                R"({"screenshot": ")" + d + R"(before.png"},)", R"(, {"screenshot": ")" + d + R"(after.png"},
+    {"view": "field"}, {"screenshot": ")" + d + R"(field.png"})",
+                out),
             0)
       << out;
   double diag = 1;
@@ -157,26 +170,10 @@ TEST(Viewer, ReplayedDragSavesWhatDeformGivesAndScreenshotsShowIt) {
 TEST(Viewer, KeepOrientationKeyMakesDragsTranslateTheHandle) {
   if (!haveXvfb()) GTEST_SKIP() << "xvfb-run not installed";
   hgdtest::TempDir dir;
-  hgd::writeShape(dir.file("bar.ply"), hgd::shapes::bar(1.0f, 0.1f, 0.01f));
-  const std::string d = dir.path().string() + "/";
-  hgdtest::writeText(dir.file("events.json"), R"({"events": [
-    {"pick": {"world": [0, 0, 0.05], "radius": 0.06}}, {"key": "f"},
-    {"pick": {"world": [1, 0, 0.05], "radius": 0.06}}, {"key": "m"}, {"key": "l"},
-    {"drag": {"from": {"world": [1, 0, 0.05]}, "to": {"world": [0.8, 0.4, 0.05]}, "steps": 15}},
-    {"save": ")" + d + R"(viewer.ply"}, {"save_scenario": ")" +
-                                                  d + R"(session.json"}
-  ]})");
   std::string out;
-  ASSERT_EQ(
-      hgdtest::run(viewer(dir.file("bar.ply") + " --replay " + dir.file("events.json") + " --quiet"), out), 0)
-      << out;
+  ASSERT_EQ(barDragSession(dir, R"({"key": "l"},)", "", "", out), 0) << out;
   EXPECT_NE(hgdtest::slurp(dir.file("session.json")).find("\"keep_orientation\": true"), std::string::npos)
       << hgdtest::slurp(dir.file("session.json"));
-  ASSERT_EQ(hgdtest::run(std::string(HGD_TOOL) + " deform " + dir.file("bar.ply") + " -s " +
-                             dir.file("session.json") + " -o " + dir.file("cli.ply") + " -q",
-                         out),
-            0)
-      << out;
   double diag = 1;
   EXPECT_LE(maxDistance(dir.file("viewer.ply"), dir.file("cli.ply"), diag), 1e-5 * diag);
   // The handle's points (within the pick's radius, 0.06, of (1, 0, 0.05) at rest; 0.05 for a
