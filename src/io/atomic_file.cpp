@@ -63,6 +63,18 @@ int descriptorNamed(const std::string& p) {
   return -1;
 }
 
+/// A stdio stream on the open descriptor `fd` (taken over: closed when the stream cannot be
+/// made, and the write fails naming `target`).
+std::FILE* streamOn(int fd, const std::string& target) {
+  std::FILE* f = ::fdopen(fd, "wb");
+  if (!f) {
+    const int e = errno;
+    ::close(fd);
+    fail(target, "cannot write: " + errnoText(e));
+  }
+  return f;
+}
+
 }  // namespace
 
 int descriptorPath(const std::string& path) {
@@ -89,12 +101,7 @@ AtomicWriter::AtomicWriter(const std::string& target) : target_(target) {
     if (fd == STDERR_FILENO) std::fflush(stderr);
     const int copy = ::fcntl(fd, F_DUPFD_CLOEXEC, 0);
     if (copy < 0) fail(target_, "cannot write: " + errnoText(errno));
-    file_ = ::fdopen(copy, "wb");
-    if (!file_) {
-      const int e = errno;
-      ::close(copy);
-      fail(target_, "cannot write: " + errnoText(e));
-    }
+    file_ = streamOn(copy, target_);
     return;  // direct: commit only flushes
   }
   struct stat st {};
@@ -104,12 +111,7 @@ AtomicWriter::AtomicWriter(const std::string& target) : target_(target) {
   if (found == 0 && !S_ISREG(st.st_mode) && !S_ISDIR(st.st_mode)) {
     const int fd = ::open(target.c_str(), O_WRONLY | O_CLOEXEC);
     if (fd < 0) fail(target_, "cannot write: " + errnoText(errno));
-    file_ = ::fdopen(fd, "wb");
-    if (!file_) {
-      const int e = errno;
-      ::close(fd);
-      fail(target_, "cannot write: " + errnoText(e));
-    }
+    file_ = streamOn(fd, target_);
     return;  // direct: commit only flushes
   }
   if (struct stat lst{}; ::lstat(target.c_str(), &lst) == 0 && S_ISLNK(lst.st_mode)) {
