@@ -101,19 +101,7 @@ MoveResult ScenarioRunner::apply(const Move& move) {
   history_.push_back(d.state());
   const int number = static_cast<int>(moves_.size()) + 1;
   MoveResult r;
-  if (move.kind == Move::Kind::Drag && move.drag.keep_orientation) {
-    const SolveStats st = d.translateHandle(move.drag.from, move.drag.to);
-    r.frames = 1;
-    r.iterations = st.iterations;
-    r.max_frame_iterations = st.iterations;
-    r.reached = true;  // a rigid translation of the handle: the picked point lands exactly
-    r.solve_ms = st.ms;
-    r.interpolation_ms = d.lastInterpolationMs();
-    if (!st.decreased)
-      r.warning = "move " + std::to_string(number) +
-                  " (drag, keeping orientation): Gauss-Newton could not decrease the energy; the shape may "
-                  "not follow the handle exactly";
-  } else if (move.kind == Move::Kind::Drag) {
+  if (move.kind == Move::Kind::Drag && !move.drag.keep_orientation) {
     const DragResult dr = d.dragTo(move.drag.from, move.drag.to);
     r.frames = dr.frames;
     r.iterations = dr.iterations;
@@ -132,17 +120,25 @@ MoveResult ScenarioRunner::apply(const Move& move) {
       r.warning = buf;
     }
   } else {
-    const FrameMove& f = move.frame;
-    const Eigen::Vector3d center = f.center ? *f.center : d.handleCentre();
-    Eigen::Affine3d motion = Eigen::Affine3d::Identity();
-    motion.translate(center + f.translate);
-    motion.rotate(Eigen::AngleAxisd(f.degrees * M_PI / 180.0, f.axis.normalized()));
-    motion.translate(-center);
-    const SolveStats st = d.moveHandle(motion);
+    // One rigid motion of the handle, given exactly: a frame move, or a drag that keeps the
+    // handle's orientation (a translation that lands the picked point on the target).
+    const bool translate = move.kind == Move::Kind::Drag;
+    SolveStats st;
+    if (translate) {
+      st = d.translateHandle(move.drag.from, move.drag.to);  // reached: the point lands exactly
+    } else {
+      const FrameMove& f = move.frame;
+      const Eigen::Vector3d center = f.center ? *f.center : d.handleCentre();
+      Eigen::Affine3d motion = Eigen::Affine3d::Identity();
+      motion.translate(center + f.translate);
+      motion.rotate(Eigen::AngleAxisd(f.degrees * M_PI / 180.0, f.axis.normalized()));
+      motion.translate(-center);
+      st = d.moveHandle(motion);
+    }
     if (!st.decreased)
       r.warning = "move " + std::to_string(number) +
-                  " (frame): Gauss-Newton could not decrease the energy; the shape may not follow the "
-                  "handle exactly";
+                  (translate ? " (drag, keeping orientation)" : " (frame)") +
+                  ": Gauss-Newton could not decrease the energy; the shape may not follow the handle exactly";
     r.frames = 1;
     r.iterations = st.iterations;
     r.max_frame_iterations = st.iterations;
