@@ -7,8 +7,12 @@
 #include <pcl/point_types.h>
 
 #include <cstddef>
+#include <vector>
 
 namespace hgdbench {
+
+/// The median of `v` (0 when empty): what hgdeform-bench reports of repeated runs.
+double median(std::vector<double> v);
 
 /// Median ms of pcl::NormalEstimationOMP (k nearest neighbours, a k-d tree, every OpenMP
 /// thread) over `repeat` runs on `cloud`.

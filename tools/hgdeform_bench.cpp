@@ -39,12 +39,7 @@
 
 namespace {
 
-double median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  const std::size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
+using hgdbench::median;
 
 // The paper's Table 1 (Core 2 Duo, 2008), nearest model by size: build ms, GN ms/iteration
 // (16 clusters), interpolation ms.
