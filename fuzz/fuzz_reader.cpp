@@ -4,10 +4,12 @@
 // a bug. A shape that reads is also written back and read again.
 #include <unistd.h>
 
+#include <cerrno>
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <string>
 #include <system_error>
@@ -39,8 +41,17 @@ const fs::path& workDir() {
   return dir;
 }
 
-void check(bool ok) {
-  if (!ok) __builtin_trap();
+/// A broken invariant: said on stderr (the fuzzer's log keeps it beside the stack) and trapped.
+[[noreturn]] void broken(const char* what, int line) {
+  std::fprintf(stderr, "fuzz_reader.cpp:%d: broken invariant: %s\n", line, what);
+  __builtin_trap();
+}
+#define check(ok) ((ok) ? void(0) : broken(#ok, __LINE__))
+
+/// The harness's own failure (not the reader's): said with the reason, then aborted.
+[[noreturn]] void harnessFailed(const char* what, const std::string& path) {
+  std::fprintf(stderr, "fuzz harness: %s %s: %s\n", what, path.c_str(), std::strerror(errno));
+  std::abort();
 }
 
 void checkShape(const hgd::Shape& s) {
@@ -60,9 +71,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   const std::string out = (workDir() / ("out" HGD_FUZZ_EXTENSION)).string();
   ::unlink(in.c_str());  // a new file rather than a truncated one (see workDir)
   std::FILE* f = std::fopen(in.c_str(), "wb");
-  if (!f) std::abort();
-  if (size > 0 && std::fwrite(data, 1, size, f) != size) std::abort();
-  std::fclose(f);
+  if (!f) harnessFailed("cannot create", in);
+  if (size > 0 && std::fwrite(data, 1, size, f) != size) harnessFailed("cannot write", in);
+  if (std::fclose(f) != 0) harnessFailed("cannot close", in);
   try {
     const hgd::Shape shape = hgd::readShape(in);
     checkShape(shape);

@@ -3,7 +3,10 @@
 # its seed corpus in fuzz/corpus/<target>/. Fails (non-zero) on any crash, sanitizer report,
 # leak, timeout or uncaught exception; the input that did it is kept in
 # build-fuzz/artifacts/<target>/ (turn it into a regression test in tests/test_robust.cpp).
-# Usage: bash scripts/fuzz.sh [SECONDS_PER_TARGET]    (default 60; JOBS=N for the build)
+# On a failure it prints the fuzzer's report with its stack and the input (base64), so that a
+# CI log alone is enough to reproduce it: base64 -d > crash; build-fuzz/fuzz/fuzz_<t> crash.
+# Usage: bash scripts/fuzz.sh [SECONDS_PER_TARGET]    (default 60; JOBS=N for the build;
+#        SEED=N for libFuzzer's -seed, which makes a run repeat the same mutations: CI uses one)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 secs=${1:-60}
@@ -28,13 +31,23 @@ for t in "${targets[@]}"; do
   log="$build/$t.log"
   echo "--- $t: ${secs}s ---"
   rc=0
-  "$build/fuzz/$t" -max_total_time="$secs" -rss_limit_mb=2048 -timeout=10 -print_final_stats=1 \
+  seed=()
+  [ -n "${SEED:-}" ] && seed=(-seed="$SEED")
+  "$build/fuzz/$t" -max_total_time="$secs" -rss_limit_mb=2048 -timeout=10 -print_final_stats=1 "${seed[@]}" \
     -artifact_prefix="$artifacts" "${dict[@]}" "$work" "fuzz/corpus/$name" >"$log" 2>&1 || rc=$?
   execs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log" | tail -1)
   if [ "$rc" -ne 0 ]; then
     status=1
     echo "$t FAILED (exit $rc); log: $log; artifacts: $artifacts"
-    grep -E "ERROR|runtime error|SUMMARY|==[0-9]+==|Test unit written|uncaught|terminate" "$log" | head -30 || true
+    # The report: from the first error line to the artifact's name (the stack is in between).
+    sed -n '/ERROR\|runtime error\|broken invariant\|fuzz harness\|terminate called/,/Test unit written/p' "$log" |
+      head -80 || true
+    grep -E "^INFO: Seed:" "$log" | head -1 || true
+    for a in "$artifacts"*; do
+      [ -f "$a" ] || continue
+      echo "input $(basename "$a") ($(stat -c %s "$a") bytes), base64:"
+      head -c 16384 "$a" | base64
+    done
   fi
   summary+=$(printf '%-14s %10s executions  %s' "$t" "${execs:-?}" "$([ "$rc" -eq 0 ] && echo ok || echo FAILED)")$'\n'
 done
