@@ -62,7 +62,7 @@ void Deformer::rebuild() {
                               geometry_.hasFileNormals() ? geometry_.file_normals.get() : &field_.normals());
   build_.clusters_ms = sw.lap();
 
-  setupSolver(false, /*keep_transforms=*/false);
+  setupSolver();
   local_.resize(clustering_.clusters.size());
   picked_ = -1;
   updateShape();
@@ -76,14 +76,18 @@ DeformerState Deformer::state() const {
 void Deformer::restore(const DeformerState& state) {
   if (state.transforms.size() != clustering_.clusters.size())
     throw std::invalid_argument("Deformer::restore: the state belongs to other clusters");
-  if (state.frame_mode != frame_mode_) setupSolver(state.frame_mode);
   solver_.setTransforms(state.transforms);
+  const int mc = clustering_.manipulated;
+  if (state.frame_mode)
+    solver_.hold(mc, state.transforms[static_cast<std::size_t>(mc)]);
+  else
+    solver_.release();
+  frame_mode_ = state.frame_mode;
   picked_ = -1;
   updateShape();
 }
 
-void Deformer::setupSolver(bool manipulated_constant, bool keep_transforms) {
-  std::vector<Transform> previous = keep_transforms ? solver_.transforms() : std::vector<Transform>{};
+void Deformer::setupSolver() {
   int n_iso = 0;
   for (const auto& cl : clustering_.clusters) n_iso += cl.kind == ClusterKind::Iso;
   std::vector<SolverCluster> sc(clustering_.clusters.size());
@@ -94,8 +98,8 @@ void Deformer::setupSolver(bool manipulated_constant, bool keep_transforms) {
     for (int i : cl.members)
       sc[c].points.push_back(
           normalise((*geometry_.points)[static_cast<std::size_t>(i)].getVector3fMap().cast<double>()));
-    sc[c].constant = cl.kind == ClusterKind::Fixed || cl.kind == ClusterKind::Static ||
-                     (cl.kind == ClusterKind::Manipulated && manipulated_constant);
+    // The manipulated cluster is free: a frame move holds it (setFrameMode), a drag matches it.
+    sc[c].constant = cl.kind == ClusterKind::Fixed || cl.kind == ClusterKind::Static;
     const double w_mhc =
         options_.weights.mhc_per_cluster > 0 ? std::max(1.0, options_.weights.mhc_per_cluster * n_iso) : 1.0;
     sc[c].rot_weight = cl.kind == ClusterKind::Manipulated ? w_mhc
@@ -103,8 +107,14 @@ void Deformer::setupSolver(bool manipulated_constant, bool keep_transforms) {
                                                            : 1.0;
   }
   solver_.setup(std::move(sc), clustering_.adjacency, clustering_.manipulated, options_.weights);
-  if (previous.size() == clustering_.clusters.size()) solver_.setTransforms(previous);
-  frame_mode_ = manipulated_constant;
+  frame_mode_ = false;
+  picked_ = -1;
+}
+
+void Deformer::leaveFrameMode() {
+  if (!frame_mode_) return;
+  solver_.release();
+  frame_mode_ = false;
   picked_ = -1;
 }
 
@@ -156,7 +166,7 @@ void Deformer::pick(const Eigen::Vector3d& world) {
 
 SolveStats Deformer::drag(const Eigen::Vector3d& from, const Eigen::Vector3d& to) {
   if (!to.allFinite() || !from.allFinite()) throw std::invalid_argument("drag: target is not finite");
-  if (frame_mode_) setupSolver(false);
+  leaveFrameMode();
   if (picked_ < 0 || from != last_to_) pick(from);
   const SolveStats st = dragFrame(to);
   updateShape();
@@ -200,7 +210,7 @@ Eigen::Vector3d Deformer::pickedWorld() const {
 DragResult Deformer::dragTo(const Eigen::Vector3d& from, const Eigen::Vector3d& to) {
   DragResult r;
   if (!to.allFinite() || !from.allFinite()) throw std::invalid_argument("drag: target is not finite");
-  if (frame_mode_) setupSolver(false);
+  leaveFrameMode();
   pick(from);
   const Eigen::Vector3d start = deformedWorld(static_cast<std::size_t>(picked_));
   last_to_ = from;
@@ -282,14 +292,15 @@ SolveStats Deformer::moveHandle(const Eigen::Affine3d& motion) {
 }
 
 SolveStats Deformer::solveHandle(const Eigen::Affine3d& transform) {
-  if (!frame_mode_) setupSolver(true);
+  if (!frame_mode_) picked_ = -1;  // a drag after the frame move picks again
+  frame_mode_ = true;
   const Eigen::Matrix3d a = transform.linear();
   const Eigen::Vector3d o = geometry_.origin;
   // The world transform in the solver's normalised frame, about the cluster's barycentre.
   const Eigen::Vector3d shift = scale_ * (a * (center_ + o) + transform.translation() - o - center_);
   const int mc = clustering_.manipulated;
   const Eigen::Vector3d g = normalise(clustering_.clusters[static_cast<std::size_t>(mc)].barycenter);
-  solver_.setConstantTransform(mc, Transform{a, a * g + shift - g});
+  solver_.hold(mc, Transform{a, a * g + shift - g});
   return solver_.solve(options_.gauss_newton);
 }
 
@@ -306,10 +317,9 @@ Eigen::Affine3d Deformer::handleTransform() const {
 }
 
 void Deformer::reset() {
+  leaveFrameMode();
   solver_.reset();
   picked_ = -1;
-  if (frame_mode_) setupSolver(false);
-  solver_.reset();
   updateShape();
 }
 

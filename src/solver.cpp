@@ -100,6 +100,7 @@ void ClusterSolver::setup(std::vector<SolverCluster> clusters, const std::vector
     pairs_.push_back(p);
   }
   manip_active_ = false;
+  held_ = -1;
   if (nv > 0) analyzePattern();
   constant_ready_ = true;
 }
@@ -126,7 +127,7 @@ void ClusterSolver::setTransforms(const std::vector<Transform>& transforms) {
 void ClusterSolver::setManipulation(const std::vector<Eigen::Vector3d>& rest,
                                     const std::vector<Eigen::Vector3d>& target,
                                     const std::vector<double>& weight) {
-  if (manipulated_ < 0 || var_[static_cast<std::size_t>(manipulated_)] < 0)
+  if (manipulated_ < 0 || !moves(manipulated_))
     throw std::logic_error("ClusterSolver: no free manipulated cluster");
   if (rest.size() != target.size() || rest.size() != weight.size())
     throw std::invalid_argument("ClusterSolver: rest, target and weight sizes differ");
@@ -155,10 +156,21 @@ void ClusterSolver::clearManipulation() {
   manip_active_ = false;
 }
 
-void ClusterSolver::setConstantTransform(int cluster, const Transform& transform) {
-  if (var_.at(static_cast<std::size_t>(cluster)) >= 0)
-    throw std::logic_error("ClusterSolver: cluster is not constant");
+void ClusterSolver::hold(int cluster, const Transform& transform) {
+  const int v = var_.at(static_cast<std::size_t>(cluster));
+  if (v < 0) throw std::logic_error("ClusterSolver: hold: the cluster is constant already");
+  if (held_ >= 0 && held_ != cluster) throw std::logic_error("ClusterSolver: hold: another cluster is held");
+  if (cluster == manipulated_) clearManipulation();
+  if (held_ != cluster) constant_ready_ = false;  // its rows and columns become the identity's
+  held_ = cluster;
   transforms_[static_cast<std::size_t>(cluster)] = transform;
+  for (int k = 0; k < 3; ++k) x_.segment<3>(v + 3 * k) = transform.A.col(k);
+  x_.segment<3>(v + 9) = transform.t;
+}
+
+void ClusterSolver::release() {
+  if (held_ >= 0) constant_ready_ = false;
+  held_ = -1;
 }
 
 void ClusterSolver::unpack(const Eigen::VectorXd& x) {
@@ -182,12 +194,15 @@ Energies ClusterSolver::evaluate(const Eigen::VectorXd& x) const {
     return Eigen::Map<const Mat34>(x.data() + v);
   };
   Energies e;
+  // Constant terms (of clusters that do not move) are left out, held or not: the same energy
+  // as if the held cluster had been constant from the setup on.
   for (std::size_t c = 0; c < clusters_.size(); ++c) {
-    if (var_[c] < 0) continue;
+    if (!moves(static_cast<int>(c))) continue;
     const Mat34 u = uOf(static_cast<int>(c));
     e.detail += w_.detail * clusters_[c].rot_weight * rotationResidual(u.leftCols<3>());
   }
   for (const auto& p : pairs_) {
+    if (!moves(p.i) && !moves(p.j)) continue;
     const Mat34 ui = uOf(p.i), uj = uOf(p.j);
     const Eigen::Vector3d d = clusters_[static_cast<std::size_t>(p.i)].barycenter -
                               clusters_[static_cast<std::size_t>(p.j)].barycenter;
@@ -350,14 +365,18 @@ void ClusterSolver::assembleConstant() {
   };
   // Every diagonal block is dense (Rot couples A's entries); 1e-9 I keeps the system definite
   // when a cluster is unconstrained (no neighbours).
-  for (int b = 0; b < nb; ++b) addBlock(b, b, 1e-9 * Mat12::Identity());
+  // A held cluster's rows and columns are the identity's (zero coupling, zero gradient: its
+  // step is exactly 0), with the same entries in the pattern, so the analysis stays valid.
+  const int held = held_ >= 0 ? block(held_) : -1;
+  for (int b = 0; b < nb; ++b) addBlock(b, b, (b == held ? 1.0 : 1e-9) * Mat12::Identity());
   for (const auto& p : pairs_) {
     const bool fi = var_[static_cast<std::size_t>(p.i)] >= 0, fj = var_[static_cast<std::size_t>(p.j)] >= 0;
-    if (fi) addBlock(block(p.i), block(p.i), w_.prop * kron(p.sii));
-    if (fj) addBlock(block(p.j), block(p.j), w_.prop * kron(p.sjj));
+    const double wi = moves(p.i) ? w_.prop : 0, wj = moves(p.j) ? w_.prop : 0;
+    if (fi) addBlock(block(p.i), block(p.i), wi * kron(p.sii));
+    if (fj) addBlock(block(p.j), block(p.j), wj * kron(p.sjj));
     if (fi && fj) {
-      addBlock(block(p.i), block(p.j), -w_.prop * kron(p.sij));
-      addBlock(block(p.j), block(p.i), -w_.prop * kron(p.sij.transpose()));
+      addBlock(block(p.i), block(p.j), -std::min(wi, wj) * kron(p.sij));
+      addBlock(block(p.j), block(p.i), -std::min(wi, wj) * kron(p.sij.transpose()));
     }
   }
   if (manip_active_) addBlock(block(manipulated_), block(manipulated_), w_.manip * kron(manip_s_));
@@ -435,10 +454,13 @@ SolveStats ClusterSolver::solve(const GaussNewtonOptions& options) {
     grad.setZero();
     for (std::size_t pi = 0; pi < pairs_.size(); ++pi) {
       const Pair& p = pairs_[pi];
+      const bool mi = moves(p.i), mj = moves(p.j);
+      if (!mi && !mj) continue;
       const Mat34 ui = uOf(p.i), uj = uOf(p.j);
       const Eigen::Vector3d d = clusters_[static_cast<std::size_t>(p.i)].barycenter -
                                 clusters_[static_cast<std::size_t>(p.j)].barycenter;
-      const int vi = var_[static_cast<std::size_t>(p.i)], vj = var_[static_cast<std::size_t>(p.j)];
+      const int vi = mi ? var_[static_cast<std::size_t>(p.i)] : -1,
+                vj = mj ? var_[static_cast<std::size_t>(p.j)] : -1;
       if (vi >= 0) {
         const Mat34 gi = ui * p.sii - uj * p.sij.transpose() + d * p.mi.transpose();
         grad.segment<12>(vi) += w_.prop * Eigen::Map<const Vec12>(gi.data());
@@ -471,7 +493,7 @@ SolveStats ClusterSolver::solve(const GaussNewtonOptions& options) {
     }
     for (std::size_t c = 0; c < clusters_.size(); ++c) {
       const int v = var_[c];
-      if (v < 0) continue;
+      if (!moves(static_cast<int>(c))) continue;
       Eigen::Matrix<double, 6, 1> r;
       Eigen::Matrix<double, 6, 9> j;
       rotResiduals(uOf(static_cast<int>(c)).leftCols<3>(), r, j);
@@ -489,8 +511,10 @@ SolveStats ClusterSolver::solve(const GaussNewtonOptions& options) {
     // on failure, retry with a shift relative to the largest diagonal entry (a damped step).
     bool factored = factor_.factorize(h_);
     if (!factored) {
-      double largest = 0;
-      for (int k = 0; k < nv; ++k) largest = std::max(largest, std::abs(h_.coeff(k, k)));
+      double largest = 0;  // of the clusters that move (a held one's diagonal is 1)
+      const int hb = held_ >= 0 ? var_[static_cast<std::size_t>(held_)] : -1;
+      for (int k = 0; k < nv; ++k)
+        if (hb < 0 || k < hb || k >= hb + 12) largest = std::max(largest, std::abs(h_.coeff(k, k)));
       for (double shift = 1e-12 * largest; !factored && shift <= 1e-3 * largest; shift *= 100) {
         for (int k = 0; k < nv; ++k) h_.coeffRef(k, k) += shift;
         factored = factor_.factorize(h_);

@@ -731,3 +731,101 @@ TEST(Solver, BlockCholeskyMatchesDenseSolve) {
       if (it.row() == it.col() && it.row() / 12 == 7) it.valueRef() = -100.0;
   EXPECT_FALSE(factor.factorize(sparse));
 }
+
+namespace {
+
+/// A branching set of clusters like a limb's: a fixed root, a chain, a side branch, and the
+/// manipulated cluster at the chain's end; points scattered about each barycentre.
+std::vector<hgd::SolverCluster> limbClusters(bool manipulated_constant) {
+  std::mt19937 rng(17);
+  std::normal_distribution<double> jitter(0.0, 0.03);
+  const std::vector<Eigen::Vector3d> centres = {{0, 0, 0},     {0.1, 0, 0},   {0.2, 0.01, 0}, {0.3, 0, 0.02},
+                                                {0.2, 0.1, 0}, {0.2, 0.2, 0}, {0.4, 0, 0}};
+  std::vector<hgd::SolverCluster> c(centres.size());
+  for (std::size_t k = 0; k < c.size(); ++k) {
+    for (int p = 0; p < 40; ++p)
+      c[k].points.push_back(centres[k] + Eigen::Vector3d(jitter(rng), jitter(rng), jitter(rng)));
+    Eigen::Vector3d g = Eigen::Vector3d::Zero();
+    for (const auto& x : c[k].points) g += x;
+    c[k].barycenter = g / static_cast<double>(c[k].points.size());
+  }
+  c[0].constant = true;
+  c[6].constant = manipulated_constant;
+  c[6].rot_weight = 7.2;
+  return c;
+}
+
+const std::vector<std::pair<int, int>> kLimbEdges = {{0, 1}, {1, 2}, {2, 3}, {3, 6}, {2, 4}, {4, 5}, {0, 6}};
+
+double largestDifference(const std::vector<hgd::Transform>& a, const std::vector<hgd::Transform>& b) {
+  double d = 0;
+  for (std::size_t k = 0; k < a.size(); ++k)
+    d = std::max({d, (a[k].A - b[k].A).cwiseAbs().maxCoeff(), (a[k].t - b[k].t).cwiseAbs().maxCoeff()});
+  return d;
+}
+
+}  // namespace
+
+// A frame move holds the manipulated cluster (ClusterSolver::hold) in the solver that drags it,
+// instead of setting up a second solver in which it is constant. Both must give the same
+// transforms and the same energy (its own Rot and the pair whose ends both stand still are
+// constant terms, left out), and releasing it must give back the drag's coupling exactly.
+TEST(Deform, HoldingTheHandleSolvesAsIfItWereConstant) {
+  const int mc = 6;
+  hgd::Transform move;
+  // Not a rotation (a frame move may scale): the held cluster's Rot is a nonzero constant.
+  move.A = Eigen::AngleAxisd(0.6, Eigen::Vector3d(0.3, 0.2, 1).normalized()).toRotationMatrix() *
+           Eigen::Vector3d(1.1, 1, 0.95).asDiagonal();
+  move.t = Eigen::Vector3d(0.05, 0.12, -0.03);
+  const hgd::Transform identity;
+
+  // The reference: the manipulated cluster constant from the setup on (the pre-switch way).
+  hgd::ClusterSolver constant;
+  constant.setup(limbClusters(true), kLimbEdges, mc, hgd::SolverWeights{});
+  std::vector<hgd::Transform> start(7, identity);
+  start[mc] = move;
+  constant.setTransforms(start);
+  const hgd::SolveStats ref = constant.solve();
+  ASSERT_TRUE(ref.converged);
+
+  // One solver: a drag first (E_Manip active), then the hold, from the same warm start.
+  hgd::ClusterSolver solver;
+  solver.setup(limbClusters(false), kLimbEdges, mc, hgd::SolverWeights{});
+  const std::vector<Eigen::Vector3d> rest = {{0.4, 0, 0}, {0.45, 0.02, 0}, {0.38, -0.02, 0.01}};
+  const std::vector<Eigen::Vector3d> target = {{0.4, 0.1, 0}, {0.45, 0.12, 0}, {0.38, 0.08, 0.01}};
+  solver.setManipulation(rest, target, {1.0, 1.0, 1.0});
+  solver.solve();
+  const std::vector<hgd::Transform> dragged = solver.transforms();
+  solver.setTransforms(start);
+  solver.hold(mc, move);
+  EXPECT_EQ(solver.held(), mc);
+  const hgd::SolveStats held = solver.solve();
+  // Measured: 0 (the same arithmetic up to the elimination order); the margin is round-off.
+  EXPECT_LT(largestDifference(solver.transforms(), constant.transforms()), 1e-12);
+  EXPECT_NEAR(held.energy.total(), ref.energy.total(), 1e-12 * ref.energy.total());
+  EXPECT_EQ(held.iterations, ref.iterations);
+  // The held transform is the one given, exactly: the solve never moved it.
+  EXPECT_EQ(solver.transforms()[mc].A, move.A);
+  EXPECT_EQ(solver.transforms()[mc].t, move.t);
+  // The coupling to the rest matters: the chain's end next to the handle followed it.
+  EXPECT_GT((solver.transforms()[3].t - identity.t).norm(), 0.2 * move.t.norm());
+
+  // Released, the handle is free again: solved from the held state with no E_Manip, it moves as
+  // in a solver where it was always free (the coupling is back in the normal equations).
+  solver.release();
+  solver.setTransforms(start);
+  solver.solve();
+  hgd::ClusterSolver free;
+  free.setup(limbClusters(false), kLimbEdges, mc, hgd::SolverWeights{});
+  free.setTransforms(start);
+  free.solve();
+  EXPECT_LT(largestDifference(solver.transforms(), free.transforms()), 1e-12);
+  EXPECT_GT((solver.transforms()[mc].A - move.A).norm(), 1e-3);  // it did move
+
+  // And the same drag from the same start gives the drag's transforms again.
+  solver.setTransforms(std::vector<hgd::Transform>(7, identity));
+  solver.setManipulation(rest, target, {1.0, 1.0, 1.0});
+  solver.solve();
+  EXPECT_LT(largestDifference(solver.transforms(), dragged), 1e-12);
+  EXPECT_THROW(solver.hold(0, move), std::logic_error);  // a fixed cluster has no unknowns
+}

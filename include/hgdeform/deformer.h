@@ -142,7 +142,9 @@ class Deformer {
   double diagonal() const { return 1.0 / scale_; }
 
  private:
-  void setupSolver(bool manipulated_constant, bool keep_transforms = true);
+  void setupSolver();
+  /// A drag after frame moves: the manipulated cluster is freed for shape matching.
+  void leaveFrameMode();
   void rebuild();
   SolveStats dragFrame(const Eigen::Vector3d& to);
   SolveStats solveHandle(const Eigen::Affine3d& transform);

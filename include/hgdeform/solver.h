@@ -25,7 +25,7 @@ struct SolverWeights {
 struct SolverCluster {
   std::vector<Eigen::Vector3d> points;  ///< rest positions of its members (normalised)
   Eigen::Vector3d barycenter = Eigen::Vector3d::Zero();
-  bool constant = false;  ///< fixed clusters (identity) and, in frame mode, the manipulated one
+  bool constant = false;  ///< fixed and static clusters (identity; a frame move holds the MC instead)
   double rot_weight = 1;  ///< multiplies Rot(A) in E_Detail (w_MHC for the MC)
 };
 
@@ -99,11 +99,19 @@ class ClusterSolver {
   /// targets x of its points, with weights. Replaces the previous targets.
   void setManipulation(const std::vector<Eigen::Vector3d>& rest, const std::vector<Eigen::Vector3d>& target,
                        const std::vector<double>& weight);
-  /// Removes E_Manip (frame mode: the manipulated cluster is constant).
+  /// Removes E_Manip.
   void clearManipulation();
 
-  /// Sets a constant cluster's transform (frame mode: the manipulated cluster's motion).
-  void setConstantTransform(int cluster, const Transform& transform);
+  /// Holds a free cluster at `transform` (frame mode: the manipulated cluster moved by the
+  /// user): the solve treats it as constant, exactly, and E_Manip is removed when it is the
+  /// manipulated cluster. A switch on the normal equations' values, not a new setup: the held
+  /// cluster keeps its unknowns and the symbolic analysis stays. Called again, it only moves
+  /// the held transform. One cluster at a time.
+  void hold(int cluster, const Transform& transform);
+  /// Frees the held cluster again (its transform is the next solve's warm start).
+  void release();
+  /// The held cluster, or -1.
+  int held() const { return held_; }
 
   /// Gauss–Newton from the current transforms (warm start).
   SolveStats solve(const GaussNewtonOptions& options = {});
@@ -147,7 +155,10 @@ class ClusterSolver {
   std::vector<int> rot_at_;     ///< per free block: h_ value positions of its 9x9 A-A part
   std::vector<int> length_at_;  ///< per pair: of the 3x3 t-t parts (ii, jj, ij, ji; -1 if constant)
   BlockCholesky factor_;
-  bool constant_ready_ = false;  ///< h_const_ holds the current E_Manip
+  bool constant_ready_ = false;  ///< h_const_ holds the current E_Manip and hold
+  int held_ = -1;                ///< a free cluster held constant (hold()), or -1
+  /// Whether a cluster moves in this solve: it has unknowns and is not held.
+  bool moves(int cluster) const { return var_[static_cast<std::size_t>(cluster)] >= 0 && cluster != held_; }
 };
 
 /// Rot(A): the six squared residuals of A from a rotation-like matrix (paper §4).
