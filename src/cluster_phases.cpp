@@ -121,7 +121,7 @@ SampleGraph sampleGraph(const NeighborGraph& graph, const std::vector<int>& samp
 }
 
 // The state the phases share: the inputs, and per point its role, band or gap, and its two
-// bracketing clusters (down: the one below its harmonic value, up: above).
+// bracketing clusters (lower: the one below its harmonic value, upper: above).
 struct ClusterPhases {
   ClusterPhases(const pcl::PointCloud<pcl::PointXYZ>& points_in, const NeighborGraph& graph_in,
                 const std::vector<float>& phi_in, const Handles& handles_in,
@@ -154,18 +154,19 @@ struct ClusterPhases {
   int nb = 0, top = 0;
   std::vector<int> role;  // -1 free, -2 manipulated, -3 unreachable, k >= 0 fixed handle k
   std::vector<char> in_sample;
-  std::vector<int> band, gap;             // band[i] = b inside band b, else gap[i] = g between g and g + 1
-  std::vector<int> fixed_id;              // fixed handle -> its cluster
-  std::vector<int> down, up;              // the two bracketing clusters of every point
-  std::vector<int> down_queue, up_queue;  // seeds: down labels spread upwards into a gap, up downwards
-  std::vector<int> copy_from;             // a point that took another's clusters takes its blend factor too
+  std::vector<int> band, gap;     // band[i] = b inside band b, else gap[i] = g between g and g + 1
+  std::vector<int> fixed_id;      // fixed handle -> its cluster
+  std::vector<int> lower, upper;  // the two bracketing clusters of every point
+  std::vector<int> lower_queue,
+      upper_queue;             // seeds: lower labels spread upwards into a gap, upper downwards
+  std::vector<int> copy_from;  // a point that took another's clusters takes its blend factor too
 
   int newCluster(ClusterKind kind, int lvl, int handle, double value) {
     Cluster cl;
     cl.id = static_cast<int>(c.clusters.size());
     cl.kind = kind;
     cl.level = lvl;
-    cl.phi = value;
+    cl.harmonic_value = value;
     cl.handle = handle;
     c.clusters.push_back(cl);
     return cl.id;
@@ -228,11 +229,11 @@ struct ClusterPhases {
   }
 
   void startLabels() {
-    down.assign(n, -1);
-    up.assign(n, -1);
+    lower.assign(n, -1);
+    upper.assign(n, -1);
     for (std::size_t i = 0; i < n; ++i) {
-      if (role[i] >= 0) down[i] = up[i] = fixed_id[static_cast<std::size_t>(role[i])];
-      if (role[i] == -2) down[i] = up[i] = c.manipulated;
+      if (role[i] >= 0) lower[i] = upper[i] = fixed_id[static_cast<std::size_t>(role[i])];
+      if (role[i] == -2) lower[i] = upper[i] = c.manipulated;
     }
   }
 
@@ -240,13 +241,13 @@ struct ClusterPhases {
   void bones() {
     std::vector<int> stack, members;
     for (std::size_t s = 0; s < n; ++s) {
-      if (band[s] < 0 || down[s] >= 0 || bands[static_cast<std::size_t>(band[s])].kind != Band::Kind::Range)
+      if (band[s] < 0 || lower[s] >= 0 || bands[static_cast<std::size_t>(band[s])].kind != Band::Kind::Range)
         continue;
       const int b = band[s];
       const int id = newCluster(ClusterKind::Range, b, -1, 0.0);
       double sum_phi = 0;
       members.clear();
-      down[s] = up[s] = id;
+      lower[s] = upper[s] = id;
       stack.assign(1, static_cast<int>(s));
       while (!stack.empty()) {
         const auto x = static_cast<std::size_t>(stack.back());
@@ -255,14 +256,14 @@ struct ClusterPhases {
         sum_phi += phi[x];
         for (const int* j = graph.begin(x); j != graph.end(x); ++j) {
           const auto u = static_cast<std::size_t>(*j);
-          if (band[u] == b && down[u] < 0) {
-            down[u] = up[u] = id;
+          if (band[u] == b && lower[u] < 0) {
+            lower[u] = upper[u] = id;
             stack.push_back(static_cast<int>(u));
           }
         }
       }
       Cluster& cl = c.clusters.back();
-      cl.phi = sum_phi / static_cast<double>(members.size());
+      cl.harmonic_value = sum_phi / static_cast<double>(members.size());
       for (int m : members)
         if (in_sample[static_cast<std::size_t>(m)]) cl.members.push_back(m);
       for (std::size_t k = 0; k < members.size() && cl.members.size() < 3; ++k)
@@ -273,9 +274,9 @@ struct ClusterPhases {
   void seedFromBands() {
     // Points inside interval bands seed the gaps on either side.
     for (std::size_t i = 0; i < n; ++i) {
-      if (band[i] < 0 || down[i] < 0) continue;
-      down_queue.push_back(static_cast<int>(i));
-      up_queue.push_back(static_cast<int>(i));
+      if (band[i] < 0 || lower[i] < 0) continue;
+      lower_queue.push_back(static_cast<int>(i));
+      upper_queue.push_back(static_cast<int>(i));
     }
   }
 
@@ -335,12 +336,12 @@ struct ClusterPhases {
                m < sg.cell_start[static_cast<std::size_t>(site) + 1]; ++m) {
             const int pt = sg.cell_points[static_cast<std::size_t>(m)];
             const auto x = static_cast<std::size_t>(pt);
-            if (gap[x] == b && down[x] < 0) {
-              down[x] = id;
-              down_queue.push_back(pt);
-            } else if (gap[x] == b - 1 && up[x] < 0) {
-              up[x] = id;
-              up_queue.push_back(pt);
+            if (gap[x] == b && lower[x] < 0) {
+              lower[x] = id;
+              lower_queue.push_back(pt);
+            } else if (gap[x] == b - 1 && upper[x] < 0) {
+              upper[x] = id;
+              upper_queue.push_back(pt);
             }
           }
       }
@@ -348,8 +349,8 @@ struct ClusterPhases {
   }
 
   void spreadIntoGaps() {
-    // Nearest cluster along the surface within each gap: a down label from band b spreads into
-    // gap b, an up label from band b into gap b - 1.
+    // Nearest cluster along the surface within each gap: a lower label from band b spreads into
+    // gap b, an upper label from band b into gap b - 1.
     // The two spreads are independent (each writes its own labels): one thread each.
     auto spread = [&](const std::vector<int>& seeds, std::vector<int>& label, int offset) {
       std::vector<int> q(seeds);
@@ -369,9 +370,9 @@ struct ClusterPhases {
 #pragma omp parallel sections if (nn > kParallelMin)
     {
 #pragma omp section
-      spread(down_queue, down, 0);
+      spread(lower_queue, lower, 0);
 #pragma omp section
-      spread(up_queue, up, 1);
+      spread(upper_queue, upper, 1);
     }
   }
 
@@ -379,22 +380,22 @@ struct ClusterPhases {
     // A gap region that meets only one side (a part touching one kind of handle only) takes
     // that side for both.
     for (std::size_t i = 0; i < n; ++i) {
-      if (down[i] < 0) down[i] = up[i];
-      if (up[i] < 0) up[i] = down[i];
+      if (lower[i] < 0) lower[i] = upper[i];
+      if (upper[i] < 0) upper[i] = lower[i];
     }
     // Reached points still without clusters (a region whose only contour was too short, cut
     // off from its gap by it) take those of the nearest labelled point along the graph: first
     // through inliers, then through outliers too.
     copy_from.assign(n, -1);
     bool unlabelled = false;
-    for (std::size_t i = 0; i < n && !unlabelled; ++i) unlabelled = down[i] < 0 && role[i] != -3;
+    for (std::size_t i = 0; i < n && !unlabelled; ++i) unlabelled = lower[i] < 0 && role[i] != -3;
     for (const bool through_outliers : {false, true}) {
       if (!unlabelled) break;
       std::vector<int> q;  // labelled points next to unlabelled ones
       for (std::size_t i = 0; i < n; ++i) {
-        if (down[i] < 0 || (!through_outliers && outlier[i])) continue;
+        if (lower[i] < 0 || (!through_outliers && outlier[i])) continue;
         for (const int* j = graph.begin(i); j != graph.end(i); ++j)
-          if (down[static_cast<std::size_t>(*j)] < 0 && role[static_cast<std::size_t>(*j)] != -3) {
+          if (lower[static_cast<std::size_t>(*j)] < 0 && role[static_cast<std::size_t>(*j)] != -3) {
             q.push_back(static_cast<int>(i));
             break;
           }
@@ -404,9 +405,9 @@ struct ClusterPhases {
         if (!through_outliers && outlier[x]) continue;
         for (const int* j = graph.begin(x); j != graph.end(x); ++j) {
           const auto u = static_cast<std::size_t>(*j);
-          if (down[u] >= 0 || role[u] == -3) continue;
-          down[u] = down[x];
-          up[u] = up[x];
+          if (lower[u] >= 0 || role[u] == -3) continue;
+          lower[u] = lower[x];
+          upper[u] = upper[x];
           copy_from[u] = copy_from[x] >= 0 ? copy_from[x] : static_cast<int>(x);
           q.push_back(static_cast<int>(u));
         }
@@ -420,7 +421,7 @@ struct ClusterPhases {
       float best_d = INFINITY;
       for (const int* j = graph.begin(i); j != graph.end(i); ++j) {
         const auto u = static_cast<std::size_t>(*j);
-        if (outlier[u] || down[u] < 0) continue;
+        if (outlier[u] || lower[u] < 0) continue;
         const float d = (points[u].getVector3fMap() - points[i].getVector3fMap()).squaredNorm();
         if (d < best_d) {
           best_d = d;
@@ -429,8 +430,8 @@ struct ClusterPhases {
       }
       if (best < 0) continue;
       const auto b = static_cast<std::size_t>(best);
-      down[i] = down[b];
-      up[i] = up[b];
+      lower[i] = lower[b];
+      upper[i] = upper[b];
       copy_from[i] = copy_from[b] >= 0 ? copy_from[b] : best;
     }
   }
@@ -440,16 +441,16 @@ struct ClusterPhases {
   void piecesWithoutHandle() {
     std::vector<int> stack;
     for (std::size_t s = 0; s < n; ++s) {
-      if (down[s] >= 0) continue;
+      if (lower[s] >= 0) continue;
       if (follow.size() == n && follow[s] >= 0) {
         const auto t = static_cast<std::size_t>(follow[s]);
-        down[s] = down[t];
-        up[s] = up[t];
+        lower[s] = lower[t];
+        upper[s] = upper[t];
         copy_from[s] = copy_from[t] >= 0 ? copy_from[t] : static_cast<int>(t);
         continue;
       }
       const int id = newCluster(ClusterKind::Static, 0, -1, 0.0);
-      down[s] = up[s] = id;
+      lower[s] = upper[s] = id;
       stack.assign(1, static_cast<int>(s));
       while (!stack.empty()) {
         const auto x = static_cast<std::size_t>(stack.back());
@@ -457,8 +458,8 @@ struct ClusterPhases {
         if (in_sample[x]) c.clusters.back().members.push_back(static_cast<int>(x));
         for (const int* j = graph.begin(x); j != graph.end(x); ++j) {
           const auto u = static_cast<std::size_t>(*j);
-          if (down[u] < 0) {
-            down[u] = up[u] = id;
+          if (lower[u] < 0) {
+            lower[u] = upper[u] = id;
             stack.push_back(static_cast<int>(u));
           }
         }
@@ -471,16 +472,16 @@ struct ClusterPhases {
       std::sort(cl.members.begin(), cl.members.end());
       Eigen::Vector3d sum = Eigen::Vector3d::Zero();
       for (int i : cl.members) sum += points[static_cast<std::size_t>(i)].getVector3fMap().cast<double>();
-      if (!cl.members.empty()) cl.barycenter = sum / static_cast<double>(cl.members.size());
+      if (!cl.members.empty()) cl.barycentre = sum / static_cast<double>(cl.members.size());
     }
   }
 
   void blendFactors() {
     // Blend factors (eq. 1): a gap point's place between the facing ends of its two bands.
     c.alpha.assign(n, 0.0f);
-    c.piece.resize(n);
+    c.nearest.resize(n);
     for (std::size_t i = 0; i < n; ++i) {
-      if (gap[i] >= 0 && down[i] != up[i]) {
+      if (gap[i] >= 0 && lower[i] != upper[i]) {
         const double a = bands[static_cast<std::size_t>(gap[i])].hi,
                      b = bands[static_cast<std::size_t>(gap[i]) + 1].lo;
         c.alpha[i] = b > a ? static_cast<float>(std::clamp((phi[i] - a) / (b - a), 0.0, 1.0)) : 0.0f;
@@ -488,7 +489,7 @@ struct ClusterPhases {
     }
     for (std::size_t i = 0; i < n; ++i) {
       if (copy_from[i] >= 0) c.alpha[i] = c.alpha[static_cast<std::size_t>(copy_from[i])];
-      c.piece[i] = c.alpha[i] < 0.5f ? down[i] : up[i];
+      c.nearest[i] = c.alpha[i] < 0.5f ? lower[i] : upper[i];
     }
   }
 
@@ -502,12 +503,12 @@ struct ClusterPhases {
       if (c.adjacency.empty() || c.adjacency.back() != pr) c.adjacency.push_back(pr);
     };
     for (std::size_t i = 0; i < n; ++i) {
-      if (down[i] != up[i]) addPair(down[i], up[i]);
+      if (lower[i] != upper[i]) addPair(lower[i], upper[i]);
       if (band[i] < 0) continue;
       for (const int* j = graph.begin(i); j != graph.end(i); ++j) {
         const auto u = static_cast<std::size_t>(*j);
-        if (band[u] >= 0 && band[u] != band[i] && !isStatic(down[i]) && !isStatic(down[u]))
-          addPair(down[i], down[u]);
+        if (band[u] >= 0 && band[u] != band[i] && !isStatic(lower[i]) && !isStatic(lower[u]))
+          addPair(lower[i], lower[u]);
       }
     }
     std::sort(c.adjacency.begin(), c.adjacency.end());
@@ -544,8 +545,8 @@ Clustering buildClusters(const pcl::PointCloud<pcl::PointXYZ>& points, const Nei
   p.barycentres();
   p.blendFactors();
   p.adjacency();
-  p.c.down = std::move(p.down);
-  p.c.up = std::move(p.up);
+  p.c.lower = std::move(p.lower);
+  p.c.upper = std::move(p.upper);
   return std::move(p.c);
 }
 

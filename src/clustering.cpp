@@ -99,7 +99,7 @@ std::vector<Band> Clustering::makeBands(const std::vector<float>& phi,
   std::vector<Band> bands;
   bands.push_back({Band::Kind::Fixed, 0.0, 0.0});
   if (joints.empty()) {
-    const int n = std::max(0, options.isoclusters);
+    const int n = std::max(0, options.isovalues);
     for (int l = 1; l <= n; ++l) {
       const double v = static_cast<double>(l) / (n + 1);
       bands.push_back({Band::Kind::Iso, v, v});
@@ -138,7 +138,7 @@ std::vector<Band> Clustering::makeBands(const std::vector<float>& phi,
           text += " span overlapping harmonic ranges and act as one joint";
           notes->push_back(text);
         }
-    const int per_joint = std::max(1, options.joint_isoclusters);
+    const int per_joint = std::max(1, options.joint_isovalues);
     double previous = 0;  // upper end of the last band
     for (const auto& [a, b] : merged) {
       if (a > previous) bands.push_back({Band::Kind::Range, previous, a});

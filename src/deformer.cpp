@@ -23,7 +23,7 @@ Deformer::Deformer(const Geometry& geometry, const Handles& handles, const Defor
   field_.setOptions(options_.field);
   const Eigen::AlignedBox3f box = boundingBox(*geometry_.points);
   const Eigen::Vector3d lo = box.min().cast<double>(), hi = box.max().cast<double>();
-  center_ = 0.5 * (lo + hi);
+  centre_ = 0.5 * (lo + hi);
   const double diag = (hi - lo).norm();
   scale_ = diag > 0 ? 1.0 / diag : 1.0;
   positions_.resize(geometry_.size());
@@ -93,7 +93,7 @@ void Deformer::setupSolver() {
   std::vector<SolverCluster> sc(clustering_.clusters.size());
   for (std::size_t c = 0; c < sc.size(); ++c) {
     const Cluster& cl = clustering_.clusters[c];
-    sc[c].barycenter = normalise(cl.barycenter);
+    sc[c].barycentre = normalise(cl.barycentre);
     sc[c].points.reserve(cl.members.size());
     for (int i : cl.members)
       sc[c].points.push_back(
@@ -119,8 +119,8 @@ void Deformer::leaveFrameMode() {
 }
 
 Eigen::Vector3d Deformer::currentNormalised(int cluster, const Eigen::Vector3d& rest) const {
-  const Transform& t = solver_.transforms()[static_cast<std::size_t>(cluster)];
-  const Eigen::Vector3d g = normalise(clustering_.clusters[static_cast<std::size_t>(cluster)].barycenter);
+  const NormalisedTransform& t = solver_.transforms()[static_cast<std::size_t>(cluster)];
+  const Eigen::Vector3d g = normalise(clustering_.clusters[static_cast<std::size_t>(cluster)].barycentre);
   return t.A * (rest - g) + g + t.t;
 }
 
@@ -204,7 +204,7 @@ SolveStats Deformer::translateHandle(const Eigen::Vector3d& from, const Eigen::V
 Eigen::Vector3d Deformer::pickedWorld() const {
   const Eigen::Vector3d rest =
       normalise((*geometry_.points)[static_cast<std::size_t>(picked_)].getVector3fMap().cast<double>());
-  return currentNormalised(clustering_.manipulated, rest) / scale_ + center_ + geometry_.origin;
+  return currentNormalised(clustering_.manipulated, rest) / scale_ + centre_ + geometry_.origin;
 }
 
 DragResult Deformer::dragTo(const Eigen::Vector3d& from, const Eigen::Vector3d& to) {
@@ -297,22 +297,22 @@ SolveStats Deformer::solveHandle(const Eigen::Affine3d& transform) {
   const Eigen::Matrix3d a = transform.linear();
   const Eigen::Vector3d o = geometry_.origin;
   // The world transform in the solver's normalised frame, about the cluster's barycentre.
-  const Eigen::Vector3d shift = scale_ * (a * (center_ + o) + transform.translation() - o - center_);
+  const Eigen::Vector3d shift = scale_ * (a * (centre_ + o) + transform.translation() - o - centre_);
   const int mc = clustering_.manipulated;
-  const Eigen::Vector3d g = normalise(clustering_.clusters[static_cast<std::size_t>(mc)].barycenter);
-  solver_.hold(mc, Transform{a, a * g + shift - g});
+  const Eigen::Vector3d g = normalise(clustering_.clusters[static_cast<std::size_t>(mc)].barycentre);
+  solver_.hold(mc, NormalisedTransform{a, a * g + shift - g});
   return solver_.solve(options_.gauss_newton);
 }
 
 Eigen::Affine3d Deformer::handleTransform() const {
   const int mc = clustering_.manipulated;
-  const Transform& t = solver_.transforms()[static_cast<std::size_t>(mc)];
-  const Eigen::Vector3d g = normalise(clustering_.clusters[static_cast<std::size_t>(mc)].barycenter);
+  const NormalisedTransform& t = solver_.transforms()[static_cast<std::size_t>(mc)];
+  const Eigen::Vector3d g = normalise(clustering_.clusters[static_cast<std::size_t>(mc)].barycentre);
   const Eigen::Vector3d shift = t.t + g - t.A * g;  // normalised: x -> A x + shift
   const Eigen::Vector3d o = geometry_.origin;
   Eigen::Affine3d w = Eigen::Affine3d::Identity();
   w.linear() = t.A;
-  w.translation() = shift / scale_ - t.A * (center_ + o) + o + center_;
+  w.translation() = shift / scale_ - t.A * (centre_ + o) + o + centre_;
   return w;
 }
 
@@ -333,12 +333,12 @@ void Deformer::updateShape() {
   const auto& tr = solver_.transforms();
   for (std::size_t c = 0; c < tr.size(); ++c) {
     const Cluster& cl = clustering_.clusters[c];
-    const Eigen::Vector3d g = normalise(cl.barycenter);
+    const Eigen::Vector3d g = normalise(cl.barycentre);
     Eigen::Matrix3d a = tr[c].A;
     // The barycentre's image, g + t in the normalised frame, back in the local frame.
-    const Eigen::Vector3d image = (g + tr[c].t) / scale_ + center_;
+    const Eigen::Vector3d image = (g + tr[c].t) / scale_ + centre_;
     if (cl.kind == ClusterKind::Range) a = nearestRotation(a);  // bones move rigidly
-    local_[c].set(a.cast<float>(), (image - a * cl.barycenter).cast<float>(), cl.barycenter.cast<float>());
+    local_[c].set(a.cast<float>(), (image - a * cl.barycentre).cast<float>(), cl.barycentre.cast<float>());
   }
   interpolate(table_, local_, positions_, &out_normals_, options_.blend);
   interp_ms_ = sw.ms();

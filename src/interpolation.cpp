@@ -14,23 +14,24 @@ InterpolationTable buildInterpolation(const std::vector<float>& phi, const Handl
                                       const pcl::PointCloud<pcl::Normal>* normals) {
   const std::size_t n = phi.size();
   InterpolationTable t;
-  std::vector<int> lo = c.down, hi = c.up;
+  std::vector<int> lower = c.lower, upper = c.upper;
   std::vector<float> alpha = c.alpha;
   // Handle points take their handle's transform exactly.
   std::vector<int> fixed_cluster(handles.fixed.size(), -1);
   for (const auto& cl : c.clusters)
     if (cl.kind == ClusterKind::Fixed) fixed_cluster[static_cast<std::size_t>(cl.handle)] = cl.id;
   auto pin = [&](int i, int cluster) {
-    lo[static_cast<std::size_t>(i)] = hi[static_cast<std::size_t>(i)] = cluster;
+    lower[static_cast<std::size_t>(i)] = upper[static_cast<std::size_t>(i)] = cluster;
     alpha[static_cast<std::size_t>(i)] = 0.0f;
   };
   for (std::size_t k = 0; k < handles.fixed.size(); ++k)
     for (int i : handles.fixed[k]) pin(i, fixed_cluster[k]);
   for (int i : handles.manipulated) pin(i, c.manipulated);
-  // Pairs: sorted unique (lo, hi), looked up by binary search.
+  // Pairs: sorted unique (lower, upper), looked up by binary search.
   t.pairs.reserve(c.adjacency.size() * 2 + c.clusters.size());
   for (std::size_t i = 0; i < n; ++i)
-    if (t.pairs.empty() || t.pairs.back() != std::make_pair(lo[i], hi[i])) t.pairs.emplace_back(lo[i], hi[i]);
+    if (t.pairs.empty() || t.pairs.back() != std::make_pair(lower[i], upper[i]))
+      t.pairs.emplace_back(lower[i], upper[i]);
   std::sort(t.pairs.begin(), t.pairs.end());
   t.pairs.erase(std::unique(t.pairs.begin(), t.pairs.end()), t.pairs.end());
   t.has_normals = normals != nullptr && normals->size() == n;
@@ -44,26 +45,27 @@ InterpolationTable buildInterpolation(const std::vector<float>& phi, const Handl
       r.p[a] = points[i].data[a];
       r.n[a] = t.has_normals ? (*normals)[i].normal[a] : 0.0f;
     }
-    r.pair = static_cast<int>(std::lower_bound(t.pairs.begin(), t.pairs.end(), std::make_pair(lo[i], hi[i])) -
-                              t.pairs.begin());
+    r.pair = static_cast<int>(
+        std::lower_bound(t.pairs.begin(), t.pairs.end(), std::make_pair(lower[i], upper[i])) -
+        t.pairs.begin());
     r.alpha = alpha[i];
   }
   for (const auto& [a, b] : t.pairs)
-    t.pair_centre.push_back((0.5 * (c.clusters[static_cast<std::size_t>(a)].barycenter +
-                                    c.clusters[static_cast<std::size_t>(b)].barycenter))
+    t.pair_centre.push_back((0.5 * (c.clusters[static_cast<std::size_t>(a)].barycentre +
+                                    c.clusters[static_cast<std::size_t>(b)].barycentre))
                                 .cast<float>());
   return t;
 }
 
-void LocalAffine::set(const Eigen::Matrix3f& a, const Eigen::Vector3f& translation,
-                      const Eigen::Vector3f& barycenter) {
+void LocalTransform::set(const Eigen::Matrix3f& a, const Eigen::Vector3f& translation,
+                         const Eigen::Vector3f& barycentre) {
   A = a;
   b = translation;
   // Polar decomposition through the SVD: R = U V^T, a proper rotation.
   R = nearestRotation(a);
   q = Eigen::Quaternionf(R).normalized();
-  rb = a * barycenter + b - R * barycenter;
-  g = barycenter;
+  rb = a * barycentre + b - R * barycentre;
+  g = barycentre;
 }
 
 namespace {
@@ -80,7 +82,7 @@ Eigen::Vector3f transformNormal(const Eigen::Matrix3f& m, const Eigen::Vector3f&
 }
 }  // namespace
 
-void interpolate(const InterpolationTable& table, const std::vector<LocalAffine>& transforms,
+void interpolate(const InterpolationTable& table, const std::vector<LocalTransform>& transforms,
                  std::vector<Eigen::Vector3f>& out_points, std::vector<Eigen::Vector3f>* out_normals,
                  Blend blend) {
   const long long n = static_cast<long long>(table.size());
@@ -93,8 +95,8 @@ void interpolate(const InterpolationTable& table, const std::vector<LocalAffine>
     for (long long i = 0; i < n; ++i) {
       const InterpolationTable::Point& r = pts[i];
       const auto& pr = table.pairs[static_cast<std::size_t>(r.pair)];
-      const LocalAffine& a = transforms[static_cast<std::size_t>(pr.first)];
-      const LocalAffine& b = transforms[static_cast<std::size_t>(pr.second)];
+      const LocalTransform& a = transforms[static_cast<std::size_t>(pr.first)];
+      const LocalTransform& b = transforms[static_cast<std::size_t>(pr.second)];
       const float w = r.alpha;
       const Eigen::Matrix3f m = (1.0f - w) * a.A + w * b.A;
       out_p[i] = m * Eigen::Vector3f(r.p[0], r.p[1], r.p[2]) + (1.0f - w) * a.b + w * b.b;
@@ -107,12 +109,12 @@ void interpolate(const InterpolationTable& table, const std::vector<LocalAffine>
   struct PairFrame {
     Eigen::Vector4f qa, qb;
     Eigen::Vector3f c, ta, tb;
-    const LocalAffine* own;  // lo == hi: the cluster's own (full) transform applies
+    const LocalTransform* own;  // lower == hi: the cluster's own (full) transform applies
   };
   std::vector<PairFrame> frames(table.pairs.size());
   for (std::size_t k = 0; k < table.pairs.size(); ++k) {
-    const LocalAffine& a = transforms[static_cast<std::size_t>(table.pairs[k].first)];
-    const LocalAffine& b = transforms[static_cast<std::size_t>(table.pairs[k].second)];
+    const LocalTransform& a = transforms[static_cast<std::size_t>(table.pairs[k].first)];
+    const LocalTransform& b = transforms[static_cast<std::size_t>(table.pairs[k].second)];
     PairFrame& f = frames[k];
     f.own = table.pairs[k].first == table.pairs[k].second ? &a : nullptr;
     f.c = table.pair_centre[k];

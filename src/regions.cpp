@@ -72,7 +72,7 @@ std::vector<int> select(const Region& region, const Geometry& geometry, const Sh
   switch (region.kind) {
     case Region::Kind::Sphere: {
       const double r2 = region.radius * region.radius;
-      const Eigen::Vector3d c = region.center - geometry.origin;
+      const Eigen::Vector3d c = region.centre - geometry.origin;
       for (std::size_t i = 0; i < geometry.size(); ++i)
         if (((*geometry.points)[i].getVector3fMap().cast<double>() - c).squaredNorm() <= r2)
           out.push_back(static_cast<int>(i));

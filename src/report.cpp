@@ -16,7 +16,7 @@ namespace hgd {
 namespace {}  // namespace
 
 void storeField(Shape& shape, const Geometry& geometry, const std::vector<float>& values,
-                const std::string& name, bool color) {
+                const std::string& name, bool colour) {
   const int fi = addFloatField(shape.cloud, name);
   const std::size_t n = shape.size();
   for (std::size_t i = 0; i < n; ++i) {
@@ -24,7 +24,7 @@ void storeField(Shape& shape, const Geometry& geometry, const std::vector<float>
     writeValue(shape.cloud, i, shape.cloud.fields[static_cast<std::size_t>(fi)],
                k >= 0 ? values[static_cast<std::size_t>(k)] : std::numeric_limits<float>::quiet_NaN());
   }
-  if (!color) return;
+  if (!colour) return;
   if (shape.format == FileFormat::Pcd || findField(shape.cloud, "rgb") >= 0) {
     const int ci = addFloatField(shape.cloud, "rgb");
     for (std::size_t i = 0; i < n; ++i) {
@@ -67,7 +67,8 @@ std::string reportJson(const DeformReport& r) {
   j["points"] = r.points;
   j["sample"] = r.sample;
   j["clusters"] = r.clusters;
-  j["isoclusters"] = r.isoclusters;
+  j["isovalues"] = r.isovalues;
+  j["isoclusters"] = r.isovalues;  // the key before 0.2 (docs/changes.md)
   j["unreachable"] = r.unreachable;
   j["iterations"] = r.iterations;
   j["frames"] = r.frames;

@@ -14,9 +14,9 @@ DeformOptions mergedOptions(const RunOptions& options, const Scenario& scenario,
                             const Geometry& geometry) {
   DeformOptions opt = options.deform;
   if (options.clusters)
-    opt.clusters.isoclusters = *options.clusters;
+    opt.clusters.isovalues = *options.clusters;
   else if (scenario.clusters)
-    opt.clusters.isoclusters = *scenario.clusters;
+    opt.clusters.isovalues = *scenario.clusters;
   if (options.blend)
     opt.blend = *options.blend;
   else if (scenario.blend)
@@ -128,11 +128,11 @@ MoveResult ScenarioRunner::apply(const Move& move) {
       st = d.translateHandle(move.drag.from, move.drag.to);  // reached: the point lands exactly
     } else {
       const FrameMove& f = move.frame;
-      const Eigen::Vector3d center = f.center ? *f.center : d.handleCentre();
+      const Eigen::Vector3d centre = f.centre ? *f.centre : d.handleCentre();
       Eigen::Affine3d motion = Eigen::Affine3d::Identity();
-      motion.translate(center + f.translate);
+      motion.translate(centre + f.translate);
       motion.rotate(Eigen::AngleAxisd(f.degrees * M_PI / 180.0, f.axis.normalized()));
-      motion.translate(-center);
+      motion.translate(-centre);
       st = d.moveHandle(motion);
     }
     if (!st.decreased)
@@ -226,7 +226,7 @@ DeformReport ScenarioRunner::report() const {
     rep.clusters_ms = b.clusters_ms;
     rep.sample = d.clustering().sample.size();
     rep.clusters = d.clustering().clusters.size();
-    rep.isoclusters = mergedOptions(options_, scenario_, shape_, geometry_).clusters.isoclusters;
+    rep.isovalues = mergedOptions(options_, scenario_, shape_, geometry_).clusters.isovalues;
     rep.unreachable = d.harmonicField().unreachable().size();
     rep.notes = d.clustering().notes;
     if (d.harmonicField().normalsReoriented())

@@ -20,7 +20,7 @@ namespace hgd {
 Region Region::sphere(const Eigen::Vector3d& c, double r) {
   Region reg;
   reg.kind = Kind::Sphere;
-  reg.center = c;
+  reg.centre = c;
   reg.radius = r;
   return reg;
 }
@@ -258,7 +258,7 @@ struct Parser {
       const json& s = object(j["sphere"], p);
       onlyKeys(s, p, {"center", "radius"});
       r.kind = Region::Kind::Sphere;
-      r.center = vec3(member(s, p, "center"), p + "/center");
+      r.centre = vec3(member(s, p, "center"), p + "/center");
       r.radius = number(member(s, p, "radius"), p + "/radius");
       if (!(r.radius > 0)) fail(p + "/radius", "must be a positive number");
     } else if (j.contains("box")) {
@@ -368,7 +368,7 @@ struct Parser {
           fail(q + "/axis", sq == 0 ? "must not be the zero vector" : "must be a vector of moderate length");
         m.frame.degrees = number(member(r, q, "degrees"), q + "/degrees");
         if (std::abs(m.frame.degrees) > kMaxDegrees) fail(q + "/degrees", "must be between -1e6 and 1e6");
-        if (r.contains("center")) m.frame.center = coordinates(r["center"], q + "/center");
+        if (r.contains("center")) m.frame.centre = coordinates(r["center"], q + "/center");
       }
       if (!f.contains("translate") && !f.contains("rotate")) fail(p, "needs translate and/or rotate");
     } else {
@@ -460,7 +460,7 @@ nlohmann::json regionJson(const Region& r) {
   using nlohmann::json;
   auto v = [](const Eigen::Vector3d& x) { return json::array({x[0], x[1], x[2]}); };
   switch (r.kind) {
-    case Region::Kind::Sphere: return {{"sphere", {{"center", v(r.center)}, {"radius", r.radius}}}};
+    case Region::Kind::Sphere: return {{"sphere", {{"center", v(r.centre)}, {"radius", r.radius}}}};
     case Region::Kind::Box: return {{"box", {{"min", v(r.min)}, {"max", v(r.max)}}}};
     case Region::Kind::Indices: return {{"indices", r.indices}};
     case Region::Kind::Cylinder:
@@ -513,7 +513,7 @@ std::string scenarioToJson(const Scenario& s) {
         f["translate"] = v(m.frame.translate);
         if (m.frame.degrees != 0) {
           f["rotate"] = {{"axis", v(m.frame.axis)}, {"degrees", m.frame.degrees}};
-          if (m.frame.center) f["rotate"]["center"] = v(*m.frame.center);
+          if (m.frame.centre) f["rotate"]["center"] = v(*m.frame.centre);
         }
         moves.push_back({{"frame", f}});
       }

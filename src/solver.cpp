@@ -14,7 +14,7 @@ using Mat34 = Eigen::Matrix<double, 3, 4>;
 using Vec12 = Eigen::Matrix<double, 12, 1>;
 using Mat12 = Eigen::Matrix<double, 12, 12>;
 
-Mat34 toU(const Transform& tr) {
+Mat34 toU(const NormalisedTransform& tr) {
   Mat34 u;
   u.leftCols<3>() = tr.A;
   u.col(3) = tr.t;
@@ -66,7 +66,7 @@ void ClusterSolver::setup(std::vector<SolverCluster> clusters, const std::vector
       var_[static_cast<std::size_t>(c)] = nv;
       nv += 12;
     }
-  transforms_.assign(static_cast<std::size_t>(nc), Transform{});
+  transforms_.assign(static_cast<std::size_t>(nc), NormalisedTransform{});
   x_ = Eigen::VectorXd::Zero(nv);
   reset();
 
@@ -84,12 +84,12 @@ void ClusterSolver::setup(std::vector<SolverCluster> clusters, const std::vector
            Eigen::Vector4d::Zero(),
            Eigen::Vector4d::Zero(),
            0,
-           (ci.barycenter - cj.barycenter).norm()};
+           (ci.barycentre - cj.barycentre).norm()};
     for (const auto* cl : {&ci, &cj})
       for (const auto& x : cl->points) {
         Eigen::Vector4d yi, yj;
-        yi << x - ci.barycenter, 1;
-        yj << x - cj.barycenter, 1;
+        yi << x - ci.barycentre, 1;
+        yj << x - cj.barycentre, 1;
         p.sii += yi * yi.transpose();
         p.sij += yi * yj.transpose();
         p.sjj += yj * yj.transpose();
@@ -108,12 +108,12 @@ void ClusterSolver::setup(std::vector<SolverCluster> clusters, const std::vector
 void ClusterSolver::reset() {
   for (std::size_t c = 0; c < clusters_.size(); ++c) {
     if (var_[c] < 0) continue;
-    transforms_[c] = Transform{};
+    transforms_[c] = NormalisedTransform{};
     x_.segment<12>(var_[c]) << 1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0;
   }
 }
 
-void ClusterSolver::setTransforms(const std::vector<Transform>& transforms) {
+void ClusterSolver::setTransforms(const std::vector<NormalisedTransform>& transforms) {
   if (transforms.size() != clusters_.size())
     throw std::invalid_argument("ClusterSolver: wrong number of transforms");
   transforms_ = transforms;
@@ -131,7 +131,7 @@ void ClusterSolver::setManipulation(const std::vector<Eigen::Vector3d>& rest,
     throw std::logic_error("ClusterSolver: no free manipulated cluster");
   if (rest.size() != target.size() || rest.size() != weight.size())
     throw std::invalid_argument("ClusterSolver: rest, target and weight sizes differ");
-  const Eigen::Vector3d g = clusters_[static_cast<std::size_t>(manipulated_)].barycenter;
+  const Eigen::Vector3d g = clusters_[static_cast<std::size_t>(manipulated_)].barycentre;
   Eigen::Matrix4d s = Eigen::Matrix4d::Zero();
   Eigen::Matrix<double, 4, 3> b = Eigen::Matrix<double, 4, 3>::Zero();
   double c = 0;
@@ -156,7 +156,7 @@ void ClusterSolver::clearManipulation() {
   manip_active_ = false;
 }
 
-void ClusterSolver::hold(int cluster, const Transform& transform) {
+void ClusterSolver::hold(int cluster, const NormalisedTransform& transform) {
   const int v = var_.at(static_cast<std::size_t>(cluster));
   if (v < 0) throw std::logic_error("ClusterSolver: hold: the cluster is constant already");
   if (held_ >= 0 && held_ != cluster) throw std::logic_error("ClusterSolver: hold: another cluster is held");
@@ -204,8 +204,8 @@ Energies ClusterSolver::evaluate(const Eigen::VectorXd& x) const {
   for (const auto& p : pairs_) {
     if (!moves(p.i) && !moves(p.j)) continue;
     const Mat34 ui = uOf(p.i), uj = uOf(p.j);
-    const Eigen::Vector3d d = clusters_[static_cast<std::size_t>(p.i)].barycenter -
-                              clusters_[static_cast<std::size_t>(p.j)].barycenter;
+    const Eigen::Vector3d d = clusters_[static_cast<std::size_t>(p.i)].barycentre -
+                              clusters_[static_cast<std::size_t>(p.j)].barycentre;
     const double prop = (ui * p.sii * ui.transpose()).trace() - 2 * (ui * p.sij * uj.transpose()).trace() +
                         (uj * p.sjj * uj.transpose()).trace() + 2 * d.dot(ui * p.mi - uj * p.mj) +
                         p.count * d.squaredNorm();
@@ -457,8 +457,8 @@ SolveStats ClusterSolver::solve(const GaussNewtonOptions& options) {
       const bool mi = moves(p.i), mj = moves(p.j);
       if (!mi && !mj) continue;
       const Mat34 ui = uOf(p.i), uj = uOf(p.j);
-      const Eigen::Vector3d d = clusters_[static_cast<std::size_t>(p.i)].barycenter -
-                                clusters_[static_cast<std::size_t>(p.j)].barycenter;
+      const Eigen::Vector3d d = clusters_[static_cast<std::size_t>(p.i)].barycentre -
+                                clusters_[static_cast<std::size_t>(p.j)].barycentre;
       const int vi = mi ? var_[static_cast<std::size_t>(p.i)] : -1,
                 vj = mj ? var_[static_cast<std::size_t>(p.j)] : -1;
       if (vi >= 0) {

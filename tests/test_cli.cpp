@@ -339,20 +339,20 @@ TEST(CliDeform, FrameMoveIsExactOnManipulatedHandle) {
   const double diag = diagonal(in);
 
   std::vector<std::size_t> manip;
-  Eigen::Vector3d center = Eigen::Vector3d::Zero();
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
   for (std::size_t i = 0; i < in.size(); ++i)
     if (value(in, i, "x") > 0.955) {
       manip.push_back(i);
-      center += position(in, i);
+      centre += position(in, i);
     }
   ASSERT_FALSE(manip.empty());
-  center /= static_cast<double>(manip.size());
+  centre /= static_cast<double>(manip.size());
   const Eigen::Matrix3d R =
       Eigen::AngleAxisd(30.0 * M_PI / 180.0, Eigen::Vector3d::UnitZ()).toRotationMatrix();
   const Eigen::Vector3d t(0.05, 0.2, -0.1);
   double worst = 0;
   for (std::size_t i : manip) {
-    const Eigen::Vector3d expected = R * (position(in, i) - center) + center + t;
+    const Eigen::Vector3d expected = R * (position(in, i) - centre) + centre + t;
     worst = std::max(worst, (position(out, i) - expected).norm());
   }
   EXPECT_LE(worst, 1e-5 * diag);

@@ -55,7 +55,7 @@ TEST(Deform, BarDragBendsSmoothly) {
   const hgd::Geometry g = hgd::extractGeometry(shape);
   hgd::Handles h = endHandles(g, 0.05, 0.95);
   hgd::DeformOptions opt;
-  opt.clusters.isoclusters = 10;
+  opt.clusters.isovalues = 10;
   hgd::Deformer d(g, h, opt);
   const Eigen::Vector3d from(1.0, 0.0, 0.05);
   const Eigen::Vector3d to = from + Eigen::Vector3d(0, 0.5, 0);
@@ -99,7 +99,7 @@ TEST(Deform, BarArcDragKeepsClustersRigid) {
   const hgd::Geometry g = hgd::extractGeometry(shape);
   hgd::Handles h = endHandles(g, 0.05, 0.95);
   hgd::DeformOptions opt;
-  opt.clusters.isoclusters = 10;
+  opt.clusters.isovalues = 10;
   hgd::Deformer d(g, h, opt);
   // An arc of length 0.95 leaving x = 0.05 along +x, bent by 1.19 rad, ends near (0.79, 0.5).
   const hgd::DragResult r = d.dragTo({1.0, 0.0, 0.05}, {0.79, 0.5, 0.05});
@@ -274,7 +274,7 @@ TEST(Deform, LargeDragStaysStable) {
   const hgd::Geometry g = hgd::extractGeometry(hgd::shapes::bar(1.0f, 0.1f, 0.01f));
   hgd::Handles h = endHandles(g, 0.05, 0.95);
   hgd::DeformOptions opt;
-  opt.clusters.isoclusters = 16;
+  opt.clusters.isovalues = 16;
   hgd::Deformer d(g, h, opt);
   // Curl the bar's end round over its base and back behind it (reachable without stretching:
   // at most 4 iterations a frame, as in the paper), then pull it 30% beyond its length (forced
@@ -318,7 +318,7 @@ TEST(Deform, MhcWeightKeepsAFarDraggedHandleRigid) {
   const double mhc[2] = {1.2, 0.0};  // 0: w_MHC = 1 (SolverWeights::mhc_per_cluster)
   for (int k = 0; k < 2; ++k) {
     hgd::DeformOptions opt;
-    opt.clusters.isoclusters = 12;  // as bunny_ears.json
+    opt.clusters.isovalues = 12;  // as bunny_ears.json
     opt.weights.mhc_per_cluster = mhc[k];
     hgd::Deformer d(g, h, opt);
     const hgd::DragResult r = d.dragTo(from, to);
@@ -747,7 +747,7 @@ std::vector<hgd::SolverCluster> limbClusters(bool manipulated_constant) {
       c[k].points.push_back(centres[k] + Eigen::Vector3d(jitter(rng), jitter(rng), jitter(rng)));
     Eigen::Vector3d g = Eigen::Vector3d::Zero();
     for (const auto& x : c[k].points) g += x;
-    c[k].barycenter = g / static_cast<double>(c[k].points.size());
+    c[k].barycentre = g / static_cast<double>(c[k].points.size());
   }
   c[0].constant = true;
   c[6].constant = manipulated_constant;
@@ -757,7 +757,8 @@ std::vector<hgd::SolverCluster> limbClusters(bool manipulated_constant) {
 
 const std::vector<std::pair<int, int>> kLimbEdges = {{0, 1}, {1, 2}, {2, 3}, {3, 6}, {2, 4}, {4, 5}, {0, 6}};
 
-double largestDifference(const std::vector<hgd::Transform>& a, const std::vector<hgd::Transform>& b) {
+double largestDifference(const std::vector<hgd::NormalisedTransform>& a,
+                         const std::vector<hgd::NormalisedTransform>& b) {
   double d = 0;
   for (std::size_t k = 0; k < a.size(); ++k)
     d = std::max({d, (a[k].A - b[k].A).cwiseAbs().maxCoeff(), (a[k].t - b[k].t).cwiseAbs().maxCoeff()});
@@ -772,17 +773,17 @@ double largestDifference(const std::vector<hgd::Transform>& a, const std::vector
 // constant terms, left out), and releasing it must give back the drag's coupling exactly.
 TEST(Deform, HoldingTheHandleSolvesAsIfItWereConstant) {
   const int mc = 6;
-  hgd::Transform move;
+  hgd::NormalisedTransform move;
   // Not a rotation (a frame move may scale): the held cluster's Rot is a nonzero constant.
   move.A = Eigen::AngleAxisd(0.6, Eigen::Vector3d(0.3, 0.2, 1).normalized()).toRotationMatrix() *
            Eigen::Vector3d(1.1, 1, 0.95).asDiagonal();
   move.t = Eigen::Vector3d(0.05, 0.12, -0.03);
-  const hgd::Transform identity;
+  const hgd::NormalisedTransform identity;
 
   // The reference: the manipulated cluster constant from the setup on (the pre-switch way).
   hgd::ClusterSolver constant;
   constant.setup(limbClusters(true), kLimbEdges, mc, hgd::SolverWeights{});
-  std::vector<hgd::Transform> start(7, identity);
+  std::vector<hgd::NormalisedTransform> start(7, identity);
   start[mc] = move;
   constant.setTransforms(start);
   const hgd::SolveStats ref = constant.solve();
@@ -795,7 +796,7 @@ TEST(Deform, HoldingTheHandleSolvesAsIfItWereConstant) {
   const std::vector<Eigen::Vector3d> target = {{0.4, 0.1, 0}, {0.45, 0.12, 0}, {0.38, 0.08, 0.01}};
   solver.setManipulation(rest, target, {1.0, 1.0, 1.0});
   solver.solve();
-  const std::vector<hgd::Transform> dragged = solver.transforms();
+  const std::vector<hgd::NormalisedTransform> dragged = solver.transforms();
   solver.setTransforms(start);
   solver.hold(mc, move);
   EXPECT_EQ(solver.held(), mc);
@@ -823,7 +824,7 @@ TEST(Deform, HoldingTheHandleSolvesAsIfItWereConstant) {
   EXPECT_GT((solver.transforms()[mc].A - move.A).norm(), 1e-3);  // it did move
 
   // And the same drag from the same start gives the drag's transforms again.
-  solver.setTransforms(std::vector<hgd::Transform>(7, identity));
+  solver.setTransforms(std::vector<hgd::NormalisedTransform>(7, identity));
   solver.setManipulation(rest, target, {1.0, 1.0, 1.0});
   solver.solve();
   EXPECT_LT(largestDifference(solver.transforms(), dragged), 1e-12);

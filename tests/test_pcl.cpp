@@ -195,7 +195,7 @@ TEST(HandleDeformation, IndicesAndTransformMatchAScenarioWithRegionsAndAFrameMov
   f.translate = Eigen::Vector3d(0, 0, 0.15);
   f.axis = Eigen::Vector3d::UnitY();
   f.degrees = 0.5 * 180.0 / M_PI;
-  f.center = pivot;
+  f.centre = pivot;
   sc.fix(hgd::Region::box(kOffset + Eigen::Vector3d(-1, -1, -1), kOffset + Eigen::Vector3d(0.1, 1, 1)))
       .manipulate(
           hgd::Region::box(kOffset + Eigen::Vector3d(0.9, -1, -1), kOffset + Eigen::Vector3d(2, 1, 1)))

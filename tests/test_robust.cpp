@@ -1395,7 +1395,7 @@ TEST(RobustNumerics, GaussNewtonOnSingularOrNonFiniteSystems) {
     SCOPED_TRACE(with_nan ? "NaN point" : "coincident points");
     std::vector<hgd::SolverCluster> clusters(3);
     for (int c = 0; c < 3; ++c) {
-      clusters[static_cast<std::size_t>(c)].barycenter = Eigen::Vector3d(c * 0.5, 0, 0);
+      clusters[static_cast<std::size_t>(c)].barycentre = Eigen::Vector3d(c * 0.5, 0, 0);
       clusters[static_cast<std::size_t>(c)].points.assign(4, Eigen::Vector3d(c * 0.5, 0, 0));
     }
     clusters[0].constant = true;

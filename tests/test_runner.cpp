@@ -117,12 +117,12 @@ TEST(ScenarioRunner, FrontEndOptionsWinOverTheScenario) {
   s.blend = hgd::Blend::Linear;
   const hgd::Move turn = turnMove(120);
   s.moves = {turn};
-  EXPECT_EQ(bar(s).report().isoclusters, 5);
+  EXPECT_EQ(bar(s).report().isovalues, 5);
   hgd::RunOptions o;
   o.clusters = 9;
   o.blend = hgd::Blend::Rotation;
   hgd::ScenarioRunner a = bar(s, o);
-  EXPECT_EQ(a.report().isoclusters, 9);
+  EXPECT_EQ(a.report().isovalues, 9);
   a.applyMoves();
   // The same as a scenario that says 9 and rotation itself.
   hgd::Scenario t = barScenario();

@@ -489,7 +489,7 @@ TEST(Scans, StraysInsideAHandleDoNotPullAnotherPart) {
 }
 
 // A small sphere sampled on a golden spiral.
-Surface sphere(const V3& center, float r, std::size_t n) {
+Surface sphere(const V3& centre, float r, std::size_t n) {
   Surface s;
   const double golden = M_PI * (3 - std::sqrt(5.0));
   for (std::size_t i = 0; i < n; ++i) {
@@ -497,7 +497,7 @@ Surface sphere(const V3& center, float r, std::size_t n) {
     const double rho = std::sqrt(1 - z * z), a = golden * static_cast<double>(i);
     const V3 d(static_cast<float>(rho * std::cos(a)), static_cast<float>(rho * std::sin(a)),
                static_cast<float>(z));
-    s.p.push_back(center + r * d);
+    s.p.push_back(centre + r * d);
     s.n.push_back(d);
   }
   return s;

@@ -19,10 +19,10 @@ namespace {
 std::vector<std::vector<int>> bones(const hgd::Deformer& d) {
   const auto& c = d.clustering();
   std::vector<std::vector<int>> out(c.clusters.size());
-  for (std::size_t i = 0; i < c.down.size(); ++i)
-    if (c.down[i] == c.up[i] &&
-        c.clusters[static_cast<std::size_t>(c.down[i])].kind == hgd::ClusterKind::Range)
-      out[static_cast<std::size_t>(c.down[i])].push_back(static_cast<int>(i));
+  for (std::size_t i = 0; i < c.lower.size(); ++i)
+    if (c.lower[i] == c.upper[i] &&
+        c.clusters[static_cast<std::size_t>(c.lower[i])].kind == hgd::ClusterKind::Range)
+      out[static_cast<std::size_t>(c.lower[i])].push_back(static_cast<int>(i));
   std::vector<std::vector<int>> nonempty;
   for (auto& b : out)
     if (!b.empty()) nonempty.push_back(std::move(b));
@@ -116,15 +116,15 @@ Recomputed equationOne(const hgd::Deformer& d, hgd::Blend blend, BoneValue bone_
   std::vector<double> seen_from_above(nc), seen_from_below(nc);  // phi_C for points above / below C
   for (std::size_t k = 0; k < nc; ++k) {
     const hgd::Cluster& cl = c.clusters[k];
-    const hgd::Transform& t = d.clusterTransforms()[k];
+    const hgd::NormalisedTransform& t = d.clusterTransforms()[k];
     const bool bone = cl.kind == hgd::ClusterKind::Range;
     a[k] = bone && snap ? rotationPart(t.A) : t.A;
-    bary[k] = cl.barycenter;
-    image[k] = cl.barycenter + t.t * diag;
-    seen_from_above[k] = seen_from_below[k] = cl.phi;  // a bone's phi is its mean harmonic value
+    bary[k] = cl.barycentre;
+    image[k] = cl.barycentre + t.t * diag;
+    seen_from_above[k] = seen_from_below[k] = cl.harmonic_value;  // a bone's phi is its mean harmonic value
     if (bone && bone_value == BoneValue::FacingEnd)
       for (const hgd::Band& b : c.bands)
-        if (b.kind == hgd::Band::Kind::Range && b.lo < cl.phi && cl.phi < b.hi) {
+        if (b.kind == hgd::Band::Kind::Range && b.lo < cl.harmonic_value && cl.harmonic_value < b.hi) {
           seen_from_above[k] = b.hi;
           seen_from_below[k] = b.lo;
         }
@@ -142,7 +142,7 @@ Recomputed equationOne(const hgd::Deformer& d, hgd::Blend blend, BoneValue bone_
   for (std::size_t i = 0; i < g.size(); ++i) {
     const Eigen::Vector3d x = (*g.points)[i].getVector3fMap().cast<double>();
     const Eigen::Vector3d n0 = (*g.file_normals)[i].getNormalVector3fMap().cast<double>();
-    auto lo = static_cast<std::size_t>(c.down[i]), hi = static_cast<std::size_t>(c.up[i]);
+    auto lo = static_cast<std::size_t>(c.lower[i]), hi = static_cast<std::size_t>(c.upper[i]);
     if (own[i] >= 0) lo = hi = static_cast<std::size_t>(own[i]);
     if (lo == hi) {
       e.p[i] = a[lo] * (x - bary[lo]) + image[lo] + g.origin;
@@ -192,26 +192,26 @@ double jumpAtBoneEnds(const hgd::Deformer& d, const std::vector<Eigen::Vector3d>
     if (bone.kind != hgd::ClusterKind::Range) continue;
     double lo = 0, hi = 0;  // the bone's band
     for (const hgd::Band& b : c.bands)
-      if (b.kind == hgd::Band::Kind::Range && b.lo < bone.phi && bone.phi < b.hi) {
+      if (b.kind == hgd::Band::Kind::Range && b.lo < bone.harmonic_value && bone.harmonic_value < b.hi) {
         lo = b.lo;
         hi = b.hi;
       }
     std::vector<Eigen::Vector3d> before, after;
     for (std::size_t i = 0; i < g.size(); ++i)
-      if (c.down[i] == bone.id && c.up[i] == bone.id) {
+      if (c.lower[i] == bone.id && c.upper[i] == bone.id) {
         before.push_back(g.world(i));
         after.push_back(deformed[i]);
       }
     const Rigid motion = rigidFit(before, after);
     for (std::size_t i = 0; i < g.size(); ++i) {
-      if (c.down[i] == c.up[i]) continue;
+      if (c.lower[i] == c.upper[i]) continue;
       const double phi = d.field()[i];
       bool near = false;
-      if (c.down[i] == bone.id) {  // above the bone: the gap runs from hi to the next cluster
-        const double next = c.clusters[static_cast<std::size_t>(c.up[i])].phi;
+      if (c.lower[i] == bone.id) {  // above the bone: the gap runs from hi to the next cluster
+        const double next = c.clusters[static_cast<std::size_t>(c.upper[i])].harmonic_value;
         near = phi - hi <= 0.05 * (next - hi);
-      } else if (c.up[i] == bone.id) {  // below it: from the previous cluster to lo
-        const double previous = c.clusters[static_cast<std::size_t>(c.down[i])].phi;
+      } else if (c.upper[i] == bone.id) {  // below it: from the previous cluster to lo
+        const double previous = c.clusters[static_cast<std::size_t>(c.lower[i])].harmonic_value;
         near = lo - phi <= 0.05 * (lo - previous);
       }
       if (!near) continue;
@@ -245,8 +245,8 @@ double stepAtHandleEdges(const hgd::Deformer& d, const std::vector<Eigen::Vector
     for (int i : handle)
       for (int m = 0; m < knn.k; ++m) {
         const auto j = static_cast<std::size_t>(knn.row(static_cast<std::size_t>(i))[m]);
-        if (in[j] || c.down[j] != c.up[j] ||
-            c.clusters[static_cast<std::size_t>(c.down[j])].kind != hgd::ClusterKind::Range)
+        if (in[j] || c.lower[j] != c.upper[j] ||
+            c.clusters[static_cast<std::size_t>(c.lower[j])].kind != hgd::ClusterKind::Range)
           continue;
         worst = std::max(worst, (deformed[j] - motion(g.world(j))).norm());
       }
@@ -443,7 +443,7 @@ TEST(Blend, EveryPointIsTheBlendOfItsTwoClusters) {
   bar_h.fixed.push_back(pointsWhere(bar_g, 0, -1, 0.05));
   bar_h.manipulated = pointsWhere(bar_g, 0, 0.95, 2);
   hgd::DeformOptions bar_options;
-  bar_options.clusters.isoclusters = 10;
+  bar_options.clusters.isovalues = 10;
   auto bar = std::make_unique<hgd::Deformer>(bar_g, bar_h, bar_options);
   bar->dragTo({1.0, 0.0, 0.05}, {0.79, 0.5, 0.05});
   const Cylinder cyl;
@@ -482,7 +482,7 @@ TEST(Blend, RotationAwareBlendKeepsTheCrossSectionOfATwistedBar) {
   const hgd::Geometry g = hgd::extractGeometry(hgd::shapes::bar(1.0f, 0.1f, 0.01f));
   hgd::Handles h = endHandles(g, 0.02, 0.98);
   hgd::DeformOptions opt;
-  opt.clusters.isoclusters = 4;
+  opt.clusters.isovalues = 4;
   hgd::Deformer d(g, h, opt);
   d.setHandleTransform(turnAbout({0, 0, 0}, 180, Eigen::Vector3d::UnitX()));
   // Cross-section "area" of a slice: sqrt(det) of the covariance of its points across the bar.

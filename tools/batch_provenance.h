@@ -42,7 +42,7 @@ struct Provenance {
   std::string scenario;       ///< the scenario file (for people)
   std::string scenario_hash;  ///< hashBytes(hgd::scenarioToJson(effective scenario))
   nlohmann::json options;     ///< the options that change the output, e.g. {"output_format": "ply"}
-  std::string tool;           ///< "hgdeform 0.1.0"
+  std::string tool;           ///< "hgdeform 0.2.0"
   /// The output as written: another size, ctime or inode means something else changed or
   /// replaced it (even with its time set back), and the scan is redone.
   std::uint64_t output_size = 0;

@@ -23,7 +23,7 @@ struct UsageError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-/// `tool version`, e.g. "hgdeform deform 0.1.0".
+/// `tool version`, e.g. "hgdeform deform 0.2.0".
 inline std::string versionLine(const std::string& tool) {
   return tool + " " + hgd::version();
 }

@@ -52,7 +52,7 @@ struct FieldArgs {
   std::string input, scenario, output;
   int k = hgd::FieldOptions().k_neighbors;
   std::string solver = "auto";
-  bool mesh_ring = false, color = false, ascii = false, quiet = false;
+  bool mesh_ring = false, colour = false, ascii = false, quiet = false;
 };
 
 /// `hgdeform deform`'s command line (0 for the counts left to the scenario or the library).
@@ -61,7 +61,7 @@ struct DeformArgs {
   int clusters = 0;  // 0: the scenario's
   int k = hgd::FieldOptions().k_neighbors;
   int samples = hgd::DeformOptions().clusters.samples;
-  int joint_clusters = hgd::DeformOptions().clusters.joint_isoclusters;
+  int joint_clusters = hgd::DeformOptions().clusters.joint_isovalues;
   std::string blend;  // empty: the scenario's
   std::string solver = "auto";
   bool mesh_ring = false, ascii = false, quiet = false;
@@ -97,7 +97,7 @@ int parseField(int argc, const char* const* argv, FieldArgs& a) {
       ->type_name("N");
   addSolver(app, a.solver, "");
   app.add_flag("--mesh-ring", a.mesh_ring, "on meshes, use the faces' 1-ring instead of kNN");
-  app.add_flag("--color", a.color, "also write the field as a colour map (red/green/blue or rgb)");
+  app.add_flag("--colour,--color", a.colour, "also write the field as a colour map (red/green/blue or rgb)");
   app.add_flag("--ascii", a.ascii, "write ascii instead of binary");
   app.add_flag("-q,--quiet", a.quiet, "no summary line");
   return hgdcli::parse(app, argc, argv);
@@ -114,7 +114,8 @@ int parseDeform(int argc, const char* const* argv, DeformArgs& a) {
                  "write a JSON report (version, points, clusters, iterations, energy, ms);\n"
                  "- for stdout; a link is followed, a FIFO or device written to")
       ->type_name("FILE");
-  app.add_option("-c,--clusters", a.clusters, "isoclusters (default: the scenario's, else 16)")
+  app.add_option("-c,--clusters", a.clusters,
+                 "isovalue count: isoclusters per branch (default: the scenario's, else 16)")
       ->check(hgdcli::integerFrom(1, 1000))
       ->type_name("N");
   app.add_option("-k,--k", a.k, "neighbours per point for the Laplacian (default 10)")
@@ -127,7 +128,7 @@ int parseDeform(int argc, const char* const* argv, DeformArgs& a) {
       ->check(hgdcli::oneOf({"linear", "rotation"}))
       ->type_name("MODE");
   app.add_option("--joint-clusters", a.joint_clusters,
-                 "skeletal mode: isoclusters inside each joint (default 3)")
+                 "skeletal mode: isovalues inside each joint (default 3)")
       ->check(hgdcli::integerFrom(1, 100))
       ->type_name("N");
   addSolver(app, a.solver, "field solver: ");
@@ -178,7 +179,7 @@ int runField(const FieldArgs& a) {
   std::vector<float> phi;
   field.compute(phi);
 
-  hgd::storeField(shape, geometry, phi, "harmonic", a.color);
+  hgd::storeField(shape, geometry, phi, "harmonic", a.colour);
   if (const std::string lost = hgd::extrasLost(shape, hgd::formatFromPath(output)); !lost.empty())
     std::fprintf(stderr, "hgdeform: warning: %s: %s\n", output.c_str(), lost.c_str());
   hgd::WriteOptions wo;
@@ -226,7 +227,7 @@ int runDeform(const DeformArgs& a) {
   opt.field.solver = fieldSolver(a.solver);
   opt.field.mesh_ring = a.mesh_ring;
   opt.clusters.samples = a.samples;
-  opt.clusters.joint_isoclusters = a.joint_clusters;
+  opt.clusters.joint_isovalues = a.joint_clusters;
   if (a.clusters > 0) ro.clusters = a.clusters;
   if (!a.blend.empty()) {  // the command line wins over the scenario
     hgd::Blend blend;

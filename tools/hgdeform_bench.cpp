@@ -135,7 +135,7 @@ nlohmann::json runSize(const std::string& model, const std::string& armadillo, s
     std::size_t cluster_total = 0;
     for (int r = 0; r < std::max(1, repeat / 2); ++r) {
       hgd::DeformOptions opt;
-      opt.clusters.isoclusters = static_cast<int>(nc);
+      opt.clusters.isovalues = static_cast<int>(nc);
       opt.clusters.samples = std::max(4000, static_cast<int>(nc) * 60);
       const auto t0 = std::chrono::steady_clock::now();
       hgd::Deformer d(g, h, opt);
@@ -181,7 +181,7 @@ nlohmann::json runSize(const std::string& model, const std::string& armadillo, s
       }
     }
     const PaperRow& paper = paperRow(static_cast<double>(n));
-    json row = {{"isoclusters", nc},
+    json row = {{"isovalues", nc},
                 {"clusters", cluster_total},
                 {"build_ms", median(build)},
                 {"sampling_ms", median(sampling)},
@@ -332,7 +332,7 @@ int main(int argc, char** argv) {
             model.c_str(), r["points"].get<long>(), f["solver"].get<std::string>().c_str(),
             f["knn_ms"].get<double>(), f["normals_ms"].get<double>(), f["graph_ms"].get<double>(),
             f["laplacian_ms"].get<double>(), f["solve_ms"].get<double>(), f["total_ms"].get<double>(),
-            d["isoclusters"].get<long>(), d["build_ms"].get<double>(), d["sampling_ms"].get<double>(),
+            d["isovalues"].get<long>(), d["build_ms"].get<double>(), d["sampling_ms"].get<double>(),
             d["clusters_ms"].get<double>(), d["gn_iteration_ms"].get<double>(),
             d["max_frame_iterations"].get<int>(), d["interpolation_linear_ms"].get<double>(),
             d["interpolation_rotation_ms"].get<double>(), d["frame_ms"].get<double>(),
@@ -344,7 +344,8 @@ int main(int argc, char** argv) {
       all.push_back(r);
     }
   std::printf(
-      "columns: field phases in ms (median of %d); clus = isoclusters; build = Deformer construction (field, "
+      "columns: field phases in ms (median of %d); clus = isovalues asked for; build = Deformer construction "
+      "(field, "
       "sample, clusters, solver set-up), of which sample and clust (clustering) in ms; ms/iter = "
       "Gauss-Newton ms per iteration over a 30-frame drag; iters "
       "= most "

@@ -26,18 +26,18 @@ enum class ClusterKind {
 struct Cluster {
   int id = 0;
   ClusterKind kind = ClusterKind::Iso;
-  int level = 0;             ///< 0 for fixed/static, 1..n for isoclusters, n+1 for the manipulated one
-  double phi = 0;            ///< harmonic value the cluster stands for (0, the isovalue, or 1)
-  int handle = -1;           ///< fixed handle index for Fixed clusters
-  std::vector<int> members;  ///< indices into the shape's points (sample points of this cluster)
-  Eigen::Vector3d barycenter = Eigen::Vector3d::Zero();  ///< of the members, shape's local frame
+  int level = 0;              ///< 0 for fixed/static, 1..n for isoclusters, n+1 for the manipulated one
+  double harmonic_value = 0;  ///< harmonic value the cluster stands for (0, the isovalue, or 1)
+  int handle = -1;            ///< fixed handle index for Fixed clusters
+  std::vector<int> members;   ///< indices into the shape's points (sample points of this cluster)
+  Eigen::Vector3d barycentre = Eigen::Vector3d::Zero();  ///< of the members, shape's local frame
 };
 
 struct ClusterOptions {
-  int isoclusters = 16;       ///< n isovalues, evenly spaced in (0, 1) (without joints)
-  int samples = 4000;         ///< target sample size
-  int min_contour = 3;        ///< contours with fewer sample points (a tip just crossing) are not clusters
-  int joint_isoclusters = 3;  ///< skeletal mode: isovalues inside each joint's phi range
+  int isovalues = 16;       ///< n isovalues, evenly spaced in (0, 1) (without joints)
+  int samples = 4000;       ///< target sample size
+  int min_contour = 3;      ///< contours with fewer sample points (a tip just crossing) are not clusters
+  int joint_isovalues = 3;  ///< skeletal mode: isovalues inside each joint's phi range
 };
 
 /// A band of harmonic values: an isovalue (`lo == hi`, traced as contours) or an interval
@@ -59,19 +59,19 @@ struct Band {
 /// touch, and an isoline at v is the sample points at either end of an adjacent pair that
 /// straddles v. Each connected piece of it (a contour) is one isocluster, so two branches at
 /// the same harmonic value (two legs) get separate clusters. Interval bands (handles, bones)
-/// give a cluster per connected piece. A point in a gap between two bands takes, as `down`, the
-/// cluster of the lower band nearest to it within the gap along the surface, and as `up` the
-/// nearest of the upper band; a point in an interval band takes its own piece for both.
+/// give a cluster per connected piece. A point in a gap between two bands takes, as `lower`, the
+/// cluster of the lower band nearest to it within the gap along the surface, and as `upper`
+/// the nearest of the upper band; a point in an interval band takes its own cluster for both.
 struct Clustering {
   std::vector<int> sample;  ///< sample point -> shape point index
   std::vector<Cluster> clusters;
   std::vector<std::pair<int, int>> adjacency;  ///< E_C: pairs of cluster ids, first < second
   std::vector<Band> bands;                     ///< fixed side, isovalues (and bones), manipulated side
   std::vector<std::string> notes;              ///< what was merged or adjusted (e.g. overlapping joints)
-  std::vector<int> down, up;                   ///< per shape point: bracketing clusters below / above
-  std::vector<float> alpha;                    ///< per shape point: blend factor between down and up
-  std::vector<int> piece;                      ///< per shape point: the nearer of the two (for display)
-  int manipulated = -1;                        ///< id of the MC cluster
+  std::vector<int> lower, upper;  ///< per shape point: bracketing clusters below / above its harmonic value
+  std::vector<float> alpha;       ///< per shape point: blend factor between lower (0) and upper (1)
+  std::vector<int> nearest;       ///< per shape point: the nearer of the two (for display)
+  int manipulated = -1;           ///< id of the MC cluster
 
   /// The bands of a deformation: without joints, n evenly spaced isovalues; with joints, a few
   /// isovalues inside each joint's phi range and a bone (range) band between joints. Joints

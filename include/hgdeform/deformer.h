@@ -47,7 +47,7 @@ struct BuildTimings {
 
 /// A snapshot of the deformation (see Deformer::state()).
 struct DeformerState {
-  std::vector<Transform> transforms;
+  std::vector<NormalisedTransform> transforms;
   bool frame_mode = false;
 };
 
@@ -134,7 +134,7 @@ class Deformer {
   /// deformed shape, against the largest point displacement (at least 1e-4 of the diagonal).
   SurfaceStretch surfaceStretch() const;
   /// Cluster transforms in the solver's normalised frame (about each rest barycentre).
-  const std::vector<Transform>& clusterTransforms() const { return solver_.transforms(); }
+  const std::vector<NormalisedTransform>& clusterTransforms() const { return solver_.transforms(); }
   Energies energies() const { return solver_.energies(); }
   const BuildTimings& buildTimings() const { return build_; }
   double lastInterpolationMs() const { return interp_ms_; }
@@ -150,7 +150,7 @@ class Deformer {
   SolveStats solveHandle(const Eigen::Affine3d& transform);
   Eigen::Vector3d pickedWorld() const;
   void updateShape();
-  Eigen::Vector3d normalise(const Eigen::Vector3d& local) const { return (local - center_) * scale_; }
+  Eigen::Vector3d normalise(const Eigen::Vector3d& local) const { return (local - centre_) * scale_; }
   Eigen::Vector3d currentNormalised(int cluster, const Eigen::Vector3d& rest) const;
   void pick(const Eigen::Vector3d& world);
 
@@ -164,7 +164,7 @@ class Deformer {
   InterpolationTable table_;
   ClusterSolver solver_;
   bool frame_mode_ = false;
-  Eigen::Vector3d center_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d centre_ = Eigen::Vector3d::Zero();
   double scale_ = 1;
   // Shape matching of the manipulated handle.
   std::vector<Eigen::Vector3d> manip_rest_, manip_target_;
@@ -172,7 +172,7 @@ class Deformer {
   int picked_ = -1;
   Eigen::Vector3d last_to_ = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
   // Per-frame buffers.
-  std::vector<LocalAffine> local_;
+  std::vector<LocalTransform> local_;
   std::vector<Eigen::Vector3f> positions_, out_normals_;
   BuildTimings build_;
   double interp_ms_ = 0;

@@ -11,10 +11,10 @@
 namespace hgd {
 
 /// Adds (or overwrites) a float field `name` holding `values` (one per finite point; NaN for
-/// points that are not finite). With `color`, also writes the values as a blue-to-red colour
+/// points that are not finite). With `colour`, also writes the values as a blue-to-red colour
 /// map: red/green/blue uchar fields for PLY/OBJ, a packed `rgb` field for PCD.
 void storeField(Shape& shape, const Geometry& geometry, const std::vector<float>& values,
-                const std::string& name, bool color = false);
+                const std::string& name, bool colour = false);
 
 /// The report as JSON text:
 /// {"version", "points", "clusters", "iterations", "energy": {"detail", "prop", "manip", "length", "total"},

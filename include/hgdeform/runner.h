@@ -29,7 +29,7 @@ struct DeformReport {
   std::size_t points = 0;
   std::size_t sample = 0;
   std::size_t clusters = 0;
-  int isoclusters = 0;  ///< the isovalue count asked for
+  int isovalues = 0;  ///< the isovalue count asked for
   std::size_t unreachable = 0;
   int iterations = 0;
   int frames = 0;

@@ -27,7 +27,7 @@ class ScenarioError : public std::runtime_error {
 struct Region {
   enum class Kind { Sphere, Box, Indices, Cylinder, Field };
   Kind kind = Kind::Indices;
-  Eigen::Vector3d center = Eigen::Vector3d::Zero();  // sphere
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();  // sphere (the file's "center")
   double radius = 0;                                 // sphere, cylinder
   Eigen::Vector3d min = Eigen::Vector3d::Zero();     // box
   Eigen::Vector3d max = Eigen::Vector3d::Zero();     // box
@@ -61,13 +61,13 @@ struct DragMove {
 };
 
 /// Frame metaphor: the manipulated handle gets this rigid motion exactly:
-/// x -> R(axis, degrees) (x - center) + center + translate; center defaults to the handle's
+/// x -> R(axis, degrees) (x - centre) + centre + translate; centre defaults to the handle's
 /// barycentre.
 struct FrameMove {
   Eigen::Vector3d translate = Eigen::Vector3d::Zero();
   Eigen::Vector3d axis = Eigen::Vector3d::UnitZ();
   double degrees = 0;
-  std::optional<Eigen::Vector3d> center;
+  std::optional<Eigen::Vector3d> centre;  ///< the file's "center" (JSON keys keep the spec's spelling)
 };
 
 struct Move {

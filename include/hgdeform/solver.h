@@ -24,15 +24,21 @@ struct SolverWeights {
 /// One cluster as the solver sees it.
 struct SolverCluster {
   std::vector<Eigen::Vector3d> points;  ///< rest positions of its members (normalised)
-  Eigen::Vector3d barycenter = Eigen::Vector3d::Zero();
+  Eigen::Vector3d barycentre = Eigen::Vector3d::Zero();
   bool constant = false;  ///< fixed and static clusters (identity; a frame move holds the MC instead)
   double rot_weight = 1;  ///< multiplies Rot(A) in E_Detail (w_MHC for the MC)
 };
 
-struct Transform {
+/// A cluster's affine transform in the solver's normalised frame (the shape's local frame
+/// moved to the bounding box's centre and scaled to a unit diagonal), about the cluster's rest
+/// barycentre g: x -> A (x - g) + g + t. See LocalTransform (the shape's local frame) and
+/// Deformer::handleTransform (world coordinates).
+struct NormalisedTransform {
   Eigen::Matrix3d A = Eigen::Matrix3d::Identity();
   Eigen::Vector3d t = Eigen::Vector3d::Zero();
 };
+/// The name before 0.2; it did not say the frame.
+using Transform [[deprecated("renamed hgd::NormalisedTransform (the frame it is in)")]] = NormalisedTransform;
 
 struct Energies {
   double detail = 0, prop = 0, manip = 0, length = 0;  ///< weighted contributions
@@ -107,7 +113,7 @@ class ClusterSolver {
   /// manipulated cluster. A switch on the normal equations' values, not a new setup: the held
   /// cluster keeps its unknowns and the symbolic analysis stays. Called again, it only moves
   /// the held transform. One cluster at a time.
-  void hold(int cluster, const Transform& transform);
+  void hold(int cluster, const NormalisedTransform& transform);
   /// Frees the held cluster again (its transform is the next solve's warm start).
   void release();
   /// The held cluster, or -1.
@@ -117,12 +123,12 @@ class ClusterSolver {
   SolveStats solve(const GaussNewtonOptions& options = {});
 
   Energies energies() const { return evaluate(x_); }
-  const std::vector<Transform>& transforms() const { return transforms_; }
+  const std::vector<NormalisedTransform>& transforms() const { return transforms_; }
   std::size_t unknowns() const { return static_cast<std::size_t>(x_.size()); }
   /// Resets every free transform to the identity.
   void reset();
   /// Sets all transforms (free ones become the warm start); sizes must match the clusters.
-  void setTransforms(const std::vector<Transform>& transforms);
+  void setTransforms(const std::vector<NormalisedTransform>& transforms);
 
  private:
   void assembleConstant();
@@ -143,7 +149,7 @@ class ClusterSolver {
   std::vector<int> var_;  ///< cluster -> first unknown, or -1 when constant
   int manipulated_ = -1;
   SolverWeights w_;
-  std::vector<Transform> transforms_;
+  std::vector<NormalisedTransform> transforms_;
   Eigen::VectorXd x_;
   // E_Manip as a quadratic: S (4x4 weighted moments), targets folded into rhs.
   bool manip_active_ = false;

@@ -181,7 +181,7 @@ void Viewer::frameMove(const Eigen::Vector3d& translate, const Eigen::Vector3d& 
   if (degrees != 0) {
     m.frame.axis = axis;
     m.frame.degrees = degrees;
-    m.frame.center = handleCentre();  // explicit, so that the scenario replays it exactly
+    m.frame.centre = handleCentre();  // explicit, so that the scenario replays it exactly
   }
   const auto t0 = Clock::now();
   commit(m);
