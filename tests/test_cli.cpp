@@ -287,6 +287,9 @@ TEST(CliDeform, BunnyMatchesLibraryAndReports) {
   EXPECT_EQ(j.value("points", 0u), 1839u);
   EXPECT_GT(j.value("clusters", 0u), 0u);
   EXPECT_GT(j.value("iterations", 0), 0);
+  // The isovalue count asked for (bunny_ears.json: 12), under its 0.2 name and its old one.
+  EXPECT_EQ(j.value("isovalues", 0), 12);
+  EXPECT_EQ(j.value("isoclusters", 0), 12);
   for (const char* key : {"detail", "prop", "manip", "length"}) {
     ASSERT_TRUE(j["energy"].contains(key)) << "energy." << key;
     EXPECT_TRUE(j["energy"][key].is_number()) << "energy." << key;
