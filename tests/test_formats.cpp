@@ -439,6 +439,55 @@ TEST(Sniff, ContentWinsOverTheExtension) {
   expectIoError([&] { hgd::sniffFormat(none); }, none, "matches no format");
 }
 
+/// An OBJ of `lines`, padded with a comment so that the file is 84 + 50 n bytes and its bytes
+/// 80-83 read n: the size of a binary STL of n triangles. `filler` fills the comment.
+std::string objOfStlSize(const std::string& lines, std::uint32_t n, char filler) {
+  const std::size_t size = 84 + 50 * std::size_t{n};
+  std::string s = lines + "#";
+  s.resize(size - 1, filler);
+  s += '\n';
+  std::memcpy(&s[80], &n, 4);  // little-endian hosts (x86_64, aarch64), as the STL counts
+  return s;
+}
+
+// Found by fuzz_obj: a binary STL is known by its size alone, and an OBJ (whose comments keep
+// any bytes) can match it. Read as STL, the file had 2 points where the OBJ it was had 1, and
+// hgdeform could write an OBJ that it then read back as something else. A file named for a text
+// format, whose text says that format or whose bytes after the would-be header are text, stays
+// text; the STL test still wins for a real binary STL of any name.
+TEST(Sniff, TextWhoseSizeFitsABinaryStlStaysText) {
+  TempDir dir;
+  // The fuzzer's case: a vertex, then a comment holding the count 1 (bytes 01 00 00 00).
+  const std::string p = dir.file("coincidence.obj");
+  hgdtest::writeText(p, objOfStlSize("v 1 2 3\n", 1, 'A'));
+  Shape s = hgd::readShape(p);
+  EXPECT_EQ(s.format, hgd::FileFormat::Obj);
+  EXPECT_EQ(s.size(), 1u);
+  EXPECT_TRUE(s.warnings.empty());
+  // Written back (the comment kept as it was) and read again: the same one point.
+  const std::string q = dir.file("again.obj");
+  hgd::writeShape(q, s);
+  EXPECT_EQ(hgdtest::slurp(q), hgdtest::slurp(p));
+  EXPECT_EQ(hgd::readShape(q).size(), 1u);
+
+  // A first line that names no format ('s', a smoothing group): the bytes after the would-be
+  // header decide, and they are text.
+  hgdtest::writeText(p, objOfStlSize("s 1\nv 1 2 3\nv 4 5 6\n", 2, 'x'));
+  s = hgd::readShape(p);
+  EXPECT_EQ(s.format, hgd::FileFormat::Obj);
+  EXPECT_EQ(s.size(), 2u);
+
+  // A real binary STL named .obj is still an STL (its records are not text), with the warning.
+  std::mt19937 rng(5);
+  const std::vector<Tri> tris = tetrahedra(rng, 2);
+  hgdtest::writeText(p, binaryStl(tris, 8));
+  s = hgd::readShape(p);
+  EXPECT_EQ(s.format, hgd::FileFormat::Stl);
+  expectTriangles(s, tris);
+  ASSERT_EQ(s.warnings.size(), 1u);
+  EXPECT_NE(s.warnings[0].find("read as STL"), std::string::npos) << s.warnings[0];
+}
+
 TEST(Sniff, FileOfItsOwnFormatGetsThatFormatsErrors) {
   TempDir dir;
   const std::string p = dir.file("broken.ply");

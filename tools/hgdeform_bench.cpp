@@ -234,7 +234,7 @@ int parseArgs(int argc, char** argv, BenchArgs& a) {
       ->delimiter(',')
       ->check(hgdcli::integerFrom(1, 1000000000))
       ->type_name("N,N,...");
-  app.add_option("--clusters", a.clusters, "isocluster counts (default 16,100)")
+  app.add_option("--clusters", a.clusters, "isovalue counts (default 16,100)")
       ->delimiter(',')
       ->check(hgdcli::integerFrom(1, 1000000000))
       ->type_name("N,N");

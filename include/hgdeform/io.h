@@ -30,6 +30,9 @@ FileFormat sniffFormat(const std::string& path);
 
 /// Reads a shape file. The format is the content's (sniffFormat): when the extension names
 /// another format, or none, the shape's `warnings` say which format the content was read as.
+/// One exception: a binary STL is known by its size alone, so a file named for a text format
+/// whose size happens to fit one stays text when its text names that format or its bytes after
+/// the would-be 84-byte header are all text.
 /// Throws IoError when the file is missing, unreadable, empty, matches no format, has a
 /// malformed header, truncated or non-numeric data, no points, or no x/y/z fields. Sizes
 /// declared in headers are checked against the file's size before anything is allocated.

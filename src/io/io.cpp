@@ -50,17 +50,33 @@ std::size_t numericColumns(std::string_view line) {
   return words.size();
 }
 
+/// Whether the file's size is that of a binary STL with the triangle count in its bytes 80-83
+/// (an 80-byte header, the count, 50 bytes per triangle, nothing else).
+bool sizeOfBinaryStl(std::string_view head, std::uint64_t size) {
+  if (size < 84 || head.size() < 84) return false;
+  std::uint32_t n = 0;
+  std::memcpy(&n, head.data() + 80, 4);
+  if (kHostBigEndian) n = __builtin_bswap32(n);
+  return 84 + 50 * std::uint64_t{n} == size;
+}
+
+/// Whether the bytes after a binary STL's 84-byte header are all text (printable ASCII or
+/// blanks). Triangle records are floats: a normal or a coordinate of 0, or any of many
+/// others, has bytes that are not text.
+bool textAfterStlHeader(std::string_view head) {
+  for (std::size_t k = 84; k < head.size(); ++k) {
+    const auto c = static_cast<unsigned char>(head[k]);
+    if (!(c >= 0x20 && c < 0x7f) && c != '\n' && c != '\r' && c != '\t') return false;
+  }
+  return true;
+}
+
 /// The format of a file's first bytes (`size`: the whole file's); nullopt if none matches.
-std::optional<FileFormat> sniff(std::string_view head, std::uint64_t size) {
+/// `binary_stl`: whether a size that fits a binary STL makes it one.
+std::optional<FileFormat> sniff(std::string_view head, std::uint64_t size, bool binary_stl = true) {
   if (head.rfind("ply\n", 0) == 0 || head.rfind("ply\r\n", 0) == 0) return FileFormat::Ply;
   if (head.rfind("# .PCD", 0) == 0) return FileFormat::Pcd;
-  // Binary STL: an 80-byte header, a triangle count, 50 bytes per triangle, nothing else.
-  if (size >= 84 && head.size() >= 84) {
-    std::uint32_t n = 0;
-    std::memcpy(&n, head.data() + 80, 4);
-    if (kHostBigEndian) n = __builtin_bswap32(n);
-    if (84 + 50 * std::uint64_t{n} == size) return FileFormat::Stl;
-  }
+  if (binary_stl && sizeOfBinaryStl(head, size)) return FileFormat::Stl;
   Lexer lex(head, 0);
   std::size_t header_columns = 0;  // XYZ: a first line of names, then rows of as many numbers
   bool first = true;
@@ -120,6 +136,17 @@ Shape readShape(const std::string& path) {
     std::string head(static_cast<std::size_t>(std::min<std::uint64_t>(in.remaining(), 4096)), '\0');
     in.read(head.data(), head.size(), "the first bytes");
     by_content = sniff(head, size);
+    // A binary STL is known by its size alone, which a text file can match by chance (bytes
+    // 80-83 read as a triangle count; an OBJ's comment can hold any bytes). A file named for a
+    // text format stays one when its text says so too, or when what follows the would-be
+    // header is text, which no triangle record is.
+    if (by_content == FileFormat::Stl && by_ext && by_ext != FileFormat::Stl) {
+      const std::optional<FileFormat> as_text = sniff(head, size, /*binary_stl=*/false);
+      if (as_text == by_ext)
+        by_content = by_ext;
+      else if (textAfterStlHeader(head))
+        by_content = as_text ? as_text : by_ext;
+    }
   }
   // A file named for its format is read as such when its content shows no other (a damaged
   // file gets that format's own, precise error); content of a known format wins over the name.
