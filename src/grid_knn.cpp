@@ -102,7 +102,8 @@ struct Best {
 
 }  // namespace
 
-bool gridKnn(const float* xyz, std::size_t n, int kk, int* idx, float* d2) {
+bool gridKnn(const float* xyz, std::size_t n, int kk, int* idx, float* d2, std::vector<std::uint32_t>* far) {
+  if (far) far->clear();
   if (n == 0 || kk <= 0) return true;
   if (static_cast<std::size_t>(kk) > n || n >= (1ull << 31)) return false;
   Grid g;
@@ -168,6 +169,7 @@ bool gridKnn(const float* xyz, std::size_t n, int kk, int* idx, float* d2) {
   const long long ncells = static_cast<long long>(cells);
 #pragma omp parallel if (static_cast <long long>(n) > kParallelMin)
   {
+    std::vector<std::uint32_t> my_far;  // this thread's far outliers (with `far`)
     std::vector<float> bd(static_cast<std::size_t>(kk));
     std::vector<int> bi(static_cast<std::size_t>(kk));
     std::vector<float> cand_x, cand_y, cand_z, dist;
@@ -291,6 +293,10 @@ bool gridKnn(const float* xyz, std::size_t n, int kk, int* idx, float* d2) {
               }
             }
         }
+        if (!safe(ring) && far) {  // a far outlier: the caller's
+          my_far.push_back(g.order[q]);
+          continue;
+        }
         if (!safe(ring)) {  // a far outlier: against every point, a few times at most
           bool go = false;
 #pragma omp critical(hgd_grid_knn_brute)
@@ -312,7 +318,12 @@ bool gridKnn(const float* xyz, std::size_t n, int kk, int* idx, float* d2) {
         }
       }
     }
+    if (far && !my_far.empty()) {
+#pragma omp critical(hgd_grid_knn_far)
+      far->insert(far->end(), my_far.begin(), my_far.end());
+    }
   }
+  if (far) std::sort(far->begin(), far->end());
   return !gave_up;
 }
 

@@ -2,6 +2,8 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
+#include <vector>
 
 namespace hgd {
 
@@ -9,8 +11,14 @@ namespace hgd {
 /// distance 0), sorted by distance: indices into `idx` and squared distances into `d2`, both
 /// n x kk. Exact: the search widens around a point until no closer point can lie outside it.
 /// Meant for scanned surfaces (a few points per cell); returns false, writing nothing useful,
-/// when the points are too unevenly spread for a grid (far outliers, huge extents) or not
+/// when the points are too unevenly spread for a grid (crowded cells, huge extents) or not
 /// finite: the caller then uses a k-d tree.
-bool gridKnn(const float* xyz, std::size_t n, int kk, int* idx, float* d2);
+///
+/// Far outliers, whose neighbours lie beyond the shells a grid searches cell by cell: without
+/// `far`, up to 64 of them are searched against every point and more make it return false;
+/// with `far`, they are listed there (point indices, ascending) with their rows unfinished,
+/// for the caller to search otherwise, and the rest of the cloud keeps the grid's results.
+bool gridKnn(const float* xyz, std::size_t n, int kk, int* idx, float* d2,
+             std::vector<std::uint32_t>* far = nullptr);
 
 }  // namespace hgd

@@ -4,9 +4,12 @@
 #include <array>
 #include <atomic>
 #include <cmath>
+#include <cstdint>
 #include <flann/flann.hpp>
+#include <limits>
 #include <memory>
 #include <stdexcept>
+#include <vector>
 
 #include "grid_knn.h"
 #include "parallel.h"
@@ -71,6 +74,55 @@ KnnTable computeKnn(const pcl::PointCloud<pcl::PointXYZ>& points, int k) {
 }
 
 namespace {
+// Up to this many far outliers are searched against every point: building a k-d tree over
+// the cloud costs about as much as searching 40 to 50 points that way.
+constexpr std::size_t kBruteFar = 48;
+
+/// The rows of the points `far` (the grid's far outliers): each against every point when they
+/// are few, else in a k-d tree over all points. Rows sorted by distance, self first.
+void knnOfFar(const float* xyz, std::size_t n, std::size_t kk, const std::vector<std::uint32_t>& far,
+              const flann::SearchParams& params, int* idx, float* d2) {
+  const std::size_t nf = far.size();
+  std::vector<float> q(nf * 3);
+  std::vector<int> fi(nf * kk, -1);  // FLANN leaves slots unset when distances overflow
+  std::vector<float> fd(nf * kk, std::numeric_limits<float>::infinity());
+  for (std::size_t a = 0; a < nf; ++a) std::copy_n(xyz + 3 * std::size_t{far[a]}, 3, &q[3 * a]);
+  if (nf <= kBruteFar) {
+    const long long nfl = static_cast<long long>(nf);
+#pragma omp parallel for schedule(dynamic, 1) if (nfl > 1)
+    for (long long a = 0; a < nfl; ++a) {
+      const std::size_t row = static_cast<std::size_t>(a) * kk;
+      const float* p = &q[3 * static_cast<std::size_t>(a)];
+      for (std::size_t j = 0; j < n; ++j) {
+        const float dx = xyz[3 * j] - p[0], dy = xyz[3 * j + 1] - p[1], dz = xyz[3 * j + 2] - p[2];
+        const float d = dx * dx + dy * dy + dz * dz;
+        if (!(d < fd[row + kk - 1])) continue;
+        std::size_t m = kk - 1;
+        for (; m > 0 && fd[row + m - 1] > d; --m) {
+          fd[row + m] = fd[row + m - 1];
+          fi[row + m] = fi[row + m - 1];
+        }
+        fd[row + m] = d;
+        fi[row + m] = static_cast<int>(j);
+      }
+    }
+  } else {
+    flann::Index<flann::L2_Simple<float>> index(flann::Matrix<float>(const_cast<float*>(xyz), n, 3),
+                                                flann::KDTreeSingleIndexParams(15));
+    index.buildIndex();
+    const flann::Matrix<float> queries(q.data(), nf, 3);
+    flann::Matrix<int> indices(fi.data(), nf, kk);
+    flann::Matrix<float> dists(fd.data(), nf, kk);
+    index.knnSearch(queries, indices, dists, kk, params);
+  }
+  for (std::size_t a = 0; a < nf; ++a) {
+    std::copy_n(&fi[a * kk], kk, idx + std::size_t{far[a]} * kk);
+    std::copy_n(&fd[a * kk], kk, d2 + std::size_t{far[a]} * kk);
+  }
+}
+}  // namespace
+
+namespace {
 KnnTable knnOfDistinct(const pcl::PointCloud<pcl::PointXYZ>& points, int k, bool* coincident) {
   KnnTable t;
   t.n = points.size();
@@ -91,17 +143,23 @@ KnnTable knnOfDistinct(const pcl::PointCloud<pcl::PointXYZ>& points, int k, bool
   std::unique_ptr<int[]> idx(new int[n * kk]);
   std::unique_ptr<float[]> d2(new float[n * kk]);
   // A uniform grid first (scans: a few points per cell, several times faster than the k-d
-  // tree); FLANN for clouds a grid does not suit (far outliers, extreme extents).
-  if (!gridKnn(xyz.get(), n, static_cast<int>(kk), idx.get(), d2.get())) {
+  // tree); FLANN for clouds a grid does not suit (crowded cells, extreme extents), and for the
+  // far outliers of a scan, whose neighbours lie beyond the shells the grid searches: those
+  // alone are searched, in a k-d tree or against every point when they are few, so that 1%
+  // strays no longer send the whole cloud to the tree.
+  std::vector<std::uint32_t> far;
+  const flann::Matrix<float> data(xyz.get(), n, 3);
+  flann::SearchParams params(flann::FLANN_CHECKS_UNLIMITED, 0.0f, true);
+  params.cores = 0;  // all cores
+  if (!gridKnn(xyz.get(), n, static_cast<int>(kk), idx.get(), d2.get(), &far)) {
     std::fill(idx.get(), idx.get() + n * kk, -1);  // FLANN leaves slots unset when distances overflow
-    const flann::Matrix<float> data(xyz.get(), n, 3);
     flann::Index<flann::L2_Simple<float>> index(data, flann::KDTreeSingleIndexParams(15));
     index.buildIndex();
     flann::Matrix<int> indices(idx.get(), n, kk);
     flann::Matrix<float> dists(d2.get(), n, kk);
-    flann::SearchParams params(flann::FLANN_CHECKS_UNLIMITED, 0.0f, true);
-    params.cores = 0;  // all cores
     index.knnSearch(data, indices, dists, kk, params);
+  } else if (!far.empty()) {
+    knnOfFar(xyz.get(), n, kk, far, params, idx.get(), d2.get());
   }
   t.index.resize(n * static_cast<std::size_t>(t.k));
   bool any_coincident = false;

@@ -294,6 +294,16 @@ TEST(Knn, ExactOnSurfacesVolumesAndOutliers) {
     auto& w = clouds["bumpy sphere with 40 far outliers"];  // searched against every point
     w = v;
     for (int i = 0; i < 40; ++i) w.emplace_back(50 * u(rng), 50 * u(rng), 1000 + 50 * u(rng));
+    // Strays in the shape's box, as a scan has them: those too far for the grid's shells are
+    // searched alone (here against every point); the rest stay the grid's.
+    auto& st = clouds["bumpy sphere with 1% strays"];
+    st = v;
+    for (int i = 0; i < 300; ++i) st.emplace_back(1.6f * u(rng), 1.6f * u(rng), 1.6f * u(rng));
+    std::shuffle(st.begin(), st.end(), rng);  // strays anywhere in the order, as in a file
+    // Far outliers too many to search against every point: a k-d tree for them alone.
+    auto& ft = clouds["bumpy sphere with 3000 far outliers"];
+    ft = v;
+    for (int i = 0; i < 3000; ++i) ft.emplace_back(50 * u(rng), 50 * u(rng), 1000 + 50 * u(rng));
     auto& c = clouds["bumpy sphere with a dense clump"];  // too crowded for a grid: the k-d tree
     c = v;
     for (int i = 0; i < 6000; ++i) c.emplace_back(0.3f + 1e-4f * u(rng), 1e-4f * u(rng), 1e-4f * u(rng));
@@ -312,8 +322,20 @@ TEST(Knn, ExactOnSurfacesVolumesAndOutliers) {
       ASSERT_EQ(t.k, k);
       std::size_t wrong = 0;
       std::vector<float> d(pts.size());
-      // Brute force on a spread subset of the points (every point is queried by computeKnn).
-      for (std::size_t i = 0; i < pts.size(); i += 97) {
+      // Brute force on a spread subset of the points (every point is queried by computeKnn),
+      // and on every point at a distance from the others (strays, outliers: another path).
+      std::vector<std::size_t> check;
+      for (std::size_t i = 0; i < pts.size(); ++i) {
+        if (i % 97 == 0) {
+          check.push_back(i);
+          continue;
+        }
+        float nearest = INFINITY;
+        for (std::size_t j = 0; j < pts.size() && nearest > 0.01f; ++j)
+          if (j != i) nearest = std::min(nearest, (pts[j] - pts[i]).squaredNorm());
+        if (nearest > 0.01f) check.push_back(i);  // 0.1 away from everything: ~10 spacings
+      }
+      for (const std::size_t i : check) {
         for (std::size_t j = 0; j < pts.size(); ++j)
           d[j] = j == i ? INFINITY : (pts[j] - pts[i]).squaredNorm();
         std::vector<float> best(d);
