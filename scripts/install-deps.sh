@@ -16,6 +16,7 @@ packages=(
   libpng-dev                                # the viewer tests read screenshots
   libx11-dev                                # the renderer asks X whether a display opens (pulled in by VTK too)
   libgtest-dev libgmock-dev libbenchmark-dev
+  libcgal-dev                               # hgdeform-bench --arap: CGAL's ARAP, the peer (header-only, optional)
   xvfb xauth clang-format
   clang libclang-rt-14-dev                  # scripts/fuzz.sh: libFuzzer targets (clang's runtime)
 )

@@ -17,6 +17,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -28,6 +29,7 @@
 #include <string>
 #include <vector>
 
+#include "bench_arap.h"
 #include "bench_references.h"
 #include "blas_guard.h"
 #include "cli_common.h"
@@ -58,12 +60,44 @@ const PaperRow& paperRow(double n) {
   return *best;
 }
 
+/// The Armadillo's handles: the feet fixed (the lowest 6% of its height), the top of the head
+/// manipulated (the highest 8%).
+hgd::Handles armadilloHandles(const hgd::Geometry& g) {
+  hgd::Handles h;
+  h.fixed.emplace_back();
+  const Eigen::AlignedBox3f box = hgd::boundingBox(*g.points);
+  const Eigen::Vector3d lo = box.min().cast<double>() + g.origin, hi = box.max().cast<double>() + g.origin;
+  const double height = hi.y() - lo.y();
+  for (std::size_t i = 0; i < g.size(); ++i) {
+    const double y = g.world(i).y();
+    if (y < lo.y() + 0.06 * height) h.fixed[0].push_back(static_cast<int>(i));
+    if (y > hi.y() - 0.08 * height) h.manipulated.push_back(static_cast<int>(i));
+  }
+  return h;
+}
+
+/// A standard drag: the handle's first point pulled up by a tenth of the diagonal in `frames`
+/// interactive frames, every frame solved to convergence and interpolated. Each frame's
+/// wall time (solve + interpolation), and the solver's figures, through `each`.
+template <class Each>
+void standardDrag(hgd::Deformer& d, const hgd::Handles& h, int frames, Each each) {
+  const Eigen::Vector3d from = d.deformedWorld(static_cast<std::size_t>(h.manipulated[0]));
+  const Eigen::Vector3d to = from + Eigen::Vector3d(0, 0, 0.1 * d.diagonal());
+  Eigen::Vector3d cur = from;
+  for (int k = 1; k <= frames; ++k) {
+    const Eigen::Vector3d next = from + (to - from) * (static_cast<double>(k) / frames);
+    const auto f0 = std::chrono::steady_clock::now();
+    const hgd::SolveStats st = d.drag(cur, next);
+    each(k, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - f0).count(), st);
+    cur = next;
+  }
+}
+
 nlohmann::json runSize(const std::string& model, const std::string& armadillo, std::size_t n, int repeat,
                        const std::vector<long>& cluster_counts) {
   using nlohmann::json;
   hgd::Geometry g;
   hgd::Handles h;
-  h.fixed.emplace_back();
   if (model.rfind("armadillo", 0) == 0) {
     hgd::Shape sampled = hgd::shapes::sampleMesh(hgd::readShape(armadillo), n, 7);
     if (model != "armadillo") {
@@ -81,16 +115,10 @@ nlohmann::json runSize(const std::string& model, const std::string& armadillo, s
       sampled = hgd::shapes::cloudShape(p, none);
     }
     g = hgd::extractGeometry(sampled);
-    const Eigen::AlignedBox3f box = hgd::boundingBox(*g.points);
-    const Eigen::Vector3d lo = box.min().cast<double>() + g.origin, hi = box.max().cast<double>() + g.origin;
-    const double height = hi.y() - lo.y();
-    for (std::size_t i = 0; i < g.size(); ++i) {
-      const double y = g.world(i).y();
-      if (y < lo.y() + 0.06 * height) h.fixed[0].push_back(static_cast<int>(i));
-      if (y > hi.y() - 0.08 * height) h.manipulated.push_back(static_cast<int>(i));
-    }
+    h = armadilloHandles(g);
   } else {
     g = hgd::extractGeometry(hgd::shapes::bumpySphere(n));
+    h.fixed.emplace_back();
     for (std::size_t i = 0; i < g.size(); ++i) {
       const Eigen::Vector3d w = g.world(i);
       if (w.z() < -0.9) h.fixed[0].push_back(static_cast<int>(i));
@@ -150,27 +178,16 @@ nlohmann::json runSize(const std::string& model, const std::string& armadillo, s
       clusters.push_back(d.buildTimings().clusters_ms);
       setup.push_back(d.buildTimings().setup_ms);
       cluster_total = d.clustering().clusters.size();
-      // A standard drag: the handle's outermost point pulled up by a tenth of the diagonal,
-      // in interactive frames; every frame solved to convergence and interpolated.
-      const Eigen::Vector3d from = d.deformedWorld(static_cast<std::size_t>(h.manipulated[0]));
-      const Eigen::Vector3d to = from + Eigen::Vector3d(0, 0, 0.1 * d.diagonal());
-      const int frames = 30;
-      Eigen::Vector3d cur = from;
       double solve_ms = 0;
       int iterations = 0;
-      for (int k = 1; k <= frames; ++k) {
-        const Eigen::Vector3d next = from + (to - from) * (static_cast<double>(k) / frames);
-        const auto f0 = std::chrono::steady_clock::now();
-        const hgd::SolveStats st = d.drag(cur, next);
-        frame.push_back(
-            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - f0).count());
-        cur = next;
+      standardDrag(d, h, 30, [&](int k, double frame_ms, const hgd::SolveStats& st) {
+        frame.push_back(frame_ms);
         solve_ms += st.ms;
         iterations += st.iterations;
         interp.push_back(d.lastInterpolationMs());
         if (k == 1) iterations_first = st.iterations;
         max_frame_iterations = std::max(max_frame_iterations, st.iterations);
-      }
+      });
       per_iter.push_back(solve_ms / std::max(1, iterations));
       // The same final shape with each blend, a few times each.
       for (int k = 0; k < 5; ++k) {
@@ -214,6 +231,45 @@ nlohmann::json runSize(const std::string& model, const std::string& armadillo, s
   return out;
 }
 
+/// The peer (issue: one frame against five iterations of CGAL's ARAP): the Armadillo mesh
+/// itself, the same handles and drag for both; hgdeform's frame is solve + interpolation,
+/// CGAL's is new targets + deform(5 iterations). Medians over the frames.
+nlohmann::json runArap(const std::string& armadillo, int repeat) {
+  const hgd::Shape shape = hgd::readShape(armadillo);
+  const hgd::Geometry g = hgd::extractGeometry(shape);
+  const hgd::Handles h = armadilloHandles(g);
+  const int frames = 10;
+  std::vector<double> ours, build;
+  for (int r = 0; r < std::max(1, repeat / 2); ++r) {
+    const auto t0 = std::chrono::steady_clock::now();
+    hgd::Deformer d(g, h, hgd::DeformOptions{});
+    build.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+    standardDrag(d, h, frames, [&](int, double ms, const hgd::SolveStats&) { ours.push_back(ms); });
+  }
+  std::vector<Eigen::Vector3d> points(g.size());
+  for (std::size_t i = 0; i < g.size(); ++i) points[i] = g.world(i);
+  std::vector<std::array<int, 3>> triangles;
+  for (const auto& poly : shape.polygons)  // fans: the Armadillo is all triangles
+    for (std::size_t k = 1; k + 1 < poly.vertices.size(); ++k)
+      triangles.push_back({static_cast<int>(poly.vertices[0]), static_cast<int>(poly.vertices[k]),
+                           static_cast<int>(poly.vertices[k + 1])});
+  const Eigen::AlignedBox3f box = hgd::boundingBox(*g.points);
+  const Eigen::Vector3d move(0, 0, 0.1 * static_cast<double>((box.max() - box.min()).norm()));  // as the drag
+  const hgdbench::ArapTimes arap =
+      hgdbench::cgalArap(points, triangles, h.fixed[0], h.manipulated, move, frames, 5);
+  const double ours_ms = median(ours), arap_ms = median(arap.frame_ms);
+  return {{"points", g.size()},
+          {"faces", arap.faces},
+          {"faces_refused_by_cgal", arap.faces_refused},
+          {"fixed", h.fixed[0].size()},
+          {"manipulated", h.manipulated.size()},
+          {"hgdeform_build_ms", median(build)},
+          {"hgdeform_frame_ms", ours_ms},
+          {"cgal_arap_preprocess_ms", arap.preprocess_ms},
+          {"cgal_arap_5_iterations_ms", arap_ms},
+          {"arap_over_frame", arap_ms / std::max(1e-9, ours_ms)}};
+}
+
 /// hgdeform-bench's command line.
 struct BenchArgs {
   std::vector<long> sizes{50000, 173000, 438000, 1000000};
@@ -222,6 +278,7 @@ struct BenchArgs {
   std::string armadillo = HGD_DEFAULT_ARMADILLO;
   int repeat = 5;
   std::string json;
+  bool arap = false;
 };
 
 /// Parses the command line into `a`; returns -1 to go on, else the exit status.
@@ -250,6 +307,9 @@ int parseArgs(int argc, char** argv, BenchArgs& a) {
   app.add_option("--armadillo", a.armadillo,
                  "the Armadillo mesh (default ../shared/datasets/meshes/armadillo_49990.ply)")
       ->type_name("PATH");
+  app.add_flag("--arap", a.arap,
+               "also the peer: one frame against five iterations of CGAL's ARAP on the Armadillo mesh, same "
+               "handles and drag (needs CGAL at build time)");
   app.add_option("--json", a.json,
                  "also write every measurement (with the tool and its version) as JSON; never the mesh")
       ->type_name("OUT");
@@ -356,6 +416,29 @@ int main(int argc, char** argv) {
       "bytes read, 12 written, two 3x4 transforms blended per point) ms, i/strm = interpolation (default "
       "blend) / stream; B/pt = peak RSS bytes per point\n",
       repeat);
+  if (args.arap) {
+    std::string why;
+    if (!hgdbench::haveCgalArap())
+      why = "this build has no CGAL (install libcgal-dev and configure again)";
+    else if (!std::filesystem::exists(armadillo))
+      why = "no " + armadillo;
+    if (!why.empty()) {
+      std::fprintf(stderr, "hgdeform-bench: warning: --arap left out: %s\n", why.c_str());
+      all.push_back({{"arap", {{"left_out", why}}}});
+    } else {
+      nlohmann::json a = runArap(armadillo, repeat);
+      std::printf(
+          "ARAP peer, Armadillo %ld vertices / %ld faces (%ld refused by CGAL), %ld fixed and %ld handle "
+          "points, 10-frame drag: hgdeform frame (solve + interpolation) %.3f ms, CGAL "
+          "Surface_mesh_deformation "
+          "5 iterations %.1f ms (preprocess %.0f ms, hgdeform build %.0f ms): %.0fx\n",
+          a["points"].get<long>(), a["faces"].get<long>(), a["faces_refused_by_cgal"].get<long>(),
+          a["fixed"].get<long>(), a["manipulated"].get<long>(), a["hgdeform_frame_ms"].get<double>(),
+          a["cgal_arap_5_iterations_ms"].get<double>(), a["cgal_arap_preprocess_ms"].get<double>(),
+          a["hgdeform_build_ms"].get<double>(), a["arap_over_frame"].get<double>());
+      all.push_back({{"arap", a}});
+    }
+  }
   if (!json_path.empty()) hgd::writeTextAtomically(json_path, all.dump(2) + "\n");
   return 0;
 }

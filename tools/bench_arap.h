@@ -1,0 +1,31 @@
+// The peer in hgdeform-bench --arap: CGAL's as-rigid-as-possible surface deformation on the
+// same mesh and handles. Its own file: CGAL's headers are heavy and optional (built only when
+// CMake finds CGAL; haveCgalArap() says whether this build has it).
+#pragma once
+
+#include <Eigen/Core>
+#include <array>
+#include <cstddef>
+#include <vector>
+
+namespace hgdbench {
+
+bool haveCgalArap();
+
+struct ArapTimes {
+  std::size_t vertices = 0, faces = 0;
+  std::size_t faces_refused = 0;  ///< faces CGAL's halfedge mesh could not take (non-manifold)
+  double preprocess_ms = 0;       ///< region of interest, control vertices, factorisation
+  std::vector<double> frame_ms;   ///< per frame: new handle targets, then deform()
+};
+
+/// CGAL::Surface_mesh_deformation (ORIGINAL_ARAP, its default) on a triangle mesh: every
+/// vertex in the region of interest, `fixed` and `handle` as control vertices. In frame k of
+/// `frames`, the handle's targets are its rest positions moved by move·k/frames, and deform()
+/// runs exactly `iterations` iterations (tolerance 0). Throws std::runtime_error when CGAL is
+/// not built in or its factorisation fails.
+ArapTimes cgalArap(const std::vector<Eigen::Vector3d>& points,
+                   const std::vector<std::array<int, 3>>& triangles, const std::vector<int>& fixed,
+                   const std::vector<int>& handle, const Eigen::Vector3d& move, int frames, int iterations);
+
+}  // namespace hgdbench
