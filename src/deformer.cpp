@@ -60,6 +60,7 @@ void Deformer::rebuild() {
   // own copy).
   table_ = buildInterpolation(phi_, handles_, clustering_, pts,
                               geometry_.hasFileNormals() ? geometry_.file_normals.get() : &field_.normals());
+  buildPreviewTable();
   build_.clusters_ms = sw.lap();
 
   setupSolver();
@@ -323,6 +324,34 @@ void Deformer::reset() {
   updateShape();
 }
 
+void Deformer::setPreview(std::vector<int> points) {
+  for (const int i : points)
+    if (i < 0 || static_cast<std::size_t>(i) >= geometry_.size())
+      throw std::invalid_argument("Deformer::setPreview: point index out of range");
+  const bool was = !preview_.empty();
+  preview_request_ = std::move(points);
+  buildPreviewTable();
+  if (was && preview_.empty()) updateShape();  // the points left behind catch up
+}
+
+void Deformer::buildPreviewTable() {
+  preview_table_ = InterpolationTable{};
+  preview_.clear();
+  if (preview_request_.empty()) return;
+  // The manipulated handle's points too: picking reads their positions.
+  preview_ = preview_request_;
+  preview_.insert(preview_.end(), handles_.manipulated.begin(), handles_.manipulated.end());
+  std::sort(preview_.begin(), preview_.end());
+  preview_.erase(std::unique(preview_.begin(), preview_.end()), preview_.end());
+  preview_table_.has_normals = table_.has_normals;
+  preview_table_.pairs = table_.pairs;
+  preview_table_.pair_centre = table_.pair_centre;
+  preview_table_.points.reserve(preview_.size());
+  for (const int i : preview_) preview_table_.points.push_back(table_.points[static_cast<std::size_t>(i)]);
+  preview_points_.resize(preview_.size());
+  preview_normals_.resize(preview_.size());
+}
+
 void Deformer::setBlend(Blend blend) {
   options_.blend = blend;
   updateShape();
@@ -340,7 +369,16 @@ void Deformer::updateShape() {
     if (cl.kind == ClusterKind::Range) a = nearestRotation(a);  // bones move rigidly
     local_[c].set(a.cast<float>(), (image - a * cl.barycentre).cast<float>(), cl.barycentre.cast<float>());
   }
-  interpolate(table_, local_, positions_, &out_normals_, options_.blend);
+  if (preview_.empty()) {
+    interpolate(table_, local_, positions_, &out_normals_, options_.blend);
+  } else {
+    interpolate(preview_table_, local_, preview_points_, &preview_normals_, options_.blend);
+    const bool normals = preview_table_.has_normals;
+    for (std::size_t k = 0; k < preview_.size(); ++k) {
+      positions_[static_cast<std::size_t>(preview_[k])] = preview_points_[k];
+      if (normals) out_normals_[static_cast<std::size_t>(preview_[k])] = preview_normals_[k];
+    }
+  }
   interp_ms_ = sw.ms();
 }
 

@@ -153,11 +153,12 @@ MoveResult ScenarioRunner::apply(const Move& move) {
 }
 
 SolveStats ScenarioRunner::liveDrag(const Eigen::Vector3d& from, const Eigen::Vector3d& to,
-                                    bool keep_orientation) {
+                                    bool keep_orientation, const std::vector<int>* preview) {
   if (!deformer_) throw std::logic_error("ScenarioRunner::liveDrag: no handles yet");
   if (!live_) {
     history_.push_back(deformer_->state());  // the last applied state, taken back by dropLive()
     live_ = true;
+    if (preview) deformer_->setPreview(*preview);
   }
   return keep_orientation ? deformer_->translateHandle(from, to) : deformer_->drag(from, to);
 }
@@ -165,8 +166,9 @@ SolveStats ScenarioRunner::liveDrag(const Eigen::Vector3d& from, const Eigen::Ve
 void ScenarioRunner::dropLive() {
   if (!live_) return;
   live_ = false;
-  deformer_->restore(history_.back());
+  deformer_->restore(history_.back());  // with a preview, its points only
   history_.pop_back();
+  if (!deformer_->preview().empty()) deformer_->setPreview({});  // then every point
 }
 
 bool ScenarioRunner::undo() {

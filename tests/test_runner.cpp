@@ -111,6 +111,43 @@ TEST(ScenarioRunner, LiveFramesAreDroppedWhenAMoveIsApplied) {
   EXPECT_TRUE(a.moves().empty());
 }
 
+// The viewer's level of detail: live frames interpolate a subset (every 7th point). Those
+// points must be where the full interpolation puts them, to the bit (their own rows of the
+// table); the others must not have been computed (the subset is the saving); and leaving the
+// live frames, by a committed move, must give every point exactly as without a preview.
+TEST(ScenarioRunner, PreviewFramesInterpolateTheirPointsExactly) {
+  hgd::ScenarioRunner a = bar(), b = bar();
+  std::vector<int> subset;
+  for (std::size_t i = 0; i < a.geometry().size(); i += 7) subset.push_back(static_cast<int>(i));
+  const std::vector<Eigen::Vector3f> rest = a.deformer().deformedPoints();
+  for (int k = 1; k <= 4; ++k) {
+    const Eigen::Vector3d to = kTip + Eigen::Vector3d(0, 0.05 * k, 0.03 * k);
+    a.liveDrag(kTip, to, false, &subset);
+    b.liveDrag(kTip, to);
+  }
+  // The subset and the dragged handle's points (picking reads those).
+  const std::vector<int>& drawn = a.deformer().preview();
+  std::vector<char> in(a.geometry().size(), 0);
+  for (const int i : drawn) in[static_cast<std::size_t>(i)] = 1;
+  for (const int i : subset) EXPECT_TRUE(in[static_cast<std::size_t>(i)]);
+  for (const int i : a.handles().manipulated) EXPECT_TRUE(in[static_cast<std::size_t>(i)]);
+  const auto &pa = a.deformer().deformedPoints(), &pb = b.deformer().deformedPoints();
+  std::size_t same = 0, behind = 0;
+  for (std::size_t i = 0; i < pa.size(); ++i) {
+    if (in[i])
+      same += pa[i] == pb[i];
+    else
+      behind += pa[i] == rest[i] && pb[i] != rest[i];
+  }
+  EXPECT_EQ(same, drawn.size());
+  EXPECT_GT(behind, pa.size() / 2);  // the rest were left as they were (the drag moved them in b)
+  const hgd::Move m = dragMove(kTip, kTip + Eigen::Vector3d(0, 0.2, 0.12));
+  a.apply(m);
+  b.apply(m);
+  EXPECT_TRUE(a.deformer().preview().empty());
+  EXPECT_EQ(largestDifference(a, b), 0.0);
+}
+
 TEST(ScenarioRunner, FrontEndOptionsWinOverTheScenario) {
   hgd::Scenario s = barScenario();
   s.clusters = 5;

@@ -106,7 +106,7 @@ double maxDistance(const std::string& a, const std::string& b, double& diag) {
 // `hgdeform deform` replays the session into DIR/cli.ply. Returns the viewer's exit code and
 // its output (the deform's on failure).
 int barDragSession(hgdtest::TempDir& dir, const std::string& keys, const std::string& before,
-                   const std::string& after, std::string& out) {
+                   const std::string& after, std::string& out, const std::string& viewer_args = "") {
   hgd::writeShape(dir.file("bar.ply"), hgd::shapes::bar(1.0f, 0.1f, 0.01f));
   const std::string d = dir.path().string() + "/";
   hgdtest::writeText(dir.file("events.json"), R"({"events": [
@@ -117,12 +117,15 @@ int barDragSession(hgdtest::TempDir& dir, const std::string& keys, const std::st
     {"save": ")" + d + R"(viewer.ply"}, {"save_scenario": ")" +
                                                   d + R"(session.json"})" + after + R"(
   ]})");
-  const int code =
-      hgdtest::run(viewer(dir.file("bar.ply") + " --replay " + dir.file("events.json") + " --quiet"), out);
+  const int code = hgdtest::run(
+      viewer(dir.file("bar.ply") + " --replay " + dir.file("events.json") + " --quiet" + viewer_args), out);
   if (code != 0) return code;
-  return hgdtest::run(std::string(HGD_TOOL) + " deform " + dir.file("bar.ply") + " -s " +
-                          dir.file("session.json") + " -o " + dir.file("cli.ply") + " -q",
-                      out);
+  std::string cli_out;  // after the viewer's own (--stats)
+  const int cli = hgdtest::run(std::string(HGD_TOOL) + " deform " + dir.file("bar.ply") + " -s " +
+                                   dir.file("session.json") + " -o " + dir.file("cli.ply") + " -q",
+                               cli_out);
+  out += cli_out;
+  return cli;
 }
 
 TEST(Viewer, ReplayedDragSavesWhatDeformGivesAndScreenshotsShowIt) {
@@ -162,6 +165,30 @@ TEST(Viewer, ReplayedDragSavesWhatDeformGivesAndScreenshotsShowIt) {
   EXPECT_GT(cyan, 200);
   EXPECT_GT(yellow, 200);
   EXPECT_LT(countNear(after, 89, 204, 230, 30), 20);
+}
+
+// --lod: a cloud larger than N points is drawn, and interpolated, as N of them while a drag
+// lasts. What the drag commits must not depend on it: the saved shape is the same to the byte
+// as without the level of detail, and --stats says how many points were drawn.
+TEST(Viewer, LevelOfDetailDrawsFewerPointsAndSavesTheSameShape) {
+  if (!haveXvfb()) GTEST_SKIP() << "xvfb-run not installed";
+  hgdtest::TempDir whole, lod;
+  std::string out_whole, out_lod;
+  ASSERT_EQ(barDragSession(whole, "", "", "", out_whole, " --stats --lod 0"), 0) << out_whole;
+  ASSERT_EQ(barDragSession(lod, "", "", "", out_lod, " --stats --lod 400"), 0) << out_lod;
+  const std::size_t n = hgd::extractGeometry(hgd::readShape(lod.file("bar.ply"))).size();
+  ASSERT_GT(n, 2000u);
+  EXPECT_NE(out_whole.find(std::to_string(n) + " of " + std::to_string(n) + " points drawn"),
+            std::string::npos)
+      << out_whole;
+  const std::size_t stride = (n + 399) / 400, drawn = (n + stride - 1) / stride;
+  EXPECT_NE(out_lod.find(std::to_string(drawn) + " of " + std::to_string(n) + " points drawn"),
+            std::string::npos)
+      << out_lod;
+  const std::string a = hgdtest::slurp(whole.file("viewer.ply")), b = hgdtest::slurp(lod.file("viewer.ply"));
+  ASSERT_FALSE(a.empty());
+  EXPECT_TRUE(a == b) << "the saved shapes differ";
+  EXPECT_EQ(hgdtest::slurp(whole.file("session.json")), hgdtest::slurp(lod.file("session.json")));
 }
 
 // `l`: drags keep the handle's orientation. The saved scenario records it, `hgdeform deform`

@@ -114,6 +114,15 @@ class Deformer {
   /// Changes the blend (takes effect at once; no re-solve needed).
   void setBlend(Blend blend);
 
+  /// Level of detail for live frames on large shapes: while `points` is not empty, every move
+  /// interpolates only those points and the manipulated handle's (which picking reads); their
+  /// entries of deformedPoints() and deformedNormals() are what a full interpolation gives, to
+  /// the bit, and the others keep their last values. An empty list interpolates every point
+  /// again, at once.
+  void setPreview(std::vector<int> points);
+  /// The points interpolated (setPreview's and the handle's, ascending), or empty: all.
+  const std::vector<int>& preview() const { return preview_; }
+
   const std::vector<Eigen::Vector3f>& deformedPoints() const { return positions_; }
   const std::vector<Eigen::Vector3f>& deformedNormals() const { return out_normals_; }
   Eigen::Vector3d deformedWorld(std::size_t i) const {
@@ -150,6 +159,7 @@ class Deformer {
   SolveStats solveHandle(const Eigen::Affine3d& transform);
   Eigen::Vector3d pickedWorld() const;
   void updateShape();
+  void buildPreviewTable();
   Eigen::Vector3d normalise(const Eigen::Vector3d& local) const { return (local - centre_) * scale_; }
   Eigen::Vector3d currentNormalised(int cluster, const Eigen::Vector3d& rest) const;
   void pick(const Eigen::Vector3d& world);
@@ -159,6 +169,10 @@ class Deformer {
   DeformOptions options_;
   HarmonicField field_;
   std::vector<float> phi_;
+  std::vector<int> preview_request_;  ///< setPreview's points (empty: all)
+  std::vector<int> preview_;          ///< with the manipulated handle's, sorted
+  InterpolationTable preview_table_;  ///< table_'s rows for them
+  std::vector<Eigen::Vector3f> preview_points_, preview_normals_;
   PieceAnalysis pieces_;
   Clustering clustering_;
   InterpolationTable table_;

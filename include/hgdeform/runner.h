@@ -108,8 +108,11 @@ class ScenarioRunner {
 
   /// One interactive frame of a drag, shown but not recorded: the next apply(), undo() or
   /// dropLive() returns to the last applied state first. `keep_orientation`: the handle
-  /// translates without turning (Deformer::translateHandle).
-  SolveStats liveDrag(const Eigen::Vector3d& from, const Eigen::Vector3d& to, bool keep_orientation = false);
+  /// translates without turning (Deformer::translateHandle). `preview` (a level of detail for
+  /// large shapes: Deformer::setPreview): only those points are interpolated in live frames;
+  /// leaving the live frames interpolates every point again.
+  SolveStats liveDrag(const Eigen::Vector3d& from, const Eigen::Vector3d& to, bool keep_orientation = false,
+                      const std::vector<int>* preview = nullptr);
   /// Back to the last applied state, if live frames moved the shape.
   void dropLive();
 

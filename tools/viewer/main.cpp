@@ -1,7 +1,7 @@
 // hgdeform-view: the interactive front end. Pick handles, drag, see it live.
 //
 //   hgdeform-view INPUT [--scenario S.json] [--replay EVENTS.json] [--screenshot OUT.png]
-//                 [--size WxH] [--stats]
+//                 [--size WxH] [--stats] [--lod N]
 //
 // Keys (also shown by 'h'):
 //   x          area selection (rubber band) on/off; shift+click selects a point and its radius
@@ -53,6 +53,7 @@ struct ViewArgs {
   std::string input, scenario, replay, shot;
   int width = 1100, height = 800;
   bool stats = false, quiet = false;
+  int lod = 100000;
 };
 
 /// Parses the command line into `a`; returns -1 to go on, else the exit status.
@@ -82,6 +83,11 @@ int parseArgs(int argc, char** argv, ViewArgs& a) {
           "", "size"))
       ->type_name("WxH");
   app.add_flag("--stats", a.stats, "print frame timings");
+  app.add_option("--lod", a.lod,
+                 "while dragging a larger point cloud, draw and interpolate only this many of its points "
+                 "(0: all; default 100000)")
+      ->check(CLI::Range(0, 1000000000))
+      ->type_name("N");
   app.add_flag("-q,--quiet", a.quiet, "print nothing but errors");
   return hgdcli::parse(app, argc, argv);
 }
@@ -112,6 +118,7 @@ int main(int argc, char** argv) {
     Viewer viewer(input, width, height);
     viewer.verbose_ = !quiet;
     viewer.inputs_ = inputs;
+    viewer.lod_points_ = args.lod;
     if (!scenario.empty()) viewer.loadScenario(scenario);
     viewer.open();
     viewer.vis().setSize(width, height);  // the first render may shrink the window

@@ -54,8 +54,9 @@ void Viewer::printStats() const {
   const double s = median(stats_.solve), i = median(stats_.interpolate), r = median(stats_.render);
   std::printf(
       "frames %zu: solve %.2f ms, interpolate %.2f ms, render %.2f ms (medians); %.1f frames/s, %.0f "
-      "updates/s without rendering\n",
-      stats_.solve.size(), s, i, r, 1000.0 / std::max(1e-9, s + i + r), 1000.0 / std::max(1e-9, s + i));
+      "updates/s without rendering; %zu of %zu points drawn while dragging\n",
+      stats_.solve.size(), s, i, r, 1000.0 / std::max(1e-9, s + i + r), 1000.0 / std::max(1e-9, s + i),
+      stats_.drawn, run_.geometry().size());
 }
 
 void Viewer::markSelection(int role) {

@@ -68,6 +68,7 @@ class Style : public pcl::visualization::PCLVisualizerInteractorStyle {
 
 struct FrameStats {
   std::vector<double> solve, interpolate, render;
+  std::size_t drawn = 0;  ///< points drawn (and interpolated) during the last drag
 };
 
 class Viewer {
@@ -123,6 +124,7 @@ class Viewer {
   void refreshRoles();
   void refresh();
   void updatePositions();
+  void showLod(bool on);
   vtkPolyData* shapePolyData();
   void render();
   void updateStatus();
@@ -149,6 +151,7 @@ class Viewer {
   std::vector<std::string> inputs_;  // files no output may replace
   bool drag_mode_ = false;
   bool keep_orientation_ = false;  // `l`: drags translate the handle without turning it
+  int lod_points_ = 100000;        // --lod: points drawn during a drag of a larger cloud (0: all)
 
  private:
   std::string input_;
@@ -173,6 +176,9 @@ class Viewer {
   std::string alert_;                  // see updateAlerts()
   std::vector<std::string> reported_;  // warnings already printed on stderr
   FrameStats stats_;
+  std::vector<int> lod_;  // the drawn subset while dragging (empty: the whole shape is drawn)
+  pcl::PointCloud<pcl::PointXYZRGB>::Ptr lod_display_;
+  int multisamples_ = 0;  // the window's, restored after a drag drawn at a level of detail
 };
 
 }  // namespace hgdview

@@ -147,9 +147,69 @@ void Viewer::refresh() {
   render();
 }
 
+// Level of detail: a point cloud larger than --lod points is drawn, while a drag lasts, as
+// an even subset of that many (every k-th point: scans arrive in no particular order, and
+// organised ones are sampled evenly), without anti-aliasing, and only those points (and the
+// handle's) are interpolated in the live frames (ScenarioRunner::liveDrag). On release the
+// whole cloud is drawn again, with the committed move interpolated to every point. Meshes
+// are always drawn whole.
+void Viewer::showLod(bool on) {
+  const std::size_t n = run_.geometry().size();
+  const bool wanted =
+      on && run_.geometry().faces.empty() && lod_points_ > 0 && n > static_cast<std::size_t>(lod_points_);
+  auto* clouds = vis_->getCloudActorMap().get();
+  auto shape = clouds->find("shape");
+  if (!wanted) {
+    if (lod_.empty()) return;
+    lod_.clear();
+    vis_->removePointCloud("lod");
+    if (shape != clouds->end() && shape->second.actor) shape->second.actor->SetVisibility(true);
+    vis_->getRenderWindow()->SetMultiSamples(multisamples_);
+    return;
+  }
+  const std::size_t stride =
+      (n + static_cast<std::size_t>(lod_points_) - 1) / static_cast<std::size_t>(lod_points_);
+  lod_.clear();
+  for (std::size_t i = 0; i < n; i += stride) lod_.push_back(static_cast<int>(i));
+  lod_display_ = pcl::make_shared<pcl::PointCloud<pcl::PointXYZRGB>>();
+  lod_display_->reserve(lod_.size());
+  for (const int i : lod_) lod_display_->push_back((*display_)[static_cast<std::size_t>(i)]);
+  const pcl::visualization::PointCloudColorHandlerRGBField<pcl::PointXYZRGB> rgb(lod_display_);
+  vis_->addPointCloud<pcl::PointXYZRGB>(lod_display_, rgb, "lod");
+  // As many pixels as the whole cloud fills: each drawn point stands for `stride`.
+  vis_->setPointCloudRenderingProperties(pcl::visualization::PCL_VISUALIZER_POINT_SIZE, 2, "lod");
+  if (shape != clouds->end() && shape->second.actor) shape->second.actor->SetVisibility(false);
+  // Anti-aliasing (4 samples a pixel) is most of a software-GL frame: off while dragging.
+  multisamples_ = vis_->getRenderWindow()->GetMultiSamples();
+  vis_->getRenderWindow()->SetMultiSamples(0);
+}
+
 // During a drag only positions change: write them straight into the VTK points of the shape
 // (PCL's update would rebuild the whole poly data, colours included, on every mouse move).
 void Viewer::updatePositions() {
+  if (!lod_.empty()) {
+    auto it = vis_->getCloudActorMap()->find("lod");
+    vtkPolyData* poly = it != vis_->getCloudActorMap()->end() && it->second.actor
+                            ? vtkPolyData::SafeDownCast(it->second.actor->GetMapper()->GetInput())
+                            : nullptr;
+    vtkPoints* pts = poly ? poly->GetPoints() : nullptr;
+    if (pts && pts->GetDataType() == VTK_FLOAT &&
+        pts->GetNumberOfPoints() == static_cast<vtkIdType>(lod_.size())) {
+      float* raw = static_cast<vtkFloatArray*>(pts->GetData())->GetPointer(0);
+      const auto& local = run_.deformer().deformedPoints();
+      const Eigen::Vector3f origin = run_.geometry().origin.cast<float>();
+      for (std::size_t k = 0; k < lod_.size(); ++k) {
+        const Eigen::Vector3f p = local[static_cast<std::size_t>(lod_[k])] + origin;
+        raw[3 * k] = p.x();
+        raw[3 * k + 1] = p.y();
+        raw[3 * k + 2] = p.z();
+      }
+      pts->Modified();
+      poly->Modified();
+      render();
+      return;
+    }
+  }
   vtkPolyData* poly = shapePolyData();
   vtkPoints* pts = poly ? poly->GetPoints() : nullptr;
   if (!pts || pts->GetNumberOfPoints() != static_cast<vtkIdType>(run_.geometry().size()) ||

@@ -122,6 +122,8 @@ bool Viewer::dragBegin(int x, int y) {
     return true;
   }
   dragging_ = true;
+  showLod(true);
+  stats_.drawn = lod_.empty() ? run_.geometry().size() : lod_.size();
   drag_from_ = deformed(static_cast<std::size_t>(hit));
   drag_depth_ = toDisplay(drag_from_).z();
   drag_last_ = drag_from_;
@@ -132,7 +134,7 @@ bool Viewer::dragMove(int x, int y) {
   if (!dragging_) return false;
   const Eigen::Vector3d to = fromDisplay(x, y, drag_depth_);
   const auto t0 = Clock::now();
-  run_.liveDrag(drag_last_, to, keep_orientation_);
+  run_.liveDrag(drag_last_, to, keep_orientation_, lod_.empty() ? nullptr : &lod_);
   const double total = msSince(t0);
   stats_.interpolate.push_back(run_.deformer().lastInterpolationMs());
   stats_.solve.push_back(total - run_.deformer().lastInterpolationMs());
@@ -154,6 +156,7 @@ bool Viewer::dragEnd(int x, int y) {
   m.drag.to = drag_last_;
   m.drag.keep_orientation = keep_orientation_;
   commit(m);
+  showLod(false);
   refresh();
   return true;
 }
