@@ -126,6 +126,7 @@ class Viewer {
   void updatePositions();
   void showLod(bool on);
   vtkPolyData* shapePolyData();
+  vtkPolyData* cloudPolyData(const std::string& id);
   void render();
   void updateStatus();
   void message(const std::string& m);

@@ -187,63 +187,45 @@ void Viewer::showLod(bool on) {
 // During a drag only positions change: write them straight into the VTK points of the shape
 // (PCL's update would rebuild the whole poly data, colours included, on every mouse move).
 void Viewer::updatePositions() {
-  if (!lod_.empty()) {
-    auto it = vis_->getCloudActorMap()->find("lod");
-    vtkPolyData* poly = it != vis_->getCloudActorMap()->end() && it->second.actor
-                            ? vtkPolyData::SafeDownCast(it->second.actor->GetMapper()->GetInput())
-                            : nullptr;
-    vtkPoints* pts = poly ? poly->GetPoints() : nullptr;
-    if (pts && pts->GetDataType() == VTK_FLOAT &&
-        pts->GetNumberOfPoints() == static_cast<vtkIdType>(lod_.size())) {
-      float* raw = static_cast<vtkFloatArray*>(pts->GetData())->GetPointer(0);
-      const auto& local = run_.deformer().deformedPoints();
-      const Eigen::Vector3f origin = run_.geometry().origin.cast<float>();
-      for (std::size_t k = 0; k < lod_.size(); ++k) {
-        const Eigen::Vector3f p = local[static_cast<std::size_t>(lod_[k])] + origin;
-        raw[3 * k] = p.x();
-        raw[3 * k + 1] = p.y();
-        raw[3 * k + 2] = p.z();
-      }
-      pts->Modified();
-      poly->Modified();
-      render();
-      return;
-    }
-  }
-  vtkPolyData* poly = shapePolyData();
+  // The drawn points: the level of detail's subset while there is one, else the whole shape.
+  const bool lod = !lod_.empty();
+  vtkPolyData* poly = lod ? cloudPolyData("lod") : shapePolyData();
+  const std::size_t count = lod ? lod_.size() : run_.geometry().size();
   vtkPoints* pts = poly ? poly->GetPoints() : nullptr;
-  if (!pts || pts->GetNumberOfPoints() != static_cast<vtkIdType>(run_.geometry().size()) ||
-      pts->GetDataType() != VTK_FLOAT) {
+  if (!pts || pts->GetNumberOfPoints() != static_cast<vtkIdType>(count) || pts->GetDataType() != VTK_FLOAT) {
     refresh();
     return;
   }
   float* raw = static_cast<vtkFloatArray*>(pts->GetData())->GetPointer(0);
-  const long long n = static_cast<long long>(run_.geometry().size());
+  const long long n = static_cast<long long>(count);
   const auto& local = run_.deformer().deformedPoints();
   const Eigen::Vector3f origin = run_.geometry().origin.cast<float>();
 #pragma omp parallel for schedule(static)
-  for (long long i = 0; i < n; ++i) {
-    const Eigen::Vector3f p = local[static_cast<std::size_t>(i)] + origin;
-    raw[3 * i] = p.x();
-    raw[3 * i + 1] = p.y();
-    raw[3 * i + 2] = p.z();
+  for (long long k = 0; k < n; ++k) {
+    const std::size_t i =
+        lod ? static_cast<std::size_t>(lod_[static_cast<std::size_t>(k)]) : static_cast<std::size_t>(k);
+    const Eigen::Vector3f p = local[i] + origin;
+    raw[3 * k] = p.x();
+    raw[3 * k + 1] = p.y();
+    raw[3 * k + 2] = p.z();
   }
   pts->Modified();
   poly->Modified();
   render();
 }
 
+vtkPolyData* Viewer::cloudPolyData(const std::string& id) {
+  auto it = vis_->getCloudActorMap()->find(id);
+  if (it == vis_->getCloudActorMap()->end() || !it->second.actor) return nullptr;
+  return vtkPolyData::SafeDownCast(it->second.actor->GetMapper()->GetInput());
+}
+
 vtkPolyData* Viewer::shapePolyData() {
-  vtkMapper* mapper = nullptr;
-  if (run_.geometry().faces.empty()) {
-    auto it = vis_->getCloudActorMap()->find("shape");
-    if (it != vis_->getCloudActorMap()->end() && it->second.actor) mapper = it->second.actor->GetMapper();
-  } else {
-    auto it = vis_->getShapeActorMap()->find("shape");
-    if (it != vis_->getShapeActorMap()->end())
-      if (auto* actor = vtkActor::SafeDownCast(it->second)) mapper = actor->GetMapper();
-  }
-  return mapper ? vtkPolyData::SafeDownCast(mapper->GetInput()) : nullptr;
+  if (run_.geometry().faces.empty()) return cloudPolyData("shape");
+  auto it = vis_->getShapeActorMap()->find("shape");
+  if (it == vis_->getShapeActorMap()->end()) return nullptr;
+  auto* actor = vtkActor::SafeDownCast(it->second);
+  return actor && actor->GetMapper() ? vtkPolyData::SafeDownCast(actor->GetMapper()->GetInput()) : nullptr;
 }
 
 void Viewer::render() {
