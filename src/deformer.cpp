@@ -99,7 +99,7 @@ void Deformer::setupSolver() {
     for (int i : cl.members)
       sc[c].points.push_back(
           normalise((*geometry_.points)[static_cast<std::size_t>(i)].getVector3fMap().cast<double>()));
-    // The manipulated cluster is free: a frame move holds it (setFrameMode), a drag matches it.
+    // The manipulated cluster is free: a frame move holds it (solveHandle), a drag matches it.
     sc[c].constant = cl.kind == ClusterKind::Fixed || cl.kind == ClusterKind::Static;
     const double w_mhc =
         options_.weights.mhc_per_cluster > 0 ? std::max(1.0, options_.weights.mhc_per_cluster * n_iso) : 1.0;
