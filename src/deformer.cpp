@@ -39,6 +39,7 @@ void Deformer::setHandles(const Handles& handles) {
 void Deformer::rebuild() {
   if (handles_.manipulated.empty()) throw std::invalid_argument("Deformer: the manipulated handle is empty");
   if (handles_.fixed.empty()) throw std::invalid_argument("Deformer: no fixed handle");
+  updateNormals();  // before the tables change
   Stopwatch sw;
   // The field object keeps normals, kNN and the graph: new handles only re-solve.
   field_.setHandles(handles_.fixed, handles_.manipulated);
@@ -329,6 +330,9 @@ void Deformer::setPreview(std::vector<int> points) {
     if (i < 0 || static_cast<std::size_t>(i) >= geometry_.size())
       throw std::invalid_argument("Deformer::setPreview: point index out of range");
   const bool was = !preview_.empty();
+  // The normals due (a full frame's, or the old preview's) before the preview changes: the
+  // points a preview frame leaves alone keep those of their last frame.
+  updateNormals();
   preview_request_ = std::move(points);
   buildPreviewTable();
   if (was && preview_.empty()) updateShape();  // the points left behind catch up
@@ -344,6 +348,9 @@ void Deformer::buildPreviewTable() {
   std::sort(preview_.begin(), preview_.end());
   preview_.erase(std::unique(preview_.begin(), preview_.end()), preview_.end());
   preview_table_.has_normals = table_.has_normals;
+  if (table_.has_normals)
+    for (const int i : preview_)
+      preview_table_.normals.push_back(table_.normals[static_cast<std::size_t>(i)]);
   preview_table_.pairs = table_.pairs;
   preview_table_.pair_centre = table_.pair_centre;
   preview_table_.points.reserve(preview_.size());
@@ -353,6 +360,7 @@ void Deformer::buildPreviewTable() {
 }
 
 void Deformer::setBlend(Blend blend) {
+  updateNormals();  // with the blend their positions had
   options_.blend = blend;
   updateShape();
 }
@@ -370,14 +378,13 @@ void Deformer::updateShape() {
     local_[c].set(a.cast<float>(), (image - a * cl.barycentre).cast<float>(), cl.barycentre.cast<float>());
   }
   if (preview_.empty()) {
-    interpolate(table_, local_, positions_, &out_normals_, options_.blend);
+    interpolatePositions(table_, local_, positions_, options_.blend);
+    normals_due_ = NormalsDue::All;
   } else {
-    interpolate(preview_table_, local_, preview_points_, &preview_normals_, options_.blend);
-    const bool normals = preview_table_.has_normals;
-    for (std::size_t k = 0; k < preview_.size(); ++k) {
+    interpolatePositions(preview_table_, local_, preview_points_, options_.blend);
+    for (std::size_t k = 0; k < preview_.size(); ++k)
       positions_[static_cast<std::size_t>(preview_[k])] = preview_points_[k];
-      if (normals) out_normals_[static_cast<std::size_t>(preview_[k])] = preview_normals_[k];
-    }
+    if (normals_due_ == NormalsDue::None) normals_due_ = NormalsDue::Preview;
   }
   interp_ms_ = sw.ms();
 }
@@ -401,7 +408,24 @@ SurfaceStretch Deformer::surfaceStretch() const {
                         strays.empty() ? nullptr : &strays);
 }
 
+void Deformer::updateNormals() const {
+  if (normals_due_ == NormalsDue::All) {
+    interpolateNormals(table_, local_, out_normals_, options_.blend);
+  } else if (normals_due_ == NormalsDue::Preview && table_.has_normals) {
+    interpolateNormals(preview_table_, local_, preview_normals_, options_.blend);
+    for (std::size_t k = 0; k < preview_.size(); ++k)
+      out_normals_[static_cast<std::size_t>(preview_[k])] = preview_normals_[k];
+  }
+  normals_due_ = NormalsDue::None;
+}
+
+const std::vector<Eigen::Vector3f>& Deformer::deformedNormals() const {
+  updateNormals();
+  return out_normals_;
+}
+
 void Deformer::writeDeformed(Shape& shape) const {
+  updateNormals();
   storePositions(shape, geometry_, positions_, &out_normals_);
   // An OBJ's own normals ('vn', indexed apart from the vertices) turn as the normal of the
   // vertex a face pairs them with turns.

@@ -36,16 +36,15 @@ InterpolationTable buildInterpolation(const std::vector<float>& phi, const Handl
   t.pairs.erase(std::unique(t.pairs.begin(), t.pairs.end()), t.pairs.end());
   t.has_normals = normals != nullptr && normals->size() == n;
   t.points.resize(n);
+  if (t.has_normals) t.normals.resize(n);
   const long long nn = static_cast<long long>(n);
 #pragma omp parallel for schedule(static) if (nn > kParallelMin)
   for (long long ii = 0; ii < nn; ++ii) {
     const auto i = static_cast<std::size_t>(ii);
     InterpolationTable::Point& r = t.points[i];
-    for (int a = 0; a < 3; ++a) {
-      r.p[a] = points[i].data[a];
-      r.n[a] = t.has_normals ? (*normals)[i].normal[a] : 0.0f;
-    }
-    r.pair = static_cast<int>(
+    for (int a = 0; a < 3; ++a) r.p[a] = points[i].data[a];
+    if (t.has_normals) t.normals[i] = (*normals)[i].getNormalVector3fMap();
+    r.pair = static_cast<std::uint32_t>(
         std::lower_bound(t.pairs.begin(), t.pairs.end(), std::make_pair(lower[i], upper[i])) -
         t.pairs.begin());
     r.alpha = alpha[i];
@@ -82,35 +81,18 @@ Eigen::Vector3f transformNormal(const Eigen::Matrix3f& m, const Eigen::Vector3f&
 }
 }  // namespace
 
-void interpolate(const InterpolationTable& table, const std::vector<LocalTransform>& transforms,
-                 std::vector<Eigen::Vector3f>& out_points, std::vector<Eigen::Vector3f>* out_normals,
-                 Blend blend) {
-  const long long n = static_cast<long long>(table.size());
-  const bool do_normals = table.has_normals && out_normals != nullptr;
-  const InterpolationTable::Point* pts = table.points.data();
-  Eigen::Vector3f* out_p = out_points.data();
-  Eigen::Vector3f* out_n = do_normals ? out_normals->data() : nullptr;
-  if (blend == Blend::Linear) {
-#pragma omp parallel for schedule(static) if (n > kParallelMin)
-    for (long long i = 0; i < n; ++i) {
-      const InterpolationTable::Point& r = pts[i];
-      const auto& pr = table.pairs[static_cast<std::size_t>(r.pair)];
-      const LocalTransform& a = transforms[static_cast<std::size_t>(pr.first)];
-      const LocalTransform& b = transforms[static_cast<std::size_t>(pr.second)];
-      const float w = r.alpha;
-      const Eigen::Matrix3f m = (1.0f - w) * a.A + w * b.A;
-      out_p[i] = m * Eigen::Vector3f(r.p[0], r.p[1], r.p[2]) + (1.0f - w) * a.b + w * b.b;
-      if (out_n) out_n[i] = transformNormal(m, Eigen::Vector3f(r.n[0], r.n[1], r.n[2]));
-    }
-    return;
-  }
-  // Rotation-aware: per pair, the images of its centre c under both rigid parts and the two
-  // quaternions on the same hemisphere; per point, p' = R(w) (p - c) + lerp of the images.
-  struct PairFrame {
-    Eigen::Vector4f qa, qb;
-    Eigen::Vector3f c, ta, tb;
-    const LocalTransform* own;  // lower == hi: the cluster's own (full) transform applies
-  };
+namespace {
+
+// The rotation-aware blend, per pair: the images of its centre c under both rigid parts and the
+// two quaternions on the same hemisphere; per point, p' = R(w) (p - c) + lerp of the images.
+struct PairFrame {
+  Eigen::Vector4f qa, qb;
+  Eigen::Vector3f c, ta, tb;
+  const LocalTransform* own;  // lower == upper: the cluster's own (full) transform applies
+};
+
+std::vector<PairFrame> pairFrames(const InterpolationTable& table,
+                                  const std::vector<LocalTransform>& transforms) {
   std::vector<PairFrame> frames(table.pairs.size());
   for (std::size_t k = 0; k < table.pairs.size(); ++k) {
     const LocalTransform& a = transforms[static_cast<std::size_t>(table.pairs[k].first)];
@@ -123,6 +105,44 @@ void interpolate(const InterpolationTable& table, const std::vector<LocalTransfo
     f.qa = a.q.coeffs();
     f.qb = a.q.dot(b.q) < 0 ? Eigen::Vector4f(-b.q.coeffs()) : Eigen::Vector4f(b.q.coeffs());
   }
+  return frames;
+}
+
+// x turned by the rotation of the quaternion q = (1 - w) qa + w qb, not normalised first: for a
+// unit quaternion (u, qw), R x = x + 2 (qw (u x x) + u x (u x x)); for q, the 2 becomes 2 / |q|^2.
+// Two cross products a point: fewer operations than building the matrix.
+inline Eigen::Vector3f blendedRotate(const PairFrame& f, float w, const Eigen::Vector3f& x) {
+  const float v = 1.0f - w;
+  const Eigen::Vector4f q = v * f.qa + w * f.qb;  // (x, y, z, w), Eigen's order
+  const float s = 2.0f / q.squaredNorm();
+  const Eigen::Vector3f u = q.head<3>();
+  const Eigen::Vector3f a = u.cross(x);
+  return x + s * (q[3] * a + u.cross(a));
+}
+
+}  // namespace
+
+void interpolatePositions(const InterpolationTable& table, const std::vector<LocalTransform>& transforms,
+                          std::vector<Eigen::Vector3f>& out_points, Blend blend) {
+  const long long n = static_cast<long long>(table.size());
+  const InterpolationTable::Point* pts = table.points.data();
+  Eigen::Vector3f* out_p = out_points.data();
+  if (blend == Blend::Linear) {
+    const std::pair<int, int>* pairs = table.pairs.data();
+    const LocalTransform* tr = transforms.data();
+#pragma omp parallel for schedule(static) if (n > kParallelMin)
+    for (long long i = 0; i < n; ++i) {
+      const InterpolationTable::Point& r = pts[i];
+      const std::pair<int, int>& pr = pairs[r.pair];
+      const LocalTransform& a = tr[pr.first];
+      const LocalTransform& b = tr[pr.second];
+      const float w = r.alpha;
+      const Eigen::Matrix3f m = (1.0f - w) * a.A + w * b.A;
+      out_p[i] = m * Eigen::Vector3f(r.p[0], r.p[1], r.p[2]) + (1.0f - w) * a.b + w * b.b;
+    }
+    return;
+  }
+  const std::vector<PairFrame> frames = pairFrames(table, transforms);
   const PairFrame* fr = frames.data();
 #pragma omp parallel for schedule(static) if (n > kParallelMin)
   for (long long i = 0; i < n; ++i) {
@@ -131,24 +151,48 @@ void interpolate(const InterpolationTable& table, const std::vector<LocalTransfo
     const Eigen::Vector3f p(r.p[0], r.p[1], r.p[2]);
     if (f.own) {
       out_p[i] = f.own->A * p + f.own->b;
-      if (out_n) out_n[i] = transformNormal(f.own->A, Eigen::Vector3f(r.n[0], r.n[1], r.n[2]));
       continue;
     }
-    // The rotation of the quaternion (1 - w) qa + w qb without normalising it first: scaled
-    // by s = 2 / |q|^2 (the same matrix, fewer operations in this per-point loop).
     const float w = r.alpha, v = 1.0f - w;
-    const float qx = v * f.qa[0] + w * f.qb[0], qy = v * f.qa[1] + w * f.qb[1],
-                qz = v * f.qa[2] + w * f.qb[2], qw = v * f.qa[3] + w * f.qb[3];
-    const float s = 2.0f / (qx * qx + qy * qy + qz * qz + qw * qw);
-    const float xx = s * qx * qx, yy = s * qy * qy, zz = s * qz * qz, xy = s * qx * qy, xz = s * qx * qz,
-                yz = s * qy * qz, wx = s * qw * qx, wy = s * qw * qy, wz = s * qw * qz;
-    Eigen::Matrix3f m;
-    m << 1.0f - (yy + zz), xy - wz, xz + wy,  //
-        xy + wz, 1.0f - (xx + zz), yz - wx,   //
-        xz - wy, yz + wx, 1.0f - (xx + yy);
-    out_p[i] = m * (p - f.c) + v * f.ta + w * f.tb;
-    if (out_n) out_n[i] = m * Eigen::Vector3f(r.n[0], r.n[1], r.n[2]);  // a rotation: R^-T = R
+    out_p[i] = blendedRotate(f, w, p - f.c) + v * f.ta + w * f.tb;
   }
+}
+
+void interpolateNormals(const InterpolationTable& table, const std::vector<LocalTransform>& transforms,
+                        std::vector<Eigen::Vector3f>& out_normals, Blend blend) {
+  if (!table.has_normals) return;
+  const long long n = static_cast<long long>(table.size());
+  const InterpolationTable::Point* pts = table.points.data();
+  const Eigen::Vector3f* rest = table.normals.data();
+  Eigen::Vector3f* out_n = out_normals.data();
+  if (blend == Blend::Linear) {
+    const std::pair<int, int>* pairs = table.pairs.data();
+    const LocalTransform* tr = transforms.data();
+#pragma omp parallel for schedule(static) if (n > kParallelMin)
+    for (long long i = 0; i < n; ++i) {
+      const InterpolationTable::Point& r = pts[i];
+      const std::pair<int, int>& pr = pairs[r.pair];
+      const float w = r.alpha;
+      out_n[i] = transformNormal((1.0f - w) * tr[pr.first].A + w * tr[pr.second].A, rest[i]);
+    }
+    return;
+  }
+  const std::vector<PairFrame> frames = pairFrames(table, transforms);
+  const PairFrame* fr = frames.data();
+#pragma omp parallel for schedule(static) if (n > kParallelMin)
+  for (long long i = 0; i < n; ++i) {
+    const InterpolationTable::Point& r = pts[i];
+    const PairFrame& f = fr[r.pair];
+    // A rotation: R^-T = R.
+    out_n[i] = f.own ? transformNormal(f.own->A, rest[i]) : blendedRotate(f, r.alpha, rest[i]);
+  }
+}
+
+void interpolate(const InterpolationTable& table, const std::vector<LocalTransform>& transforms,
+                 std::vector<Eigen::Vector3f>& out_points, std::vector<Eigen::Vector3f>* out_normals,
+                 Blend blend) {
+  interpolatePositions(table, transforms, out_points, blend);
+  if (out_normals != nullptr) interpolateNormals(table, transforms, *out_normals, blend);
 }
 
 }  // namespace hgd

@@ -148,6 +148,55 @@ TEST(ScenarioRunner, PreviewFramesInterpolateTheirPointsExactly) {
   EXPECT_EQ(largestDifference(a, b), 0.0);
 }
 
+// A move turns positions only; normals are derived when asked for. Each point's normal must
+// still come from the transforms its position came from: across preview frames the others keep
+// the last full frame's, the preview's points get the current ones (b reads after every frame).
+TEST(ScenarioRunner, NormalsMatchTheirPointsAcrossPreviewFrames) {
+  hgd::ScenarioRunner a = bar(), b = bar();
+  ASSERT_TRUE(a.deformer().interpolationTable().has_normals);
+  const std::size_t n = a.geometry().size();
+  std::vector<int> every7, others7;
+  for (std::size_t i = 0; i < n; i += 7) every7.push_back(static_cast<int>(i));
+  for (std::size_t i = 3; i < n; i += 7) others7.push_back(static_cast<int>(i));
+  const Eigen::Vector3d first = kTip + Eigen::Vector3d(0, 0.1, 0.05);
+  a.apply(dragMove(kTip, first));  // a full frame whose normals a never reads
+  b.apply(dragMove(kTip, first));
+  // Which of b's frames each point of a should show: 0 the full frame, then one per live frame
+  // (a and b make the same solves; b reads its normals after each).
+  std::vector<int> expect(n, 0);
+  std::vector<std::vector<Eigen::Vector3f>> seen{b.deformer().deformedNormals()};
+  auto frame = [&](const Eigen::Vector3d& to, const std::vector<int>* subset) {
+    a.liveDrag(first, to, false, subset);
+    b.liveDrag(first, to);
+    seen.push_back(b.deformer().deformedNormals());
+    for (const int i : a.deformer().preview())
+      expect[static_cast<std::size_t>(i)] = static_cast<int>(seen.size()) - 1;
+  };
+  for (int k = 1; k <= 4; ++k) {
+    const Eigen::Vector3d to = first + Eigen::Vector3d(0, 0.05 * k, 0.03 * k);
+    frame(to, &every7);
+    if (k == 3) a.deformer().setPreview(others7);  // another subset, mid-drag
+    if (k >= 3) frame(to, nullptr);                // and a frame with it
+  }
+  const auto& na = a.deformer().deformedNormals();
+  std::size_t right = 0, turned = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto& want = seen[static_cast<std::size_t>(expect[i])][i];
+    right += na[i] == want;
+    turned += (seen.back()[i] - want).norm() > 1e-4f;
+  }
+  EXPECT_EQ(right, n);
+  EXPECT_GT(turned, n / 2);  // so that a normal of the wrong frame would show
+  // Leaving the preview: every normal is the current one again.
+  const hgd::Move m = dragMove(kTip, kTip + Eigen::Vector3d(0, 0.2, 0.12));
+  a.apply(m);
+  b.apply(m);
+  const auto &ma = a.deformer().deformedNormals(), &mb = b.deformer().deformedNormals();
+  std::size_t differ = 0;
+  for (std::size_t i = 0; i < ma.size(); ++i) differ += ma[i] != mb[i];
+  EXPECT_EQ(differ, 0u);
+}
+
 TEST(ScenarioRunner, FrontEndOptionsWinOverTheScenario) {
   hgd::Scenario s = barScenario();
   s.clusters = 5;

@@ -124,7 +124,10 @@ class Deformer {
   const std::vector<int>& preview() const { return preview_; }
 
   const std::vector<Eigen::Vector3f>& deformedPoints() const { return positions_; }
-  const std::vector<Eigen::Vector3f>& deformedNormals() const { return out_normals_; }
+  /// The normals of deformedPoints() (the rest normals turned as their points' transforms
+  /// turn). A move transforms positions only; the normals are derived on the first call after
+  /// it (so, like every call that moves, not concurrently with another call on this Deformer).
+  const std::vector<Eigen::Vector3f>& deformedNormals() const;
   Eigen::Vector3d deformedWorld(std::size_t i) const {
     return positions_[i].cast<double>() + geometry_.origin;
   }
@@ -159,6 +162,8 @@ class Deformer {
   SolveStats solveHandle(const Eigen::Affine3d& transform);
   Eigen::Vector3d pickedWorld() const;
   void updateShape();
+  /// Brings out_normals_ up to the last move.
+  void updateNormals() const;
   void buildPreviewTable();
   Eigen::Vector3d normalise(const Eigen::Vector3d& local) const { return (local - centre_) * scale_; }
   Eigen::Vector3d currentNormalised(int cluster, const Eigen::Vector3d& rest) const;
@@ -172,7 +177,8 @@ class Deformer {
   std::vector<int> preview_request_;  ///< setPreview's points (empty: all)
   std::vector<int> preview_;          ///< with the manipulated handle's, sorted
   InterpolationTable preview_table_;  ///< table_'s rows for them
-  std::vector<Eigen::Vector3f> preview_points_, preview_normals_;
+  std::vector<Eigen::Vector3f> preview_points_;
+  mutable std::vector<Eigen::Vector3f> preview_normals_;
   PieceAnalysis pieces_;
   Clustering clustering_;
   InterpolationTable table_;
@@ -187,7 +193,11 @@ class Deformer {
   Eigen::Vector3d last_to_ = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
   // Per-frame buffers.
   std::vector<LocalTransform> local_;
-  std::vector<Eigen::Vector3f> positions_, out_normals_;
+  std::vector<Eigen::Vector3f> positions_;
+  // Normals are derived when asked for: which points' are behind their positions.
+  enum class NormalsDue { None, All, Preview };
+  mutable std::vector<Eigen::Vector3f> out_normals_;
+  mutable NormalsDue normals_due_ = NormalsDue::None;
   BuildTimings build_;
   double interp_ms_ = 0;
 };

@@ -3,6 +3,7 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <cstdint>
 #include <vector>
 
 #include "hgdeform/blend.h"
@@ -31,15 +32,16 @@ using LocalAffine [[deprecated("renamed hgd::LocalTransform")]] = LocalTransform
 /// the blend factor (T = (1 - alpha) T_lower + alpha T_upper). Handle points take their handle's
 /// cluster on both sides; points in parts that touch no handle take a static cluster.
 struct InterpolationTable {
-  /// One record per point, with its rest position and normal: interpolation streams through
-  /// memory once per frame (at millions of points it is bound by memory traffic).
+  /// One 20-byte record per point with its rest position: a frame streams through these once
+  /// (at millions of points it is bound by memory traffic, like a copy of the positions).
   struct Point {
     float p[3];
-    float n[3];   ///< rest normal (zero when the table has none)
-    int pair;     ///< index into `pairs`
-    float alpha;  ///< blend factor between the pair's lower and upper clusters
+    float alpha;         ///< blend factor between the pair's lower and upper clusters
+    std::uint32_t pair;  ///< index into `pairs`
   };
   std::vector<Point> points;
+  /// Rest normals, apart from the records: only a normals pass reads them (empty: none).
+  std::vector<Eigen::Vector3f> normals;
   bool has_normals = false;
   /// The distinct (lower, upper) pairs and each pair's rest centre (the mean of the two clusters'
   /// barycentres): the rotation-aware blend works per pair.
@@ -54,9 +56,17 @@ InterpolationTable buildInterpolation(const std::vector<float>& phi, const Handl
                                       const pcl::PointCloud<pcl::PointXYZ>& points,
                                       const pcl::PointCloud<pcl::Normal>* normals);
 
-/// Applies the blended transforms: positions p -> T p, normals n -> A^-T n (renormalised).
-/// Parallel over points; writes into preallocated outputs (sized like the table).
-/// `out_normals` may be null, and is not written when the table has no normals.
+/// Applies the blended transforms to the positions, p -> T p. Parallel over points; writes into
+/// a preallocated output (sized like the table).
+void interpolatePositions(const InterpolationTable& table, const std::vector<LocalTransform>& transforms,
+                          std::vector<Eigen::Vector3f>& out_points, Blend blend = Blend::Linear);
+
+/// Applies the blended transforms to the rest normals, n -> A^-T n (renormalised; a rotation for
+/// the rotation-aware blend). Does nothing when the table has no normals.
+void interpolateNormals(const InterpolationTable& table, const std::vector<LocalTransform>& transforms,
+                        std::vector<Eigen::Vector3f>& out_normals, Blend blend = Blend::Linear);
+
+/// Both: positions, and normals when `out_normals` is not null and the table has normals.
 void interpolate(const InterpolationTable& table, const std::vector<LocalTransform>& transforms,
                  std::vector<Eigen::Vector3f>& out_points, std::vector<Eigen::Vector3f>* out_normals,
                  Blend blend = Blend::Linear);
