@@ -25,6 +25,7 @@ double targetPerCell(int kk) {
 constexpr int kMaxDim = 1 << 20;       // cells per axis (keys pack into 60 bits)
 constexpr int kMaxRing = 8;            // widest shell searched cell by cell before brute force
 constexpr std::size_t kMaxBrute = 64;  // points searched against all others before giving up
+constexpr double kCrowded = 8;         // a cell with this many times the target is crowded
 
 struct Grid {
   double lo[3] = {0, 0, 0};
@@ -102,7 +103,12 @@ struct Best {
 
 }  // namespace
 
-bool gridKnn(const float* xyz, std::size_t n, int kk, int* idx, float* d2, std::vector<std::uint32_t>* far) {
+namespace {
+
+// gridKnn with the cell side given (h > 0) or chosen from the points (h = 0), for the points
+// whose `query` entry is set (null: every point); the other rows are left as they were.
+bool gridKnnAt(const float* xyz, std::size_t n, int kk, int* idx, float* d2, std::vector<std::uint32_t>* far,
+               double fixed_h, const char* query) {
   if (far) far->clear();
   if (n == 0 || kk <= 0) return true;
   if (static_cast<std::size_t>(kk) > n || n >= (1ull << 31)) return false;
@@ -127,9 +133,11 @@ bool gridKnn(const float* xyz, std::size_t n, int kk, int* idx, float* d2, std::
   const double target = targetPerCell(kk);
   const double area = std::max(ex * ey + ey * ez + ez * ex, 1e-6 * extent * extent);
   double h = std::sqrt(target * area / static_cast<double>(n));
+  if (fixed_h > 0) h = fixed_h;
   h = std::max(h, extent / (kMaxDim - 2));
   for (int attempt = 0;; ++attempt) {
     if (!bin(xyz, n, h, g, hi)) return false;
+    if (fixed_h > 0) break;
     const double per_cell = static_cast<double>(n) / static_cast<double>(g.cell_key.size());
     if (attempt == 3 || (per_cell > target / 2 && per_cell < target * 2)) break;
     const double next =
@@ -137,15 +145,31 @@ bool gridKnn(const float* xyz, std::size_t n, int kk, int* idx, float* d2, std::
     if (next == h) break;
     h = next;
   }
-  // Crowded cells cost their population squared: a grid is the wrong tool for such clouds.
-  double cost = 0;
-  for (std::size_t c = 0; c + 1 < g.cell_start.size(); ++c) {
+  const std::size_t cells = g.cell_key.size();
+  // A query costs its block's population, so a cell costs its population squared. When that
+  // is too much, cells far more crowded than the target (a small dense piece beside a large
+  // sparse one, as the eyes and teeth of a character mesh) get a grid of their own (below); the
+  // rest must suit this one, else a grid is the wrong tool for the cloud.
+  std::vector<char> crowded(cells, 0);
+  std::size_t crowded_points = 0;
+  double cost = 0, crowded_cost = 0;
+  for (std::size_t c = 0; c < cells; ++c) {
     const double m = g.cell_start[c + 1] - g.cell_start[c];
     cost += m * m;
+    if (m > kCrowded * target) {
+      crowded[c] = 1;
+      crowded_points += static_cast<std::size_t>(m);
+      crowded_cost += m * m;
+    }
   }
-  if (cost > 64.0 * target * static_cast<double>(n)) return false;
-
-  const std::size_t cells = g.cell_key.size();
+  // A uniform surface costs about 2 target per point; the crowd's own grid pays from about 16.
+  const double affordable = 64.0 * target * static_cast<double>(n);
+  if (cost <= 16.0 * target * static_cast<double>(n)) {
+    std::fill(crowded.begin(), crowded.end(), 0);
+    crowded_points = 0;
+  } else if (cost - crowded_cost > affordable) {
+    return false;
+  }
   std::size_t table_size = 1;
   while (table_size < 2 * cells) table_size <<= 1;
   g.mask = table_size - 1;
@@ -164,10 +188,86 @@ bool gridKnn(const float* xyz, std::size_t n, int kk, int* idx, float* d2, std::
     pz[s] = xyz[3 * i + 2];
   }
 
+  // The crowded cells' queries: in a grid over their points and those of the cells around
+  // them, which holds every point within h of a crowded point. A row whose kk-th distance is
+  // under h is therefore exact; the others are left to the far outliers' search. Only the
+  // crowded points are queried there (the others are candidates only).
+  std::vector<std::uint32_t> unsettled;  // point indices
+  bool crowd_queried = false;
+  for (std::size_t c = 0; c < cells && crowded_points > 0 && !crowd_queried; ++c)
+    if (crowded[c])
+      for (std::uint32_t q = g.cell_start[c]; q < g.cell_start[c + 1] && !crowd_queried; ++q)
+        crowd_queried = query == nullptr || query[g.order[q]];
+  if (crowd_queried) {
+    std::vector<char> in_sub(cells, 0);
+    for (std::size_t c = 0; c < cells; ++c) {
+      if (!crowded[c]) continue;
+      const std::uint64_t key = g.cell_key[c];
+      const std::int64_t cx = static_cast<std::int64_t>(key % static_cast<std::uint64_t>(g.dim[0]));
+      const std::uint64_t rest = key / static_cast<std::uint64_t>(g.dim[0]);
+      const std::int64_t cy = static_cast<std::int64_t>(rest % static_cast<std::uint64_t>(g.dim[1]));
+      const std::int64_t cz = static_cast<std::int64_t>(rest / static_cast<std::uint64_t>(g.dim[1]));
+      for (int dz = -1; dz <= 1; ++dz)
+        for (int dy = -1; dy <= 1; ++dy)
+          for (int dx = -1; dx <= 1; ++dx) {
+            const int f = g.find(cx + dx, cy + dy, cz + dz);
+            if (f >= 0) in_sub[static_cast<std::size_t>(f)] = 1;
+          }
+    }
+    std::vector<std::uint32_t> sub;  // sorted positions
+    std::vector<char> sub_query;     // crowded and queried
+    for (std::size_t c = 0; c < cells; ++c)
+      if (in_sub[c])
+        for (std::uint32_t q = g.cell_start[c]; q < g.cell_start[c + 1]; ++q) {
+          sub.push_back(q);
+          sub_query.push_back(crowded[c] && (query == nullptr || query[g.order[q]]));
+        }
+    if (sub.size() > n - n / 16) return false;  // the crowd is the cloud: no grid suits it
+    // Cells as fine as the crowd needs: a crowded point's cell holds crowded_cost /
+    // crowded_points points on average, and a surface's count per cell goes as h squared. (The
+    // points around the crowd would make an occupancy-based choice too coarse.)
+    const double sub_h =
+        g.h * std::max(1.0 / 64, std::sqrt(target * static_cast<double>(crowded_points) / crowded_cost));
+    const std::size_t ns = sub.size();
+    std::vector<float> sxyz(3 * ns);
+    for (std::size_t a = 0; a < ns; ++a) {
+      sxyz[3 * a] = px[sub[a]];
+      sxyz[3 * a + 1] = py[sub[a]];
+      sxyz[3 * a + 2] = pz[sub[a]];
+    }
+    const std::size_t skk = static_cast<std::size_t>(kk);
+    std::vector<int> sidx(ns * skk);
+    std::vector<float> sd2(ns * skk);
+    std::vector<std::uint32_t> sfar;
+    if (!gridKnnAt(sxyz.data(), ns, kk, sidx.data(), sd2.data(), &sfar, sub_h, sub_query.data()))
+      return false;
+    const double reach = g.h * (1 - 1e-6);
+    std::size_t next_far = 0;
+    for (std::size_t a = 0; a < ns; ++a) {
+      const bool listed = next_far < sfar.size() && sfar[next_far] == a;
+      next_far += listed;
+      if (!sub_query[a]) continue;
+      const std::uint32_t i = g.order[sub[a]];
+      if (listed || !(static_cast<double>(sd2[a * skk + skk - 1]) <= reach * reach)) {
+        unsettled.push_back(i);
+        continue;
+      }
+      for (std::size_t m = 0; m < skk; ++m) {
+        idx[std::size_t{i} * skk + m] =
+            static_cast<int>(g.order[sub[static_cast<std::size_t>(sidx[a * skk + m])]]);
+        d2[std::size_t{i} * skk + m] = sd2[a * skk + m];
+      }
+    }
+  }
+
   std::size_t brute = 0;
   bool gave_up = false;
   const long long ncells = static_cast<long long>(cells);
-#pragma omp parallel if (static_cast <long long>(n) > kParallelMin)
+  // Parallel when the queries are many (a crowd's grid queries fewer points than it holds).
+  std::size_t queries = n;
+  if (query)
+    queries = static_cast<std::size_t>(std::count_if(query, query + n, [](char q) { return q != 0; }));
+#pragma omp parallel if (queries > kParallelMin / 8)
   {
     std::vector<std::uint32_t> my_far;  // this thread's far outliers (with `far`)
     std::vector<float> bd(static_cast<std::size_t>(kk));
@@ -177,6 +277,12 @@ bool gridKnn(const float* xyz, std::size_t n, int kk, int* idx, float* d2, std::
     std::vector<std::uint64_t> keys;
 #pragma omp for schedule(dynamic, 64)
     for (long long c = 0; c < ncells; ++c) {
+      if (crowded[static_cast<std::size_t>(c)]) continue;  // searched above
+      const std::uint32_t q0 = g.cell_start[static_cast<std::size_t>(c)];
+      const std::uint32_t q1 = g.cell_start[static_cast<std::size_t>(c) + 1];
+      if (query && std::none_of(g.order.begin() + q0, g.order.begin() + q1,
+                                [&](std::uint32_t i) { return query[i] != 0; }))
+        continue;
       const std::uint64_t key = g.cell_key[static_cast<std::size_t>(c)];
       const std::int64_t cx = static_cast<std::int64_t>(key % static_cast<std::uint64_t>(g.dim[0]));
       const std::uint64_t rest = key / static_cast<std::uint64_t>(g.dim[0]);
@@ -217,31 +323,31 @@ bool gridKnn(const float* xyz, std::size_t n, int kk, int* idx, float* d2, std::
       const std::size_t nc = cand_id.size();
       dist.resize(nc);
       keys.resize(nc);
-      float prev_x = 0, prev_y = 0, prev_z = 0, prev_kth = 0;
-      const std::uint32_t q0 = g.cell_start[static_cast<std::size_t>(c)];
-      const std::uint32_t q1 = g.cell_start[static_cast<std::size_t>(c) + 1];
+      float prev_x = 0, prev_y = 0, prev_z = 0;
+      bool have_prev = false;
       for (std::uint32_t q = q0; q < q1; ++q) {
+        if (query && !query[g.order[q]]) continue;
         Best best{bd.data(), bi.data(), kk};
         const float x = px[q], y = py[q], z = pz[q];
-        if (q > q0) {
-          prev_x = px[q - 1];
-          prev_y = py[q - 1];
-          prev_z = pz[q - 1];
-          prev_kth = bd[static_cast<std::size_t>(kk) - 1];
-        }
         for (std::size_t m = 0; m < nc; ++m) {
           const float dx = cand_x[m] - x, dy = cand_y[m] - y, dz = cand_z[m] - z;
           dist[m] = dx * dx + dy * dy + dz * dz;
         }
         // The previous query's kk-th distance, plus the step from it, bounds this one's
         // (triangle inequality): only candidates inside that bound take part in the selection.
+        // (bd still holds the previous query's kk best: real points, so its kk-th distance
+        // bounds that query's true one from above.)
         float bound = std::numeric_limits<float>::infinity();
-        if (q > q0) {
+        if (have_prev) {
           const float step = std::sqrt((x - prev_x) * (x - prev_x) + (y - prev_y) * (y - prev_y) +
                                        (z - prev_z) * (z - prev_z));
-          bound = (std::sqrt(prev_kth) + step) * (1 + 1e-5f);
+          bound = (std::sqrt(bd[static_cast<std::size_t>(kk) - 1]) + step) * (1 + 1e-5f);
           bound *= bound;
         }
+        prev_x = x;
+        prev_y = y;
+        prev_z = z;
+        have_prev = true;
         std::size_t nk = 0;
         for (std::size_t m = 0; m < nc; ++m) {
           std::uint32_t bits;
@@ -323,8 +429,39 @@ bool gridKnn(const float* xyz, std::size_t n, int kk, int* idx, float* d2, std::
       far->insert(far->end(), my_far.begin(), my_far.end());
     }
   }
-  if (far) std::sort(far->begin(), far->end());
+  // Crowded points the sub-grid could not settle: with the far outliers, or against every point.
+  if (far) {
+    far->insert(far->end(), unsettled.begin(), unsettled.end());
+    std::sort(far->begin(), far->end());
+  } else {
+    if (gave_up || brute + unsettled.size() > kMaxBrute) return false;
+    std::vector<float> bd(static_cast<std::size_t>(kk));
+    std::vector<int> bi(static_cast<std::size_t>(kk));
+    for (const std::uint32_t i : unsettled) {
+      Best best{bd.data(), bi.data(), kk};
+      std::fill(bd.begin(), bd.end(), std::numeric_limits<float>::infinity());
+      std::fill(bi.begin(), bi.end(), -1);
+      for (std::size_t j = 0; j < n; ++j) {
+        const float dx = xyz[3 * j] - xyz[3 * std::size_t{i}],
+                    dy = xyz[3 * j + 1] - xyz[3 * std::size_t{i} + 1],
+                    dz = xyz[3 * j + 2] - xyz[3 * std::size_t{i} + 2];
+        best.insert(dx * dx + dy * dy + dz * dz, static_cast<int>(j));
+      }
+      for (int m = 0; m < kk; ++m) {
+        idx[std::size_t{i} * static_cast<std::size_t>(kk) + static_cast<std::size_t>(m)] =
+            bi[static_cast<std::size_t>(m)];
+        d2[std::size_t{i} * static_cast<std::size_t>(kk) + static_cast<std::size_t>(m)] =
+            bd[static_cast<std::size_t>(m)];
+      }
+    }
+  }
   return !gave_up;
+}
+
+}  // namespace
+
+bool gridKnn(const float* xyz, std::size_t n, int kk, int* idx, float* d2, std::vector<std::uint32_t>* far) {
+  return gridKnnAt(xyz, n, kk, idx, d2, far, 0, nullptr);
 }
 
 }  // namespace hgd

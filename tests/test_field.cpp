@@ -304,6 +304,8 @@ TEST(Knn, ExactOnSurfacesVolumesAndOutliers) {
     auto& ft = clouds["bumpy sphere with 3000 far outliers"];
     ft = v;
     for (int i = 0; i < 3000; ++i) ft.emplace_back(50 * u(rng), 50 * u(rng), 1000 + 50 * u(rng));
+    // Small dense pieces (a character's eyes and teeth): their crowded cells get a finer grid.
+    clouds["bumpy sphere with 43 dense pieces"] = hgd::shapes::withDensePieces(v, 43, 400, 0.002f, 5);
     auto& c = clouds["bumpy sphere with a dense clump"];  // too crowded for a grid: the k-d tree
     c = v;
     for (int i = 0; i < 6000; ++i) c.emplace_back(0.3f + 1e-4f * u(rng), 1e-4f * u(rng), 1e-4f * u(rng));
@@ -326,7 +328,8 @@ TEST(Knn, ExactOnSurfacesVolumesAndOutliers) {
       // and on every point at a distance from the others (strays, outliers: another path).
       std::vector<std::size_t> check;
       for (std::size_t i = 0; i < pts.size(); ++i) {
-        if (i % 97 == 0) {
+        // (and every 7th point of the dense pieces, which follow the sphere's 30,000)
+        if (i % 97 == 0 || (name.find("pieces") != std::string::npos && i >= 30000 && i % 7 == 0)) {
           check.push_back(i);
           continue;
         }

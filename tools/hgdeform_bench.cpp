@@ -8,7 +8,8 @@
 // manipulated: a cap on the side) and the Armadillo of ../shared/datasets resampled to N points
 // in random order (fixed: the feet; manipulated: the top of the head), when that file is there:
 // `armadillo` with the faces' normals stored, `armadillo-bare` positions only (normals
-// estimated), `armadillo-outliers` with 1% stray points around it.
+// estimated), `armadillo-outliers` with 1% stray points around it, `armadillo-pieces` with 43
+// small dense pieces holding a quarter as many points again (a character's eyes and teeth).
 // Beside every row, references measured in the same process on the same cloud: PCL's
 // NormalEstimationOMP (k = 10) and a streaming pass (bench_references.h); the ratios printed
 // (build / PCL normals, interpolation / stream) and the peak memory per point are the targets.
@@ -111,6 +112,11 @@ nlohmann::json runSize(const std::string& model, const std::string& armadillo, s
         std::uniform_real_distribution<float> u(-0.1f, 1.1f);
         for (std::size_t k = 0; k < n / 100; ++k)
           p.push_back(lo + Eigen::Vector3f(u(rng), u(rng), u(rng)).cwiseProduct(size));
+      }
+      if (model == "armadillo-pieces") {  // 43 small dense pieces, a quarter of the points
+        const Eigen::AlignedBox3f box = hgd::boundingBox(*s.points);
+        p = hgd::shapes::withDensePieces(std::move(p), 43, std::max<std::size_t>(1, n / 4 / 43),
+                                         0.0015f * (box.max() - box.min()).norm(), 17);
       }
       sampled = hgd::shapes::cloudShape(p, none);
     }
@@ -300,9 +306,10 @@ int parseArgs(int argc, char** argv, BenchArgs& a) {
       ->type_name("R");
   app.add_option("--models", a.models,
                  "sphere, armadillo (face normals stored), armadillo-bare (no normals), armadillo-outliers "
-                 "(1% strays) (default sphere,armadillo)")
+                 "(1% strays), armadillo-pieces (43 small dense pieces) (default sphere,armadillo)")
       ->delimiter(',')
-      ->check(hgdcli::oneOf({"sphere", "armadillo", "armadillo-bare", "armadillo-outliers"}))
+      ->check(
+          hgdcli::oneOf({"sphere", "armadillo", "armadillo-bare", "armadillo-outliers", "armadillo-pieces"}))
       ->type_name("M,M");
   app.add_option("--armadillo", a.armadillo,
                  "the Armadillo mesh (default ../shared/datasets/meshes/armadillo_49990.ply)")

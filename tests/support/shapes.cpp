@@ -171,6 +171,23 @@ Shape bumpySphere(std::size_t count, float amp) {
   return cloudShape(p, n);
 }
 
+std::vector<Eigen::Vector3f> withDensePieces(std::vector<Eigen::Vector3f> body, int pieces,
+                                             std::size_t per_piece, float radius, unsigned seed) {
+  if (body.empty()) return body;
+  std::mt19937 rng(seed);
+  std::normal_distribution<float> gauss(0, 1);
+  const std::size_t n = body.size();
+  for (int k = 0; k < pieces; ++k) {
+    const Eigen::Vector3f centre = body[rng() % n];
+    for (std::size_t i = 0; i < per_piece; ++i) {
+      Eigen::Vector3f d(gauss(rng), gauss(rng), gauss(rng));
+      d /= std::max(d.norm(), 1e-6f);
+      body.push_back(centre + radius * d);
+    }
+  }
+  return body;
+}
+
 Shape sampleMesh(const Shape& mesh, std::size_t n, unsigned seed) {
   const Geometry g = extractGeometry(mesh);
   struct Tri {

@@ -36,6 +36,12 @@ Shape bumpySphere(std::size_t n, float amp = 0.1f);
 /// faces' normals: a resampled scan of any size from a mesh. Deterministic for a seed.
 Shape sampleMesh(const Shape& mesh, std::size_t n, unsigned seed = 1);
 
+/// `body` with `pieces` small dense pieces added, as a character mesh's eyes, teeth and buttons:
+/// spheres of radius `radius` centred on body points chosen at random, `per_piece` points each
+/// (random on the sphere), appended after the body's points. Deterministic for a seed.
+std::vector<Eigen::Vector3f> withDensePieces(std::vector<Eigen::Vector3f> body, int pieces,
+                                             std::size_t per_piece, float radius, unsigned seed);
+
 /// A fork of three box-section bars (a base [0, 0.45] and two prongs [0.4, 1.2] with a gap
 /// of 0.04 between them, 0.06 thick), n points sampled uniformly by area at random like a
 /// resampled mesh, each with its face's normal in a random sign (resamplers do not orient).
