@@ -24,6 +24,7 @@ double targetPerCell(int kk) {
 
 constexpr int kMaxDim = 1 << 20;       // cells per axis (keys pack into 60 bits)
 constexpr int kMaxRing = 8;            // widest shell searched cell by cell before brute force
+constexpr int kMaxRingFar = 4;         // the same when the caller searches far points otherwise
 constexpr std::size_t kMaxBrute = 64;  // points searched against all others before giving up
 constexpr double kCrowded = 8;         // a cell with this many times the target is crowded
 
@@ -383,7 +384,9 @@ bool gridKnnAt(const float* xyz, std::size_t n, int kk, int* idx, float* d2, std
           return static_cast<double>(bd[static_cast<std::size_t>(kk) - 1]) <= reach * reach;
         };
         int ring = 1;
-        while (!safe(ring) && ring < kMaxRing) {
+        // Shell r has about 24 r^2 cells: a stray in an empty region would look up thousands.
+        const int max_ring = far ? kMaxRingFar : kMaxRing;
+        while (!safe(ring) && ring < max_ring) {
           ++ring;
           for (int dz = -ring; dz <= ring; ++dz)
             for (int dy = -ring; dy <= ring; ++dy) {
