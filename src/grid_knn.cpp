@@ -24,7 +24,7 @@ double targetPerCell(int kk) {
 
 constexpr int kMaxDim = 1 << 20;       // cells per axis (keys pack into 60 bits)
 constexpr int kMaxRing = 8;            // widest shell searched cell by cell before brute force
-constexpr int kMaxRingFar = 4;         // the same when the caller searches far points otherwise
+constexpr int kMaxRingFar = 5;         // the same when the caller searches far points otherwise
 constexpr std::size_t kMaxBrute = 64;  // points searched against all others before giving up
 constexpr double kCrowded = 8;         // a cell with this many times the target is crowded
 
@@ -107,9 +107,10 @@ struct Best {
 namespace {
 
 // gridKnn with the cell side given (h > 0) or chosen from the points (h = 0), for the points
-// whose `query` entry is set (null: every point); the other rows are left as they were.
+// whose `query` entry is set (null: every point; the other rows are left as they were),
+// widening the search up to shell `max_ring` before a point counts as far.
 bool gridKnnAt(const float* xyz, std::size_t n, int kk, int* idx, float* d2, std::vector<std::uint32_t>* far,
-               double fixed_h, const char* query) {
+               double fixed_h, const char* query, int max_ring) {
   if (far) far->clear();
   if (n == 0 || kk <= 0) return true;
   if (static_cast<std::size_t>(kk) > n || n >= (1ull << 31)) return false;
@@ -199,7 +200,8 @@ bool gridKnnAt(const float* xyz, std::size_t n, int kk, int* idx, float* d2, std
     if (crowded[c])
       for (std::uint32_t q = g.cell_start[c]; q < g.cell_start[c + 1] && !crowd_queried; ++q)
         crowd_queried = query == nullptr || query[g.order[q]];
-  if (crowd_queried) {
+  // Returns false, having written no row, when no finer grid suits the crowd either.
+  const auto searchCrowd = [&]() {
     std::vector<char> in_sub(cells, 0);
     for (std::size_t c = 0; c < cells; ++c) {
       if (!crowded[c]) continue;
@@ -223,7 +225,7 @@ bool gridKnnAt(const float* xyz, std::size_t n, int kk, int* idx, float* d2, std
           sub.push_back(q);
           sub_query.push_back(crowded[c] && (query == nullptr || query[g.order[q]]));
         }
-    if (sub.size() > n - n / 16) return false;  // the crowd is the cloud: no grid suits it
+    if (sub.size() > n - n / 16) return false;  // the crowd is the cloud
     // Cells as fine as the crowd needs: a crowded point's cell holds crowded_cost /
     // crowded_points points on average, and a surface's count per cell goes as h squared. (The
     // points around the crowd would make an occupancy-based choice too coarse.)
@@ -240,8 +242,8 @@ bool gridKnnAt(const float* xyz, std::size_t n, int kk, int* idx, float* d2, std
     std::vector<int> sidx(ns * skk);
     std::vector<float> sd2(ns * skk);
     std::vector<std::uint32_t> sfar;
-    if (!gridKnnAt(sxyz.data(), ns, kk, sidx.data(), sd2.data(), &sfar, sub_h, sub_query.data()))
-      return false;
+    if (!gridKnnAt(sxyz.data(), ns, kk, sidx.data(), sd2.data(), &sfar, sub_h, sub_query.data(), kMaxRing))
+      return false;  // (rows are written below only)
     const double reach = g.h * (1 - 1e-6);
     std::size_t next_far = 0;
     for (std::size_t a = 0; a < ns; ++a) {
@@ -259,16 +261,22 @@ bool gridKnnAt(const float* xyz, std::size_t n, int kk, int* idx, float* d2, std
         d2[std::size_t{i} * skk + m] = sd2[a * skk + m];
       }
     }
+    return true;
+  };
+  if (crowd_queried && !searchCrowd()) {
+    // This grid then, crowd and all, if it can afford that (duplicates: a crowd no grid splits).
+    if (cost > affordable) return false;
+    std::fill(crowded.begin(), crowded.end(), 0);
   }
 
   std::size_t brute = 0;
   bool gave_up = false;
   const long long ncells = static_cast<long long>(cells);
-  // Parallel when the queries are many (a crowd's grid queries fewer points than it holds).
-  std::size_t queries = n;
-  if (query)
-    queries = static_cast<std::size_t>(std::count_if(query, query + n, [](char q) { return q != 0; }));
-#pragma omp parallel if (queries > kParallelMin / 8)
+  // Parallel with enough queries: every point, above kParallelMin; a crowd's (fewer queries than
+  // points, each one dearer), above an eighth of that.
+  bool parallel = static_cast<long long>(n) > kParallelMin;
+  if (query) parallel = std::count_if(query, query + n, [](char q) { return q != 0; }) > kParallelMin / 8;
+#pragma omp parallel if (parallel)
   {
     std::vector<std::uint32_t> my_far;  // this thread's far outliers (with `far`)
     std::vector<float> bd(static_cast<std::size_t>(kk));
@@ -384,8 +392,7 @@ bool gridKnnAt(const float* xyz, std::size_t n, int kk, int* idx, float* d2, std
           return static_cast<double>(bd[static_cast<std::size_t>(kk) - 1]) <= reach * reach;
         };
         int ring = 1;
-        // Shell r has about 24 r^2 cells: a stray in an empty region would look up thousands.
-        const int max_ring = far ? kMaxRingFar : kMaxRing;
+        // (Shell r has about 24 r^2 cells: up to shell 8, some 4,900 look-ups.)
         while (!safe(ring) && ring < max_ring) {
           ++ring;
           for (int dz = -ring; dz <= ring; ++dz)
@@ -464,7 +471,10 @@ bool gridKnnAt(const float* xyz, std::size_t n, int kk, int* idx, float* d2, std
 }  // namespace
 
 bool gridKnn(const float* xyz, std::size_t n, int kk, int* idx, float* d2, std::vector<std::uint32_t>* far) {
-  return gridKnnAt(xyz, n, kk, idx, d2, far, 0, nullptr);
+  // The caller's far points cost a k-d tree over the whole cloud, once: a stray in an empty
+  // region is better sent there than widened around shell by shell. A crowd's own grid widens
+  // further (its sparse edge at a finer cell side), as its far rows end up with the caller's.
+  return gridKnnAt(xyz, n, kk, idx, d2, far, 0, nullptr, far ? kMaxRingFar : kMaxRing);
 }
 
 }  // namespace hgd

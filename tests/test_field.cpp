@@ -8,6 +8,7 @@
 #include <random>
 #include <string>
 
+#include "../src/grid_knn.h"  // the grid search itself: which clouds it keeps
 #include "hgdeform/geometry.h"
 #include "hgdeform/harmonic_field.h"
 #include "hgdeform/neighbors.h"
@@ -365,6 +366,54 @@ TEST(Knn, ExactOnSurfacesVolumesAndOutliers) {
 // (a third of a spacing apart: pairs between the layers are across a thin gap), with some
 // normals flipped on both layers (pairs beside each other stay) and duplicate rows. The dropped pairs are
 // listed exactly.
+// Small pieces so dense beside a large sparse surface that one grid for all would cost too much
+// (the grid used to give up and send every point to a k-d tree): the crowd gets a finer grid of
+// its own, and the grid search keeps the cloud, exact. Pieces of coincident points (duplicates:
+// no grid splits them) stay on the one grid when it can afford them.
+TEST(Knn, CrowdedPiecesStayOnTheGrid) {
+  const hgd::Geometry g = hgd::extractGeometry(hgd::shapes::bumpySphere(30000));
+  std::vector<Eigen::Vector3f> sphere;
+  for (const auto& p : *g.points) sphere.push_back(p.getVector3fMap());
+  std::map<std::string, std::vector<Eigen::Vector3f>> clouds;
+  clouds["43 dense pieces"] = hgd::shapes::withDensePieces(sphere, 43, 3000, 0.002f, 5);
+  clouds["43 pieces of 400 duplicates"] = hgd::shapes::withDensePieces(sphere, 43, 400, 0.0f, 5);
+  for (const auto& [name, pts] : clouds) {
+    SCOPED_TRACE(name);
+    const std::size_t n = pts.size();
+    const int kk = 11;  // k = 10 and the point itself
+    std::vector<float> xyz;
+    for (const auto& p : pts) xyz.insert(xyz.end(), {p.x(), p.y(), p.z()});
+    std::vector<int> idx(n * kk, -2);
+    std::vector<float> d2(n * kk);
+    std::vector<std::uint32_t> far;
+    ASSERT_TRUE(hgd::gridKnn(xyz.data(), n, kk, idx.data(), d2.data(), &far));
+    std::vector<char> is_far(n, 0);
+    for (const auto f : far) is_far[f] = 1;
+    EXPECT_LE(far.size(), n / 1000);
+    // Every 11th point of the pieces and every 97th of the sphere against brute force: each
+    // listed neighbour among the kk nearest, and the kk-th distance (to float rounding: the
+    // search sums the squares in its own order).
+    std::size_t wrong = 0, checked = 0;
+    std::vector<float> d(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      if (is_far[i] || !(i >= 30000 ? i % 11 == 0 : i % 97 == 0)) continue;
+      for (std::size_t j = 0; j < n; ++j) d[j] = (pts[j] - pts[i]).squaredNorm();
+      std::vector<float> sorted(d);
+      std::nth_element(sorted.begin(), sorted.begin() + (kk - 1), sorted.end());
+      const float kth = sorted[kk - 1], tol = 1e-5f * kth + 1e-12f;
+      bool ok = std::abs(d2[i * kk + kk - 1] - kth) <= tol;
+      for (int m = 0; m < kk; ++m) {
+        const int j = idx[i * kk + static_cast<std::size_t>(m)];
+        ok = ok && j >= 0 && static_cast<std::size_t>(j) < n && d[static_cast<std::size_t>(j)] <= kth + tol;
+      }
+      wrong += !ok;
+      ++checked;
+    }
+    EXPECT_GT(checked, 1000u);
+    EXPECT_EQ(wrong, 0u);
+  }
+}
+
 TEST(Knn, GraphIsTheSymmetricFilteredRelation) {
   const hgd::Geometry inner = hgd::extractGeometry(hgd::shapes::bumpySphere(15000, 0.0f));
   std::vector<Eigen::Vector3f> p, nv;
