@@ -39,7 +39,10 @@ void Deformer::setHandles(const Handles& handles) {
 void Deformer::rebuild() {
   if (handles_.manipulated.empty()) throw std::invalid_argument("Deformer: the manipulated handle is empty");
   if (handles_.fixed.empty()) throw std::invalid_argument("Deformer: no fixed handle");
-  updateNormals();  // before the tables change
+  // The tables change: normals due on points a preview frame will leave alone, now; without a
+  // preview the first frame derives them all again.
+  if (!preview_.empty()) updateNormals();
+  normals_.all_due = normals_.preview_due = false;
   Stopwatch sw;
   // The field object keeps normals, kNN and the graph: new handles only re-solve.
   field_.setHandles(handles_.fixed, handles_.manipulated);
@@ -330,9 +333,9 @@ void Deformer::setPreview(std::vector<int> points) {
     if (i < 0 || static_cast<std::size_t>(i) >= geometry_.size())
       throw std::invalid_argument("Deformer::setPreview: point index out of range");
   const bool was = !preview_.empty();
-  // The normals due (a full frame's, or the old preview's) before the preview changes: the
-  // points a preview frame leaves alone keep those of their last frame.
-  updateNormals();
+  // The old preview's normals, if due, before its table goes (a full frame's keep: they are
+  // computed from its own transforms whenever asked for).
+  if (normals_.preview_due) updateNormals();
   preview_request_ = std::move(points);
   buildPreviewTable();
   if (was && preview_.empty()) updateShape();  // the points left behind catch up
@@ -360,7 +363,6 @@ void Deformer::buildPreviewTable() {
 }
 
 void Deformer::setBlend(Blend blend) {
-  updateNormals();  // with the blend their positions had
   options_.blend = blend;
   updateShape();
 }
@@ -379,12 +381,17 @@ void Deformer::updateShape() {
   }
   if (preview_.empty()) {
     interpolatePositions(table_, local_, positions_, options_.blend);
-    normals_due_ = NormalsDue::All;
+    const std::lock_guard<std::mutex> lock(normals_.mutex);
+    normals_.all_due = true;
+    normals_.all_transforms = local_;
+    normals_.all_blend = options_.blend;
+    normals_.preview_due = false;
   } else {
     interpolatePositions(preview_table_, local_, preview_points_, options_.blend);
     for (std::size_t k = 0; k < preview_.size(); ++k)
       positions_[static_cast<std::size_t>(preview_[k])] = preview_points_[k];
-    if (normals_due_ == NormalsDue::None) normals_due_ = NormalsDue::Preview;
+    const std::lock_guard<std::mutex> lock(normals_.mutex);
+    normals_.preview_due = true;
   }
   interp_ms_ = sw.ms();
 }
@@ -409,14 +416,18 @@ SurfaceStretch Deformer::surfaceStretch() const {
 }
 
 void Deformer::updateNormals() const {
-  if (normals_due_ == NormalsDue::All) {
-    interpolateNormals(table_, local_, out_normals_, options_.blend);
-  } else if (normals_due_ == NormalsDue::Preview && table_.has_normals) {
+  const std::lock_guard<std::mutex> lock(normals_.mutex);
+  // The last full frame's (the points a preview frame left alone keep those), then the preview's.
+  if (normals_.all_due) {
+    interpolateNormals(table_, normals_.all_transforms, out_normals_, normals_.all_blend);
+    normals_.all_due = false;
+  }
+  if (normals_.preview_due && table_.has_normals) {
     interpolateNormals(preview_table_, local_, preview_normals_, options_.blend);
     for (std::size_t k = 0; k < preview_.size(); ++k)
       out_normals_[static_cast<std::size_t>(preview_[k])] = preview_normals_[k];
   }
-  normals_due_ = NormalsDue::None;
+  normals_.preview_due = false;
 }
 
 const std::vector<Eigen::Vector3f>& Deformer::deformedNormals() const {

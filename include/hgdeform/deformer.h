@@ -10,6 +10,7 @@
 #pragma once
 
 #include <Eigen/Geometry>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -126,12 +127,14 @@ class Deformer {
   const std::vector<Eigen::Vector3f>& deformedPoints() const { return positions_; }
   /// The normals of deformedPoints() (the rest normals turned as their points' transforms
   /// turn). A move transforms positions only; the normals are derived on the first call after
-  /// it (so, like every call that moves, not concurrently with another call on this Deformer).
+  /// it (safe from concurrent const calls), so a reference kept from an earlier call shows
+  /// normals as of that call until this is called again.
   const std::vector<Eigen::Vector3f>& deformedNormals() const;
   Eigen::Vector3d deformedWorld(std::size_t i) const {
     return positions_[i].cast<double>() + geometry_.origin;
   }
-  /// Stores the deformed positions (and normals, where the shape has normal fields).
+  /// Stores the deformed positions (and normals, where the shape has normal fields; derived
+  /// here if a move left them due, as deformedNormals() does).
   void writeDeformed(Shape& shape) const;
 
   const Geometry& geometry() const { return geometry_; }
@@ -194,10 +197,16 @@ class Deformer {
   // Per-frame buffers.
   std::vector<LocalTransform> local_;
   std::vector<Eigen::Vector3f> positions_;
-  // Normals are derived when asked for: which points' are behind their positions.
-  enum class NormalsDue { None, All, Preview };
+  // Normals are derived when asked for, each point's from the transforms its position came
+  // from: the last full frame's (kept here) and, for the preview's points, the current ones.
   mutable std::vector<Eigen::Vector3f> out_normals_;
-  mutable NormalsDue normals_due_ = NormalsDue::None;
+  struct DueNormals {
+    std::mutex mutex;  // const readers may derive them concurrently
+    bool all_due = false, preview_due = false;
+    std::vector<LocalTransform> all_transforms;
+    Blend all_blend = Blend::Rotation;
+  };
+  mutable DueNormals normals_;
   BuildTimings build_;
   double interp_ms_ = 0;
 };
