@@ -120,72 +120,66 @@ inline Eigen::Vector3f blendedRotate(const PairFrame& f, float w, const Eigen::V
   return x + s * (q[3] * a + u.cross(a));
 }
 
-}  // namespace
-
-void interpolatePositions(const InterpolationTable& table, const std::vector<LocalTransform>& transforms,
-                          std::vector<Eigen::Vector3f>& out_points, Blend blend) {
+// Every point of the table, in parallel: `linear(i, record, lower, upper)` with the two
+// clusters' transforms, or for the rotation-aware blend `rotation(i, record, pair frame)`.
+template <typename Linear, typename Rotation>
+void forEachPoint(const InterpolationTable& table, const std::vector<LocalTransform>& transforms, Blend blend,
+                  Linear&& linear, Rotation&& rotation) {
   const long long n = static_cast<long long>(table.size());
   const InterpolationTable::Point* pts = table.points.data();
-  Eigen::Vector3f* out_p = out_points.data();
   if (blend == Blend::Linear) {
     const std::pair<int, int>* pairs = table.pairs.data();
     const LocalTransform* tr = transforms.data();
 #pragma omp parallel for schedule(static) if (n > kParallelMin)
     for (long long i = 0; i < n; ++i) {
-      const InterpolationTable::Point& r = pts[i];
-      const std::pair<int, int>& pr = pairs[r.pair];
-      const LocalTransform& a = tr[pr.first];
-      const LocalTransform& b = tr[pr.second];
-      const float w = r.alpha;
-      const Eigen::Matrix3f m = (1.0f - w) * a.A + w * b.A;
-      out_p[i] = m * Eigen::Vector3f(r.p[0], r.p[1], r.p[2]) + (1.0f - w) * a.b + w * b.b;
+      const std::pair<int, int>& pr = pairs[pts[i].pair];
+      linear(i, pts[i], tr[pr.first], tr[pr.second]);
     }
     return;
   }
   const std::vector<PairFrame> frames = pairFrames(table, transforms);
   const PairFrame* fr = frames.data();
 #pragma omp parallel for schedule(static) if (n > kParallelMin)
-  for (long long i = 0; i < n; ++i) {
-    const InterpolationTable::Point& r = pts[i];
-    const PairFrame& f = fr[r.pair];
-    const Eigen::Vector3f p(r.p[0], r.p[1], r.p[2]);
-    if (f.own) {
-      out_p[i] = f.own->A * p + f.own->b;
-      continue;
-    }
-    const float w = r.alpha, v = 1.0f - w;
-    out_p[i] = blendedRotate(f, w, p - f.c) + v * f.ta + w * f.tb;
-  }
+  for (long long i = 0; i < n; ++i) rotation(i, pts[i], fr[pts[i].pair]);
+}
+
+}  // namespace
+
+void interpolatePositions(const InterpolationTable& table, const std::vector<LocalTransform>& transforms,
+                          std::vector<Eigen::Vector3f>& out_points, Blend blend) {
+  using Point = InterpolationTable::Point;
+  Eigen::Vector3f* out = out_points.data();
+  forEachPoint(
+      table, transforms, blend,
+      [out](long long i, const Point& r, const LocalTransform& a, const LocalTransform& b) {
+        const float w = r.alpha;
+        const Eigen::Matrix3f m = (1.0f - w) * a.A + w * b.A;
+        out[i] = m * Eigen::Vector3f(r.p[0], r.p[1], r.p[2]) + (1.0f - w) * a.b + w * b.b;
+      },
+      [out](long long i, const Point& r, const PairFrame& f) {
+        const Eigen::Vector3f p(r.p[0], r.p[1], r.p[2]);
+        const float w = r.alpha, v = 1.0f - w;
+        out[i] = f.own ? Eigen::Vector3f(f.own->A * p + f.own->b)
+                       : Eigen::Vector3f(blendedRotate(f, w, p - f.c) + v * f.ta + w * f.tb);
+      });
 }
 
 void interpolateNormals(const InterpolationTable& table, const std::vector<LocalTransform>& transforms,
                         std::vector<Eigen::Vector3f>& out_normals, Blend blend) {
   if (!table.has_normals) return;
-  const long long n = static_cast<long long>(table.size());
-  const InterpolationTable::Point* pts = table.points.data();
+  using Point = InterpolationTable::Point;
   const Eigen::Vector3f* rest = table.normals.data();
-  Eigen::Vector3f* out_n = out_normals.data();
-  if (blend == Blend::Linear) {
-    const std::pair<int, int>* pairs = table.pairs.data();
-    const LocalTransform* tr = transforms.data();
-#pragma omp parallel for schedule(static) if (n > kParallelMin)
-    for (long long i = 0; i < n; ++i) {
-      const InterpolationTable::Point& r = pts[i];
-      const std::pair<int, int>& pr = pairs[r.pair];
-      const float w = r.alpha;
-      out_n[i] = transformNormal((1.0f - w) * tr[pr.first].A + w * tr[pr.second].A, rest[i]);
-    }
-    return;
-  }
-  const std::vector<PairFrame> frames = pairFrames(table, transforms);
-  const PairFrame* fr = frames.data();
-#pragma omp parallel for schedule(static) if (n > kParallelMin)
-  for (long long i = 0; i < n; ++i) {
-    const InterpolationTable::Point& r = pts[i];
-    const PairFrame& f = fr[r.pair];
-    // A rotation: R^-T = R.
-    out_n[i] = f.own ? transformNormal(f.own->A, rest[i]) : blendedRotate(f, r.alpha, rest[i]);
-  }
+  Eigen::Vector3f* out = out_normals.data();
+  forEachPoint(
+      table, transforms, blend,
+      [out, rest](long long i, const Point& r, const LocalTransform& a, const LocalTransform& b) {
+        const float w = r.alpha;
+        out[i] = transformNormal((1.0f - w) * a.A + w * b.A, rest[i]);
+      },
+      [out, rest](long long i, const Point& r, const PairFrame& f) {
+        // A rotation: R^-T = R.
+        out[i] = f.own ? transformNormal(f.own->A, rest[i]) : blendedRotate(f, r.alpha, rest[i]);
+      });
 }
 
 void interpolate(const InterpolationTable& table, const std::vector<LocalTransform>& transforms,
