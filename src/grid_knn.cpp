@@ -22,11 +22,10 @@ double targetPerCell(int kk) {
   return std::max(2.0, kk * 0.6);
 }
 
-constexpr int kMaxDim = 1 << 20;       // cells per axis (keys pack into 60 bits)
-constexpr int kMaxRing = 8;            // widest shell searched cell by cell before brute force
-constexpr int kMaxRingFar = 5;         // the same when the caller searches far points otherwise
-constexpr std::size_t kMaxBrute = 64;  // points searched against all others before giving up
-constexpr double kCrowded = 8;         // a cell with this many times the target is crowded
+constexpr int kMaxDim = 1 << 20;  // cells per axis (keys pack into 60 bits)
+constexpr int kMaxRing = 8;       // widest shell a crowd's own grid searches cell by cell
+constexpr int kMaxRingFar = 5;    // the same for the whole cloud: beyond it a point is far
+constexpr double kCrowded = 8;    // a cell with this many times the target is crowded
 
 struct Grid {
   double lo[3] = {0, 0, 0};
@@ -109,9 +108,9 @@ namespace {
 // gridKnn with the cell side given (h > 0) or chosen from the points (h = 0), for the points
 // whose `query` entry is set (null: every point; the other rows are left as they were),
 // widening the search up to shell `max_ring` before a point counts as far.
-bool gridKnnAt(const float* xyz, std::size_t n, int kk, int* idx, float* d2, std::vector<std::uint32_t>* far,
+bool gridKnnAt(const float* xyz, std::size_t n, int kk, int* idx, float* d2, std::vector<std::uint32_t>& far,
                double fixed_h, const char* query, int max_ring) {
-  if (far) far->clear();
+  far.clear();
   if (n == 0 || kk <= 0) return true;
   if (static_cast<std::size_t>(kk) > n || n >= (1ull << 31)) return false;
   Grid g;
@@ -242,7 +241,7 @@ bool gridKnnAt(const float* xyz, std::size_t n, int kk, int* idx, float* d2, std
     std::vector<int> sidx(ns * skk);
     std::vector<float> sd2(ns * skk);
     std::vector<std::uint32_t> sfar;
-    if (!gridKnnAt(sxyz.data(), ns, kk, sidx.data(), sd2.data(), &sfar, sub_h, sub_query.data(), kMaxRing))
+    if (!gridKnnAt(sxyz.data(), ns, kk, sidx.data(), sd2.data(), sfar, sub_h, sub_query.data(), kMaxRing))
       return false;  // (rows are written below only)
     const double reach = g.h * (1 - 1e-6);
     std::size_t next_far = 0;
@@ -269,8 +268,6 @@ bool gridKnnAt(const float* xyz, std::size_t n, int kk, int* idx, float* d2, std
     std::fill(crowded.begin(), crowded.end(), 0);
   }
 
-  std::size_t brute = 0;
-  bool gave_up = false;
   const long long ncells = static_cast<long long>(cells);
   // Parallel with enough queries: every point, above kParallelMin; a crowd's (fewer queries than
   // points, each one dearer), above an eighth of that.
@@ -278,7 +275,7 @@ bool gridKnnAt(const float* xyz, std::size_t n, int kk, int* idx, float* d2, std
   if (query) parallel = std::count_if(query, query + n, [](char q) { return q != 0; }) > kParallelMin / 8;
 #pragma omp parallel if (parallel)
   {
-    std::vector<std::uint32_t> my_far;  // this thread's far outliers (with `far`)
+    std::vector<std::uint32_t> my_far;  // this thread's far outliers
     std::vector<float> bd(static_cast<std::size_t>(kk));
     std::vector<int> bi(static_cast<std::size_t>(kk));
     std::vector<float> cand_x, cand_y, cand_z, dist;
@@ -409,23 +406,9 @@ bool gridKnnAt(const float* xyz, std::size_t n, int kk, int* idx, float* d2, std
               }
             }
         }
-        if (!safe(ring) && far) {  // a far outlier: the caller's
+        if (!safe(ring)) {  // a far outlier: the caller's
           my_far.push_back(g.order[q]);
           continue;
-        }
-        if (!safe(ring)) {  // a far outlier: against every point, a few times at most
-          bool go = false;
-#pragma omp critical(hgd_grid_knn_brute)
-          {
-            go = !gave_up && ++brute <= kMaxBrute;
-            if (!go) gave_up = true;
-          }
-          if (!go) continue;
-          std::fill(bd.begin(), bd.end(), std::numeric_limits<float>::infinity());
-          for (std::uint32_t s = 0; s < n; ++s) {
-            const float ddx = px[s] - x, ddy = py[s] - y, ddz = pz[s] - z;
-            best.insert(ddx * ddx + ddy * ddy + ddz * ddz, static_cast<int>(s));
-          }
         }
         const std::size_t out = static_cast<std::size_t>(g.order[q]) * static_cast<std::size_t>(kk);
         for (int m = 0; m < kk; ++m) {
@@ -434,47 +417,24 @@ bool gridKnnAt(const float* xyz, std::size_t n, int kk, int* idx, float* d2, std
         }
       }
     }
-    if (far && !my_far.empty()) {
+    if (!my_far.empty()) {
 #pragma omp critical(hgd_grid_knn_far)
-      far->insert(far->end(), my_far.begin(), my_far.end());
+      far.insert(far.end(), my_far.begin(), my_far.end());
     }
   }
-  // Crowded points the sub-grid could not settle: with the far outliers, or against every point.
-  if (far) {
-    far->insert(far->end(), unsettled.begin(), unsettled.end());
-    std::sort(far->begin(), far->end());
-  } else {
-    if (gave_up || brute + unsettled.size() > kMaxBrute) return false;
-    std::vector<float> bd(static_cast<std::size_t>(kk));
-    std::vector<int> bi(static_cast<std::size_t>(kk));
-    for (const std::uint32_t i : unsettled) {
-      Best best{bd.data(), bi.data(), kk};
-      std::fill(bd.begin(), bd.end(), std::numeric_limits<float>::infinity());
-      std::fill(bi.begin(), bi.end(), -1);
-      for (std::size_t j = 0; j < n; ++j) {
-        const float dx = xyz[3 * j] - xyz[3 * std::size_t{i}],
-                    dy = xyz[3 * j + 1] - xyz[3 * std::size_t{i} + 1],
-                    dz = xyz[3 * j + 2] - xyz[3 * std::size_t{i} + 2];
-        best.insert(dx * dx + dy * dy + dz * dz, static_cast<int>(j));
-      }
-      for (int m = 0; m < kk; ++m) {
-        idx[std::size_t{i} * static_cast<std::size_t>(kk) + static_cast<std::size_t>(m)] =
-            bi[static_cast<std::size_t>(m)];
-        d2[std::size_t{i} * static_cast<std::size_t>(kk) + static_cast<std::size_t>(m)] =
-            bd[static_cast<std::size_t>(m)];
-      }
-    }
-  }
-  return !gave_up;
+  // Crowded points the sub-grid could not settle go with the far outliers.
+  far.insert(far.end(), unsettled.begin(), unsettled.end());
+  std::sort(far.begin(), far.end());
+  return true;
 }
 
 }  // namespace
 
-bool gridKnn(const float* xyz, std::size_t n, int kk, int* idx, float* d2, std::vector<std::uint32_t>* far) {
+bool gridKnn(const float* xyz, std::size_t n, int kk, int* idx, float* d2, std::vector<std::uint32_t>& far) {
   // The caller's far points cost a k-d tree over the whole cloud, once: a stray in an empty
   // region is better sent there than widened around shell by shell. A crowd's own grid widens
   // further (its sparse edge at a finer cell side), as its far rows end up with the caller's.
-  return gridKnnAt(xyz, n, kk, idx, d2, far, 0, nullptr, far ? kMaxRingFar : kMaxRing);
+  return gridKnnAt(xyz, n, kk, idx, d2, far, 0, nullptr, kMaxRingFar);
 }
 
 }  // namespace hgd

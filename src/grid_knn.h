@@ -14,11 +14,9 @@ namespace hgd {
 /// when the points are too unevenly spread for a grid (crowded cells, huge extents) or not
 /// finite: the caller then uses a k-d tree.
 ///
-/// Far outliers, whose neighbours lie beyond the shells a grid searches cell by cell: without
-/// `far`, up to 64 of them are searched against every point and more make it return false;
-/// with `far`, they are listed there (point indices, ascending) with their rows unfinished,
-/// for the caller to search otherwise, and the rest of the cloud keeps the grid's results.
-bool gridKnn(const float* xyz, std::size_t n, int kk, int* idx, float* d2,
-             std::vector<std::uint32_t>* far = nullptr);
+/// Far outliers, whose neighbours lie beyond the shells a grid searches cell by cell, are
+/// listed in `far` (point indices, ascending) with their rows unfinished, for the caller to
+/// search otherwise; the rest of the cloud keeps the grid's results.
+bool gridKnn(const float* xyz, std::size_t n, int kk, int* idx, float* d2, std::vector<std::uint32_t>& far);
 
 }  // namespace hgd

@@ -151,7 +151,7 @@ KnnTable knnOfDistinct(const pcl::PointCloud<pcl::PointXYZ>& points, int k, bool
   const flann::Matrix<float> data(xyz.get(), n, 3);
   flann::SearchParams params(flann::FLANN_CHECKS_UNLIMITED, 0.0f, true);
   params.cores = 0;  // all cores
-  if (!gridKnn(xyz.get(), n, static_cast<int>(kk), idx.get(), d2.get(), &far)) {
+  if (!gridKnn(xyz.get(), n, static_cast<int>(kk), idx.get(), d2.get(), far)) {
     std::fill(idx.get(), idx.get() + n * kk, -1);  // FLANN leaves slots unset when distances overflow
     flann::Index<flann::L2_Simple<float>> index(data, flann::KDTreeSingleIndexParams(15));
     index.buildIndex();

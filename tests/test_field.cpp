@@ -386,7 +386,7 @@ TEST(Knn, CrowdedPiecesStayOnTheGrid) {
     std::vector<int> idx(n * kk, -2);
     std::vector<float> d2(n * kk);
     std::vector<std::uint32_t> far;
-    ASSERT_TRUE(hgd::gridKnn(xyz.data(), n, kk, idx.data(), d2.data(), &far));
+    ASSERT_TRUE(hgd::gridKnn(xyz.data(), n, kk, idx.data(), d2.data(), far));
     std::vector<char> is_far(n, 0);
     for (const auto f : far) is_far[f] = 1;
     EXPECT_LE(far.size(), n / 1000);
