@@ -17,9 +17,15 @@ constexpr double kPinWeight = 1e4;           // relative weight of the barycentr
 
 Deformer::Deformer(const Geometry& geometry, const Handles& handles, const DeformOptions& options)
     : geometry_(geometry), handles_(handles), options_(options) {
-  field_.setInputCloud(geometry_.points);
-  if (geometry_.hasFileNormals()) field_.setInputNormals(geometry_.file_normals);
-  if (!geometry_.faces.empty()) field_.setPolygons(geometry_.faces);
+  // The mesh's 1-ring, when asked for, is a graph over every vertex: full resolution.
+  multires_ = options_.multires_above > 0 && geometry_.size() > options_.multires_above &&
+              options_.coarse_points > 0 && options_.coarse_points < geometry_.size() &&
+              !(options_.field.mesh_ring && !geometry_.faces.empty());
+  if (!multires_) {  // else rebuild() gives the field the coarse level of the handles
+    field_.setInputCloud(geometry_.points);
+    if (geometry_.hasFileNormals()) field_.setInputNormals(geometry_.file_normals);
+    if (!geometry_.faces.empty()) field_.setPolygons(geometry_.faces);
+  }
   field_.setOptions(options_.field);
   const Eigen::AlignedBox3f box = boundingBox(*geometry_.points);
   const Eigen::Vector3d lo = box.min().cast<double>(), hi = box.max().cast<double>();
@@ -44,26 +50,42 @@ void Deformer::rebuild() {
   if (!preview_.empty()) updateNormals();
   normals_.all_due = normals_.preview_due = false;
   Stopwatch sw;
-  // The field object keeps normals, kNN and the graph: new handles only re-solve.
-  field_.setHandles(handles_.fixed, handles_.manipulated);
-  field_.compute(phi_);
-  build_.field = field_.timings();
-  build_.field_ms = sw.lap();
+  if (multires_) {
+    coarse_ = coarsen(*geometry_.points, handles_, options_.coarse_points);
+    if (coarse_.empty()) {  // thousands of handles: no cell key holds them all
+      multires_ = false;
+      field_.setInputCloud(geometry_.points);
+      if (geometry_.hasFileNormals()) field_.setInputNormals(geometry_.file_normals);
+      if (!geometry_.faces.empty()) field_.setPolygons(geometry_.faces);
+    }
+  }
+  if (multires_) {
+    buildCoarse(sw);
+  } else {
+    // The field object keeps normals, kNN and the graph: new handles only re-solve.
+    field_.setHandles(handles_.fixed, handles_.manipulated);
+    field_.compute(phi_);
+    build_.field = field_.timings();
+    build_.field_ms = sw.lap();
+    build_.coarse_ms = 0;
+    unreachable_points_ = field_.unreachable().size();
 
-  const auto& pts = *geometry_.points;
-  const NeighborGraph& graph = field_.graph();
-  // Stray points of a scan stay out of the sample (meshes have none).
-  const std::vector<char>& outliers = field_.outliers();
-  const std::vector<int> sample =
-      sampleSurface(pts, handles_, options_.clusters.samples, outliers.empty() ? nullptr : &outliers);
-  build_.sampling_ms = sw.lap();
-  pieces_ = analysePieces(pts, graph, field_.pieceLabels(), handles_, sample);
-  clustering_ = buildClusters(pts, graph, phi_, handles_, field_.unreachable(), sample, options_.clusters,
-                              pieces_.follow, outliers);
-  // Normals rotate with the shape as the file gave them (the filter may have re-oriented its
-  // own copy).
-  table_ = buildInterpolation(phi_, handles_, clustering_, pts,
-                              geometry_.hasFileNormals() ? geometry_.file_normals.get() : &field_.normals());
+    const auto& pts = *geometry_.points;
+    const NeighborGraph& graph = field_.graph();
+    // Stray points of a scan stay out of the sample (meshes have none).
+    const std::vector<char>& outliers = field_.outliers();
+    const std::vector<int> sample =
+        sampleSurface(pts, handles_, options_.clusters.samples, outliers.empty() ? nullptr : &outliers);
+    build_.sampling_ms = sw.lap();
+    pieces_ = analysePieces(pts, graph, field_.pieceLabels(), handles_, sample);
+    clustering_ = buildClusters(pts, graph, phi_, handles_, field_.unreachable(), sample, options_.clusters,
+                                pieces_.follow, outliers);
+    // Normals rotate with the shape as the file gave them (the filter may have re-oriented its
+    // own copy).
+    table_ =
+        buildInterpolation(phi_, handles_, clustering_, pts,
+                           geometry_.hasFileNormals() ? geometry_.file_normals.get() : &field_.normals());
+  }
   buildPreviewTable();
   build_.clusters_ms = sw.lap();
 
@@ -72,6 +94,81 @@ void Deformer::rebuild() {
   picked_ = -1;
   updateShape();
   build_.setup_ms = sw.lap();
+}
+
+void Deformer::buildCoarse(Stopwatch& sw) {
+  const auto& pts = *geometry_.points;
+  const std::size_t m = coarse_.points.size();
+  pcl::PointCloud<pcl::PointXYZ>::Ptr cloud(new pcl::PointCloud<pcl::PointXYZ>);
+  cloud->resize(m);
+  for (std::size_t a = 0; a < m; ++a) (*cloud)[a] = pts[static_cast<std::size_t>(coarse_.points[a])];
+  // The coarse level is a cloud: the file's normals, else a mesh's (where every coarse vertex
+  // has one), else estimated there.
+  pcl::PointCloud<pcl::Normal>::Ptr normals;
+  pcl::PointCloud<pcl::Normal>::ConstPtr full = geometry_.hasFileNormals() ? geometry_.file_normals : nullptr;
+  if (!full && !geometry_.faces.empty()) full = meshNormals(pts, geometry_.faces);
+  if (full) {
+    normals.reset(new pcl::PointCloud<pcl::Normal>);
+    normals->resize(m);
+    bool finite = true;
+    for (std::size_t a = 0; a < m && finite; ++a) {
+      (*normals)[a] = (*full)[static_cast<std::size_t>(coarse_.points[a])];
+      finite = (*normals)[a].getNormalVector3fMap().allFinite();
+    }
+    if (!finite) normals.reset();
+  }
+  full.reset();
+  field_.setInputCloud(cloud);
+  field_.setInputNormals(normals);
+  const Handles coarse_handles = coarseHandles(handles_, coarse_);
+  field_.setHandles(coarse_handles.fixed, coarse_handles.manipulated);
+  const double coarse_ms = sw.lap();
+  std::vector<float> coarse_phi;
+  field_.compute(coarse_phi);
+  build_.field = field_.timings();
+  sw.lap();
+  std::vector<char> constrained(m, 0);
+  for (const auto& f : coarse_handles.fixed)
+    for (int a : f) constrained[static_cast<std::size_t>(a)] = 1;
+  for (int a : coarse_handles.manipulated) constrained[static_cast<std::size_t>(a)] = 1;
+  const NeighborGraph& graph = field_.graph();
+  phi_ = prolongField(pts, coarse_, graph, coarse_phi, constrained);
+  build_.coarse_ms = coarse_ms + sw.ms();
+  build_.field_ms = build_.field.total() + build_.coarse_ms;
+  sw.lap();
+  unreachable_points_ = 0;
+  for (const int a : field_.unreachable()) unreachable_points_ += coarse_.weight[static_cast<std::size_t>(a)];
+
+  // Pieces and clusters on the coarse level, then every point takes its anchor's.
+  const std::vector<char>& outliers = field_.outliers();
+  const std::vector<int> sample = sampleSurface(*cloud, coarse_handles, options_.clusters.samples,
+                                                outliers.empty() ? nullptr : &outliers);
+  build_.sampling_ms = sw.lap();
+  pieces_ = analysePieces(*cloud, graph, field_.pieceLabels(), coarse_handles, sample, 2.0, &coarse_.weight);
+  Clustering coarse_clusters = buildClusters(*cloud, graph, coarse_phi, coarse_handles, field_.unreachable(),
+                                             sample, options_.clusters, pieces_.follow, outliers);
+  std::vector<int> follow(pts.size(), -1);
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    const int f = pieces_.follow[coarse_.anchor[i]];
+    if (f >= 0) follow[i] = coarse_.points[static_cast<std::size_t>(f)];
+  }
+  pieces_.follow = std::move(follow);
+  clustering_ = prolongClustering(std::move(coarse_clusters), coarse_, coarse_phi, phi_);
+  char note[200];
+  std::snprintf(note, sizeof note,
+                "multi-resolution: field, pieces and clusters on %zu of %zu points (voxel side %.3g); "
+                "full resolution on request",
+                m, pts.size(), static_cast<double>(coarse_.cell));
+  clustering_.notes.emplace_back(note);
+  table_ = buildInterpolation(phi_, handles_, clustering_, pts,
+                              geometry_.hasFileNormals() ? geometry_.file_normals.get() : nullptr);
+  if (!table_.has_normals) {  // a point's rest normal: its anchor's
+    const auto& coarse_normals = field_.normals();
+    table_.normals.resize(pts.size());
+    for (std::size_t i = 0; i < pts.size(); ++i)
+      table_.normals[i] = coarse_normals[coarse_.anchor[i]].getNormalVector3fMap();
+    table_.has_normals = true;
+  }
 }
 
 DeformerState Deformer::state() const {
@@ -411,6 +508,25 @@ SurfaceStretch Deformer::surfaceStretch() const {
   // A stray's one pair to the surface point it hangs from is no surface pair (a stray inside
   // the dragged handle moves with it, its anchor maybe not).
   const std::vector<char>& strays = field_.outliers();
+  if (multires_) {  // the coarse graph's pairs, between the points that stand for their cells
+    const NeighborGraph& g = field_.graph();
+    std::vector<std::pair<int, int>> pairs;
+    for (std::size_t a = 0; a < g.size(); ++a)
+      for (const int* j = g.begin(a); j != g.end(a); ++j)
+        if (static_cast<int>(a) < *j)
+          pairs.emplace_back(coarse_.points[a], coarse_.points[static_cast<std::size_t>(*j)]);
+    NeighborGraph none;
+    none.offsets.assign(geometry_.size() + 1, 0);
+    std::vector<char> shape_strays;
+    if (!strays.empty() || !coarse_.strays.empty()) {
+      shape_strays.assign(geometry_.size(), 0);
+      for (std::size_t a = 0; a < strays.size(); ++a)
+        if (strays[a]) shape_strays[static_cast<std::size_t>(coarse_.points[a])] = 1;
+      for (const int i : coarse_.strays) shape_strays[static_cast<std::size_t>(i)] = 1;
+    }
+    return measureStretch(*geometry_.points, positions_, addEdges(none, pairs), moved,
+                          shape_strays.empty() ? nullptr : &shape_strays);
+  }
   return measureStretch(*geometry_.points, positions_, field_.graph(), moved,
                         strays.empty() ? nullptr : &strays);
 }
@@ -442,8 +558,7 @@ void Deformer::writeDeformed(Shape& shape) const {
   // vertex a face pairs them with turns.
   FileExtras& x = shape.extras;
   x.obj_normals_out = x.obj_normals;
-  const pcl::PointCloud<pcl::Normal>& rest =
-      geometry_.hasFileNormals() ? *geometry_.file_normals : field_.normals();
+  const std::vector<Eigen::Vector3f>& rest = table_.normals;  // the rest normals that turn
   for (std::size_t j = 0; j < x.obj_normals.size() && j < x.obj_normal_vertex.size(); ++j) {
     const int v = x.obj_normal_vertex[j];
     if (v < 0 || static_cast<std::size_t>(v) >= geometry_.finite_index.size()) continue;
@@ -451,7 +566,7 @@ void Deformer::writeDeformed(Shape& shape) const {
     if (i < 0 || static_cast<std::size_t>(i) >= out_normals_.size() ||
         static_cast<std::size_t>(i) >= rest.size())
       continue;
-    const Eigen::Vector3f n0 = rest[static_cast<std::size_t>(i)].getNormalVector3fMap();
+    const Eigen::Vector3f n0 = rest[static_cast<std::size_t>(i)];
     const Eigen::Vector3f n1 = out_normals_[static_cast<std::size_t>(i)];
     if (!(n0.squaredNorm() > 0) || !(n1.squaredNorm() > 0) || !n0.allFinite() || !n1.allFinite()) continue;
     x.obj_normals_out[j] = Eigen::Quaternionf::FromTwoVectors(n0, n1) * x.obj_normals[j];

@@ -37,9 +37,12 @@ std::vector<std::string> PieceReport::warnings() const {
 
 PieceAnalysis analysePieces(const pcl::PointCloud<pcl::PointXYZ>& points, const NeighborGraph& graph,
                             const std::vector<int>& piece_label, const Handles& handles,
-                            const std::vector<int>& sample, double reach_spacings) {
+                            const std::vector<int>& sample, double reach_spacings,
+                            const std::vector<std::uint32_t>* weight) {
   PieceAnalysis out;
   const std::size_t n = points.size();
+  if (weight && weight->size() != n) weight = nullptr;
+  auto points_of = [&](std::size_t i) -> std::size_t { return weight ? (*weight)[i] : 1; };
   out.follow.assign(n, -1);
   if (n == 0 || piece_label.size() != n) return out;
   const std::size_t pieces =
@@ -50,7 +53,7 @@ PieceAnalysis analysePieces(const pcl::PointCloud<pcl::PointXYZ>& points, const 
     for (int i : f) fixed[static_cast<std::size_t>(piece_label[static_cast<std::size_t>(i)])] = 1;
   for (int i : handles.manipulated)
     manipulated[static_cast<std::size_t>(piece_label[static_cast<std::size_t>(i)])] = 1;
-  for (const int p : piece_label) ++size[static_cast<std::size_t>(p)];
+  for (std::size_t i = 0; i < n; ++i) size[static_cast<std::size_t>(piece_label[i])] += points_of(i);
   bool any_unreached = false;
   for (std::size_t p = 0; p < pieces; ++p) {
     if (manipulated[p] && !fixed[p]) {
@@ -148,10 +151,10 @@ PieceAnalysis analysePieces(const pcl::PointCloud<pcl::PointXYZ>& points, const 
     counted[p] = 1;
     if (near[p] && target[u] >= 0) {
       out.follow[static_cast<std::size_t>(unreached[u])] = target[u];
-      ++out.report.followed_points;
+      out.report.followed_points += points_of(static_cast<std::size_t>(unreached[u]));
       out.report.followed_pieces += first;
     } else {
-      ++out.report.stayed_points;
+      out.report.stayed_points += points_of(static_cast<std::size_t>(unreached[u]));
       out.report.stayed_pieces += first;
     }
   }

@@ -229,7 +229,7 @@ DeformReport ScenarioRunner::report() const {
     rep.sample = d.clustering().sample.size();
     rep.clusters = d.clustering().clusters.size();
     rep.isovalues = mergedOptions(options_, scenario_, shape_, geometry_).clusters.isovalues;
-    rep.unreachable = d.harmonicField().unreachable().size();
+    rep.unreachable = d.unreachablePoints();
     rep.notes = d.clustering().notes;
     if (d.harmonicField().normalsReoriented())
       rep.notes.emplace_back(

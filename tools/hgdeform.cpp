@@ -64,7 +64,7 @@ struct DeformArgs {
   int joint_clusters = hgd::DeformOptions().clusters.joint_isovalues;
   std::string blend;  // empty: the scenario's
   std::string solver = "auto";
-  bool mesh_ring = false, ascii = false, quiet = false;
+  bool mesh_ring = false, full_field = false, ascii = false, quiet = false;
 };
 
 void addInputOutput(CLI::App& app, std::string& input, std::string& scenario, std::string& output,
@@ -133,7 +133,10 @@ int parseDeform(int argc, const char* const* argv, DeformArgs& a) {
       ->type_name("N");
   addSolver(app, a.solver, "field solver: ");
   app.add_flag("--mesh-ring", a.mesh_ring,
-               "on meshes, the field's graph is the faces' 1-ring instead of kNN");
+               "on meshes, the field's graph is the faces' 1-ring instead of kNN (at full resolution)");
+  app.add_flag("--full-field", a.full_field,
+               "the field, pieces and clusters over every point, however many (default: above 500,000\n"
+               "points, on a subsample of about 65,536, prolonged to every point)");
   app.add_flag("--ascii", a.ascii, "write ascii instead of binary");
   app.add_flag("-q,--quiet", a.quiet, "no summary line");
   return hgdcli::parse(app, argc, argv);
@@ -226,6 +229,7 @@ int runDeform(const DeformArgs& a) {
   opt.field.k_neighbors = a.k;
   opt.field.solver = fieldSolver(a.solver);
   opt.field.mesh_ring = a.mesh_ring;
+  if (a.full_field) opt.multires_above = 0;
   opt.clusters.samples = a.samples;
   opt.clusters.joint_isovalues = a.joint_clusters;
   if (a.clusters > 0) ro.clusters = a.clusters;

@@ -18,6 +18,7 @@
 #include "hgdeform/geometry.h"
 #include "hgdeform/harmonic_field.h"
 #include "hgdeform/interpolation.h"
+#include "hgdeform/multires.h"
 #include "hgdeform/pieces.h"
 #include "hgdeform/regions.h"
 #include "hgdeform/scenario.h"
@@ -25,6 +26,8 @@
 #include "hgdeform/stretch.h"
 
 namespace hgd {
+
+class Stopwatch;
 
 struct DeformOptions {
   FieldOptions field;
@@ -38,10 +41,16 @@ struct DeformOptions {
   /// Rot(A) weight of range clusters (bones), times w_MHC: bones are meant to stay rigid (their
   /// transforms are also projected onto the nearest rotation when applied).
   double bone_rigidity = 10;
+  /// Multi-resolution build (docs/method.md §7): a shape with more points than this gets its
+  /// field, pieces and clusters on a voxel subsample of about `coarse_points` points, prolonged
+  /// to every point. 0: always at full resolution (every point in the neighbour graph).
+  std::size_t multires_above = 500000;
+  std::size_t coarse_points = 65536;
 };
 
 struct BuildTimings {
   double field_ms = 0, sampling_ms = 0, clusters_ms = 0, setup_ms = 0;
+  double coarse_ms = 0;  ///< of field_ms: the coarse level and the prolongation (multi-resolution)
   FieldTimings field;
   double total() const { return field_ms + sampling_ms + clusters_ms + setup_ms; }
 };
@@ -140,7 +149,13 @@ class Deformer {
   const Geometry& geometry() const { return geometry_; }
   const Handles& handles() const { return handles_; }
   const std::vector<float>& field() const { return phi_; }
+  /// The field's stage: at full resolution over every point; on a multi-resolution build over
+  /// the coarse points (its indices are coarseLevel().points' positions).
   const HarmonicField& harmonicField() const { return field_; }
+  /// The coarse level of a multi-resolution build; empty at full resolution.
+  const CoarseLevel& coarseLevel() const { return coarse_; }
+  /// Points in parts that touch no handle (at any resolution, counted over every point).
+  std::size_t unreachablePoints() const { return unreachable_points_; }
   const Clustering& clustering() const { return clustering_; }
   const InterpolationTable& interpolationTable() const { return table_; }
   /// The pieces the field did not reach, and what became of them (see pieces.h).
@@ -161,6 +176,8 @@ class Deformer {
   /// A drag after frame moves: the manipulated cluster is freed for shape matching.
   void leaveFrameMode();
   void rebuild();
+  /// rebuild()'s field, pieces and clusters on coarse_ (a multi-resolution build).
+  void buildCoarse(Stopwatch& sw);
   SolveStats dragFrame(const Eigen::Vector3d& to);
   SolveStats solveHandle(const Eigen::Affine3d& transform);
   Eigen::Vector3d pickedWorld() const;
@@ -176,6 +193,9 @@ class Deformer {
   Handles handles_;
   DeformOptions options_;
   HarmonicField field_;
+  bool multires_ = false;
+  CoarseLevel coarse_;
+  std::size_t unreachable_points_ = 0;
   std::vector<float> phi_;
   std::vector<int> preview_request_;  ///< setPreview's points (empty: all)
   std::vector<int> preview_;          ///< with the manipulated handle's, sorted

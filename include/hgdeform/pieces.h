@@ -13,6 +13,7 @@
 #include <pcl/point_types.h>
 
 #include <cstddef>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -42,8 +43,11 @@ struct PieceAnalysis {
 /// HarmonicField::pieceLabels() gives it) by the handles they hold. The reach is
 /// `reach_spacings` times the spacing of the surface sample `sample` (point indices, as
 /// sampleSurface() picks them), so that it does not depend on the density of the cloud.
+/// `weight` (per point, may be null): how many points each stands for in the report's counts
+/// (a coarse level's cells).
 PieceAnalysis analysePieces(const pcl::PointCloud<pcl::PointXYZ>& points, const NeighborGraph& graph,
                             const std::vector<int>& piece_label, const Handles& handles,
-                            const std::vector<int>& sample, double reach_spacings = 2.0);
+                            const std::vector<int>& sample, double reach_spacings = 2.0,
+                            const std::vector<std::uint32_t>* weight = nullptr);
 
 }  // namespace hgd
