@@ -51,11 +51,19 @@ void Deformer::rebuild() {
   normals_.all_due = normals_.preview_due = false;
   Stopwatch sw;
   if (multires_) {
-    coarse_ = coarsen(*geometry_.points, handles_, options_.coarse_points);
+    auto check = [&](const std::vector<int>& idx) {
+      for (const int i : idx)
+        if (i < 0 || static_cast<std::size_t>(i) >= geometry_.size())
+          throw std::invalid_argument("Deformer: handle index " + std::to_string(i) + " out of range");
+    };
+    for (const auto& f : handles_.fixed) check(f);
+    check(handles_.manipulated);
+    for (const auto& j : handles_.joints) check(j);
+    coarse_ = coarsen(*geometry_.points, handles_, options_.coarse_points, geometry_.faces.empty());
     if (coarse_.empty()) {  // thousands of handles: no cell key holds them all
       multires_ = false;
       field_.setInputCloud(geometry_.points);
-      if (geometry_.hasFileNormals()) field_.setInputNormals(geometry_.file_normals);
+      field_.setInputNormals(geometry_.hasFileNormals() ? geometry_.file_normals : nullptr);
       if (!geometry_.faces.empty()) field_.setPolygons(geometry_.faces);
     }
   }

@@ -104,11 +104,18 @@ std::vector<char> findStrays(const pcl::PointCloud<pcl::PointXYZ>& points, const
       }
       return true;
     });
-    if (std::isfinite(d2)) typical.push_back(d2);
+    if (std::isfinite(d2) && d2 > 0) typical.push_back(d2);
   }
   if (typical.empty()) return stray;
-  std::nth_element(typical.begin(), typical.begin() + static_cast<long>(typical.size() / 2), typical.end());
-  const float limit2 = std::min(grid.h * grid.h, 9.0f * typical[typical.size() / 2]);
+  // Three times the median distance, but never under the sparsest 3%'s (a scan whose density
+  // falls off with range has no strays for that, as findOutliers rules), at most a cell side.
+  const auto at = [&](std::size_t k) {
+    std::nth_element(typical.begin(), typical.begin() + static_cast<long>(k), typical.end());
+    return typical[k];
+  };
+  const float limit2 =
+      std::min(grid.h * grid.h, std::max(9.0f * at(typical.size() / 2), at(typical.size() * 97 / 100)));
+  if (!(limit2 > 0)) return stray;  // duplicates everywhere: no verdict
   const std::size_t few = std::max<std::size_t>(2, median / 4);
   const long long nc = static_cast<long long>(cells);
 #pragma omp parallel for schedule(dynamic, 256) if (nc > kParallelMin / 16)
@@ -132,8 +139,8 @@ std::vector<char> findStrays(const pcl::PointCloud<pcl::PointXYZ>& points, const
 
 }  // namespace
 
-CoarseLevel coarsen(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles& handles,
-                    std::size_t target) {
+CoarseLevel coarsen(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles& handles, std::size_t target,
+                    bool find_strays) {
   CoarseLevel out;
   const std::size_t n = points.size();
   if (n == 0 || target == 0) return out;
@@ -141,7 +148,7 @@ CoarseLevel coarsen(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles&
   const std::size_t classes = 2 + handles.fixed.size();
   const int class_bits = bitsFor(classes - 1);
   constexpr int kMaxAxisBits = 17;
-  if (3 * kMaxAxisBits + class_bits > 64) return out;
+  if (3 * kMaxAxisBits + class_bits >= 64) return out;
   std::vector<std::uint16_t> cls(n, 0);
   for (std::size_t k = 0; k < handles.fixed.size(); ++k)
     for (int i : handles.fixed[k]) cls[static_cast<std::size_t>(i)] = static_cast<std::uint16_t>(2 + k);
@@ -192,7 +199,9 @@ CoarseLevel coarsen(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles&
   for (std::size_t k = 0; k < n; ++k)
     if (k == 0 || keys[k] != keys[k - 1]) starts.push_back(k);
   starts.push_back(n);
-  const std::vector<char> stray = findStrays(points, grid, class_bits, classes, keys, order, starts);
+  const std::vector<char> stray = find_strays
+                                      ? findStrays(points, grid, class_bits, classes, keys, order, starts)
+                                      : std::vector<char>(n, 0);
 
   out.anchor.assign(n, 0);
   for (std::size_t c = 0; c + 1 < starts.size(); ++c) {

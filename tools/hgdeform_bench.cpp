@@ -187,6 +187,7 @@ nlohmann::json runSize(const std::string& model, const std::string& armadillo, s
   json per_clusters = json::array();
   // The peak from here on: the Deformer's, with the cloud it deforms (what `hgdeform deform`
   // holds), not the references' or the full-resolution field's above.
+  const double peak_before = peakRssMb();  // (restarting the count restarts getrusage's too)
   const bool peak_restarted = restartPeakRss();
   for (long nc : cluster_counts) {
     std::vector<double> build, sampling, clusters, setup, per_iter, interp, frame, interp_linear,
@@ -262,7 +263,10 @@ nlohmann::json runSize(const std::string& model, const std::string& armadillo, s
     per_clusters.push_back(row);
   }
   out["deform"] = per_clusters;
-  if (peak_restarted) out["deformer_peak_rss_mb"] = peakRssMb();
+  if (peak_restarted) {
+    out["deformer_peak_rss_mb"] = peakRssMb();
+    out["peak_rss_before_deformer_mb"] = peak_before;
+  }
   return out;
 }
 
@@ -414,7 +418,8 @@ int main(int argc, char** argv) {
         return 1;
       }
       nlohmann::json r = nlohmann::json::parse(text);
-      r["process_peak_rss_mb"] = static_cast<double>(ru.ru_maxrss) / 1024.0;
+      r["process_peak_rss_mb"] =
+          std::max(static_cast<double>(ru.ru_maxrss) / 1024.0, r.value("peak_rss_before_deformer_mb", 0.0));
       // The Deformer's peak where the kernel could restart the count, else the whole child's.
       r["peak_rss_mb"] = r.contains("deformer_peak_rss_mb") && r["deformer_peak_rss_mb"].get<double>() > 0
                              ? r["deformer_peak_rss_mb"].get<double>()

@@ -113,8 +113,9 @@ class Deformer {
   /// Back to the rest shape.
   void reset();
 
-  /// New handles: the field is re-solved (normals, kNN and the graph are kept), the clusters
-  /// and the solver rebuilt; the shape returns to rest.
+  /// New handles: the field is re-solved (normals, kNN and the graph are kept; on a
+  /// multi-resolution build the coarse level, which depends on the handles, is built again), the
+  /// clusters and the solver rebuilt; the shape returns to rest.
   void setHandles(const Handles& handles);
 
   /// The deformation state (cluster transforms): cheap to keep for undo/redo.

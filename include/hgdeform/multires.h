@@ -29,8 +29,10 @@ struct CoarseLevel {
 };
 
 /// About `target` coarse points (within ±15% where the cloud allows). Empty when the handles
-/// are too many to key the cells by (thousands): the caller stays at full resolution.
-CoarseLevel coarsen(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles& handles, std::size_t target);
+/// are too many to key the cells by (thousands): the caller stays at full resolution. Handle
+/// indices must be valid. `find_strays`: a cloud's (a mesh has none).
+CoarseLevel coarsen(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles& handles, std::size_t target,
+                    bool find_strays = true);
 
 /// The handles (and joints) of the coarse level: the anchors of their points.
 Handles coarseHandles(const Handles& handles, const CoarseLevel& level);
