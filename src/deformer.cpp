@@ -118,12 +118,23 @@ void Deformer::buildCoarse(Stopwatch& sw) {
   if (full) {
     normals.reset(new pcl::PointCloud<pcl::Normal>);
     normals->resize(m);
-    bool finite = true;
-    for (std::size_t a = 0; a < m && finite; ++a) {
+    std::vector<char> finite(m, 0);
+    std::size_t missing = 0;
+    for (std::size_t a = 0; a < m; ++a) {
       (*normals)[a] = (*full)[static_cast<std::size_t>(coarse_.points[a])];
-      finite = (*normals)[a].getNormalVector3fMap().allFinite();
+      finite[a] = (*normals)[a].getNormalVector3fMap().allFinite();
+      missing += !finite[a];
     }
-    if (!finite) normals.reset();
+    // A representative without a normal (a vertex on no face) takes one of its cell's; a cell
+    // with none at all leaves the coarse level to estimate them.
+    for (std::size_t i = 0; i < pts.size() && missing > 0; ++i) {
+      const std::uint32_t a = coarse_.anchor[i];
+      if (finite[a] || !(*full)[i].getNormalVector3fMap().allFinite()) continue;
+      (*normals)[a] = (*full)[i];
+      finite[a] = 1;
+      --missing;
+    }
+    if (missing > 0) normals.reset();
   }
   full.reset();
   field_.setInputCloud(cloud);

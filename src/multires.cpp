@@ -72,20 +72,22 @@ std::vector<char> findStrays(const pcl::PointCloud<pcl::PointXYZ>& points, const
     const auto x = static_cast<long long>(key & axis_mask),
                y = static_cast<long long>((key >> ab) & axis_mask),
                z = static_cast<long long>((key >> (2 * ab)) & axis_mask);
+    const auto top = static_cast<long long>(axis_mask);
+    // x is the lowest field of a key: the three cells of a row are one run of keys.
+    const long long x0 = std::max(0LL, x - 1), x1 = std::min(top, x + 1);
     for (long long dz = -1; dz <= 1; ++dz)
-      for (long long dy = -1; dy <= 1; ++dy)
-        for (long long dx = -1; dx <= 1; ++dx) {
-          if (x + dx < 0 || y + dy < 0 || z + dz < 0 || x + dx > static_cast<long long>(axis_mask) ||
-              y + dy > static_cast<long long>(axis_mask) || z + dz > static_cast<long long>(axis_mask))
-            continue;
-          const auto cell = static_cast<std::uint64_t>(((z + dz) << (2 * ab)) | ((y + dy) << ab) | (x + dx));
-          for (std::size_t c = 0; c < classes; ++c) {
-            const std::uint64_t want = (static_cast<std::uint64_t>(c) << (3 * ab)) | cell;
-            for (auto it = std::lower_bound(keys.begin(), keys.end(), want); it != keys.end() && *it == want;
-                 ++it)
-              if (!fn(static_cast<std::size_t>(order[static_cast<std::size_t>(it - keys.begin())]))) return;
-          }
+      for (long long dy = -1; dy <= 1; ++dy) {
+        if (y + dy < 0 || z + dz < 0 || y + dy > top || z + dz > top) continue;
+        const auto row = static_cast<std::uint64_t>(((z + dz) << (2 * ab)) | ((y + dy) << ab));
+        for (std::size_t c = 0; c < classes; ++c) {
+          const std::uint64_t base = (static_cast<std::uint64_t>(c) << (3 * ab)) | row;
+          const std::uint64_t first = base | static_cast<std::uint64_t>(x0),
+                              last = base | static_cast<std::uint64_t>(x1);
+          for (auto it = std::lower_bound(keys.begin(), keys.end(), first); it != keys.end() && *it <= last;
+               ++it)
+            if (!fn(static_cast<std::size_t>(order[static_cast<std::size_t>(it - keys.begin())]))) return;
         }
+      }
   };
   // The typical distance to the second nearest point, over about 2,000 points of full cells.
   std::vector<float> typical;
@@ -144,12 +146,17 @@ CoarseLevel coarsen(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles&
   CoarseLevel out;
   const std::size_t n = points.size();
   if (n == 0 || target == 0) return out;
-  // The class of a point: 0 free, 1 the manipulated handle, 2 + k the fixed handle k.
-  const std::size_t classes = 2 + handles.fixed.size();
+  // The class of a point: 0 free, 1 the manipulated handle, 2 + k the fixed handle k, then the
+  // joints (free points of joint k: 2 + fixed + k), so that a joint's phi range is measured on
+  // its own points and a joint smaller than a cell keeps one.
+  const std::size_t classes = 2 + handles.fixed.size() + handles.joints.size();
   const int class_bits = bitsFor(classes - 1);
   constexpr int kMaxAxisBits = 17;
-  if (3 * kMaxAxisBits + class_bits >= 64) return out;
+  if (3 * kMaxAxisBits + class_bits >= 64 || classes > 65535) return out;
   std::vector<std::uint16_t> cls(n, 0);
+  for (std::size_t k = 0; k < handles.joints.size(); ++k)
+    for (int i : handles.joints[k])
+      cls[static_cast<std::size_t>(i)] = static_cast<std::uint16_t>(2 + handles.fixed.size() + k);
   for (std::size_t k = 0; k < handles.fixed.size(); ++k)
     for (int i : handles.fixed[k]) cls[static_cast<std::size_t>(i)] = static_cast<std::uint16_t>(2 + k);
   for (int i : handles.manipulated) cls[static_cast<std::size_t>(i)] = 1;

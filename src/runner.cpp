@@ -21,6 +21,7 @@ DeformOptions mergedOptions(const RunOptions& options, const Scenario& scenario,
     opt.blend = *options.blend;
   else if (scenario.blend)
     opt.blend = *scenario.blend;
+  if (scenario.full_resolution && *scenario.full_resolution) opt.multires_above = 0;
   if (shape.isOrganized()) {
     opt.field.orient_to_viewpoint = true;
     opt.field.viewpoint = (shape.sensor_origin.head<3>().cast<double>() - geometry.origin).cast<float>();

@@ -391,7 +391,7 @@ Scenario parseScenario(const std::string& json_text, const std::string& name) {
     throw ScenarioError(name + ": invalid JSON: " + e.what());
   }
   p.object(j, "");
-  p.onlyKeys(j, "", {"format", "fixed", "manipulated", "joints", "clusters", "blend", "move"});
+  p.onlyKeys(j, "", {"format", "fixed", "manipulated", "joints", "clusters", "blend", "resolution", "move"});
   Scenario s;
   s.path = name;
   if (j.contains("format") && (!j["format"].is_string() || j["format"].get<std::string>() != kFormat))
@@ -419,6 +419,12 @@ Scenario parseScenario(const std::string& json_text, const std::string& name) {
     if (!b.is_string() || !parseBlend(b.get<std::string>(), blend))
       p.fail("/blend", "must be \"linear\" or \"rotation\"");
     s.blend = blend;
+  }
+  if (j.contains("resolution")) {
+    const json& r = j["resolution"];
+    if (!r.is_string() || (r.get<std::string>() != "auto" && r.get<std::string>() != "full"))
+      p.fail("/resolution", "must be \"auto\" or \"full\"");
+    s.full_resolution = r.get<std::string>() == "full";
   }
   if (j.contains("move")) p.moves(j["move"], "/move", s.moves);
   return s;
@@ -501,6 +507,7 @@ std::string scenarioToJson(const Scenario& s) {
   }
   if (s.clusters) j["clusters"] = *s.clusters;
   if (s.blend) j["blend"] = blendName(*s.blend);
+  if (s.full_resolution) j["resolution"] = *s.full_resolution ? "full" : "auto";
   if (!s.moves.empty()) {
     json moves = json::array();
     for (const auto& m : s.moves) {

@@ -227,6 +227,32 @@ TEST(ScenarioRunner, FrontEndOptionsWinOverTheScenario) {
   EXPECT_EQ(a.scenario().blend, hgd::Blend::Rotation);
 }
 
+// "resolution": "full" reaches the Deformer from the scenario (every front end reads one), is
+// saved back, and a bad value is refused with its path.
+TEST(ScenarioRunner, ResolutionKeyKeepsEveryPointInTheField) {
+  hgd::RunOptions o;
+  o.deform.multires_above = 1;  // this small bar would be built on a coarse level
+  o.deform.coarse_points = 500;
+  EXPECT_FALSE(bar(barScenario(), o).deformer().coarseLevel().empty());
+  hgd::Scenario s = barScenario();
+  s.full_resolution = true;
+  hgd::ScenarioRunner full = bar(s, o);
+  EXPECT_TRUE(full.deformer().coarseLevel().empty());
+  const hgd::Scenario saved = hgd::parseScenario(hgd::scenarioToJson(full.scenario()), "saved.json");
+  EXPECT_EQ(saved.full_resolution, std::optional<bool>(true));
+  EXPECT_TRUE(bar(saved, o).deformer().coarseLevel().empty());
+  try {
+    hgd::parseScenario(R"({"fixed": [{"sphere": {"center": [0, 0, 0], "radius": 1}}],
+      "manipulated": {"sphere": {"center": [1, 0, 0], "radius": 0.1}}, "resolution": "half"})",
+                       "s.json");
+    ADD_FAILURE() << "accepted \"half\"";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find(R"(s.json: /resolution: must be "auto" or "full")"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
 TEST(ScenarioRunner, TheSavedScenarioReplaysWhatWasDone) {
   hgd::ScenarioRunner a = bar();
   a.apply(dragMove(kTip, kTip + Eigen::Vector3d(0, 0, 0.25)));

@@ -84,6 +84,9 @@ struct Scenario {
   std::optional<int> clusters;
   /// Linear (the paper's eq. 1) or Rotation (rotation-aware); absent: the tool's default.
   std::optional<Blend> blend;
+  /// "resolution": "full" keeps every point in the field's graph however many there are
+  /// (DeformOptions::multires_above = 0); "auto" or absent: the tool's default.
+  std::optional<bool> full_resolution;
   std::vector<Move> moves;  // applied in order; empty = no move
   std::string path;         // file it came from (for messages)
 
