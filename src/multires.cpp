@@ -361,7 +361,12 @@ Clustering prolongClustering(Clustering c, const CoarseLevel& level, const std::
     if (g < 0 || static_cast<std::size_t>(g) + 1 >= bands.size() ||
         c.clusters[static_cast<std::size_t>(upper)].level != g + 1)
       continue;
-    if (std::abs(gapAlpha(static_cast<std::size_t>(g), coarse_phi[a]) - c.alpha[a]) <= 1e-6f) own_gap[a] = g;
+    // Inside its gap, not clamped at an end (an α of 0 or 1 copied from elsewhere would match a
+    // clamped one by chance).
+    const double v = coarse_phi[a];
+    const auto gs = static_cast<std::size_t>(g);
+    if (v > bands[gs].hi && v < bands[gs + 1].lo && std::abs(gapAlpha(gs, v) - c.alpha[a]) <= 1e-6f)
+      own_gap[a] = g;
   }
   const std::size_t n = level.anchor.size();
   std::vector<int> lower(n), upper(n), nearest(n);
