@@ -32,8 +32,7 @@ Deformer::Deformer(const Geometry& geometry, const Handles& handles, const Defor
   centre_ = 0.5 * (lo + hi);
   const double diag = (hi - lo).norm();
   scale_ = diag > 0 ? 1.0 / diag : 1.0;
-  positions_.resize(geometry_.size());
-  out_normals_.resize(geometry_.size());
+  positions_.resize(geometry_.size());  // (normals are sized when first derived)
   rebuild();
 }
 
@@ -166,12 +165,7 @@ void Deformer::buildCoarse(Stopwatch& sw) {
   pieces_ = analysePieces(*cloud, graph, field_.pieceLabels(), coarse_handles, sample, 2.0, &coarse_.weight);
   Clustering coarse_clusters = buildClusters(*cloud, graph, coarse_phi, coarse_handles, field_.unreachable(),
                                              sample, options_.clusters, pieces_.follow, outliers);
-  std::vector<int> follow(pts.size(), -1);
-  for (std::size_t i = 0; i < pts.size(); ++i) {
-    const int f = pieces_.follow[coarse_.anchor[i]];
-    if (f >= 0) follow[i] = coarse_.points[static_cast<std::size_t>(f)];
-  }
-  pieces_.follow = std::move(follow);
+  pieces_.follow.clear();  // the coarse points' (each point takes its anchor's clusters)
   clustering_ = prolongClustering(std::move(coarse_clusters), coarse_, coarse_phi, phi_);
   char note[200];
   std::snprintf(note, sizeof note,
@@ -552,6 +546,7 @@ SurfaceStretch Deformer::surfaceStretch() const {
 
 void Deformer::updateNormals() const {
   const std::lock_guard<std::mutex> lock(normals_.mutex);
+  out_normals_.resize(geometry_.size());
   // The last full frame's (the points a preview frame left alone keep those), then the preview's.
   if (normals_.all_due) {
     interpolateNormals(table_, normals_.all_transforms, out_normals_, normals_.all_blend);

@@ -14,26 +14,25 @@ InterpolationTable buildInterpolation(const std::vector<float>& phi, const Handl
                                       const pcl::PointCloud<pcl::Normal>* normals) {
   const std::size_t n = phi.size();
   InterpolationTable t;
-  std::vector<int> lower = c.lower, upper = c.upper;
-  std::vector<float> alpha = c.alpha;
-  // Handle points take their handle's transform exactly.
+  // Handle points take their handle's transform exactly (pinned below, after the pass over
+  // every point: no per-point copy of the labels).
   std::vector<int> fixed_cluster(handles.fixed.size(), -1);
   for (const auto& cl : c.clusters)
     if (cl.kind == ClusterKind::Fixed) fixed_cluster[static_cast<std::size_t>(cl.handle)] = cl.id;
-  auto pin = [&](int i, int cluster) {
-    lower[static_cast<std::size_t>(i)] = upper[static_cast<std::size_t>(i)] = cluster;
-    alpha[static_cast<std::size_t>(i)] = 0.0f;
-  };
-  for (std::size_t k = 0; k < handles.fixed.size(); ++k)
-    for (int i : handles.fixed[k]) pin(i, fixed_cluster[k]);
-  for (int i : handles.manipulated) pin(i, c.manipulated);
   // Pairs: sorted unique (lower, upper), looked up by binary search.
   t.pairs.reserve(c.adjacency.size() * 2 + c.clusters.size());
   for (std::size_t i = 0; i < n; ++i)
-    if (t.pairs.empty() || t.pairs.back() != std::make_pair(lower[i], upper[i]))
-      t.pairs.emplace_back(lower[i], upper[i]);
+    if (t.pairs.empty() || t.pairs.back() != std::make_pair(c.lower[i], c.upper[i]))
+      t.pairs.emplace_back(c.lower[i], c.upper[i]);
+  for (std::size_t k = 0; k < handles.fixed.size(); ++k)
+    if (!handles.fixed[k].empty()) t.pairs.emplace_back(fixed_cluster[k], fixed_cluster[k]);
+  if (!handles.manipulated.empty()) t.pairs.emplace_back(c.manipulated, c.manipulated);
   std::sort(t.pairs.begin(), t.pairs.end());
   t.pairs.erase(std::unique(t.pairs.begin(), t.pairs.end()), t.pairs.end());
+  auto pairOf = [&](int lo, int hi) {
+    return static_cast<std::uint32_t>(
+        std::lower_bound(t.pairs.begin(), t.pairs.end(), std::make_pair(lo, hi)) - t.pairs.begin());
+  };
   t.has_normals = normals != nullptr && normals->size() == n;
   t.points.resize(n);
   if (t.has_normals) t.normals.resize(n);
@@ -44,11 +43,18 @@ InterpolationTable buildInterpolation(const std::vector<float>& phi, const Handl
     InterpolationTable::Point& r = t.points[i];
     for (int a = 0; a < 3; ++a) r.p[a] = points[i].data[a];
     if (t.has_normals) t.normals[i] = (*normals)[i].getNormalVector3fMap();
-    r.pair = static_cast<std::uint32_t>(
-        std::lower_bound(t.pairs.begin(), t.pairs.end(), std::make_pair(lower[i], upper[i])) -
-        t.pairs.begin());
-    r.alpha = alpha[i];
+    r.pair = pairOf(c.lower[i], c.upper[i]);
+    r.alpha = c.alpha[i];
   }
+  auto pin = [&](const std::vector<int>& idx, int cluster) {
+    const std::uint32_t pair = pairOf(cluster, cluster);
+    for (const int i : idx) {
+      t.points[static_cast<std::size_t>(i)].pair = pair;
+      t.points[static_cast<std::size_t>(i)].alpha = 0.0f;
+    }
+  };
+  for (std::size_t k = 0; k < handles.fixed.size(); ++k) pin(handles.fixed[k], fixed_cluster[k]);
+  pin(handles.manipulated, c.manipulated);  // last: a point in both keeps the manipulated one
   for (const auto& [a, b] : t.pairs)
     t.pair_centre.push_back((0.5 * (c.clusters[static_cast<std::size_t>(a)].barycentre +
                                     c.clusters[static_cast<std::size_t>(b)].barycentre))

@@ -35,7 +35,8 @@ struct PieceReport {
 struct PieceAnalysis {
   PieceReport report;
   /// Per point: the reached point whose transform it takes, or -1 (reached points, and
-  /// points of pieces that stay).
+  /// points of pieces that stay). Empty on a multi-resolution build (Deformer::pieces()): there
+  /// the coarse points follow, and every point takes its anchor's clusters.
   std::vector<int> follow;
 };
 
