@@ -21,11 +21,7 @@ Deformer::Deformer(const Geometry& geometry, const Handles& handles, const Defor
   multires_ = options_.multires_above > 0 && geometry_.size() > options_.multires_above &&
               options_.coarse_points > 0 && options_.coarse_points < geometry_.size() &&
               !(options_.field.mesh_ring && !geometry_.faces.empty());
-  if (!multires_) {  // else rebuild() gives the field the coarse level of the handles
-    field_.setInputCloud(geometry_.points);
-    if (geometry_.hasFileNormals()) field_.setInputNormals(geometry_.file_normals);
-    if (!geometry_.faces.empty()) field_.setPolygons(geometry_.faces);
-  }
+  if (!multires_) fieldOnEveryPoint();  // else rebuild() gives the field the handles' coarse level
   field_.setOptions(options_.field);
   const Eigen::AlignedBox3f box = boundingBox(*geometry_.points);
   const Eigen::Vector3d lo = box.min().cast<double>(), hi = box.max().cast<double>();
@@ -61,9 +57,7 @@ void Deformer::rebuild() {
     coarse_ = coarsen(*geometry_.points, handles_, options_.coarse_points, geometry_.faces.empty());
     if (coarse_.empty()) {  // thousands of handles: no cell key holds them all
       multires_ = false;
-      field_.setInputCloud(geometry_.points);
-      field_.setInputNormals(geometry_.hasFileNormals() ? geometry_.file_normals : nullptr);
-      if (!geometry_.faces.empty()) field_.setPolygons(geometry_.faces);
+      fieldOnEveryPoint();
     }
   }
   if (multires_) {
@@ -78,15 +72,7 @@ void Deformer::rebuild() {
     unreachable_points_ = field_.unreachable().size();
 
     const auto& pts = *geometry_.points;
-    const NeighborGraph& graph = field_.graph();
-    // Stray points of a scan stay out of the sample (meshes have none).
-    const std::vector<char>& outliers = field_.outliers();
-    const std::vector<int> sample =
-        sampleSurface(pts, handles_, options_.clusters.samples, outliers.empty() ? nullptr : &outliers);
-    build_.sampling_ms = sw.lap();
-    pieces_ = analysePieces(pts, graph, field_.pieceLabels(), handles_, sample);
-    clustering_ = buildClusters(pts, graph, phi_, handles_, field_.unreachable(), sample, options_.clusters,
-                                pieces_.follow, outliers);
+    clustering_ = clusterField(pts, phi_, handles_, nullptr, sw);
     // Normals rotate with the shape as the file gave them (the filter may have re-oriented its
     // own copy).
     table_ =
@@ -101,6 +87,26 @@ void Deformer::rebuild() {
   picked_ = -1;
   updateShape();
   build_.setup_ms = sw.lap();
+}
+
+void Deformer::fieldOnEveryPoint() {
+  field_.setInputCloud(geometry_.points);
+  field_.setInputNormals(geometry_.hasFileNormals() ? geometry_.file_normals : nullptr);
+  if (!geometry_.faces.empty()) field_.setPolygons(geometry_.faces);
+}
+
+Clustering Deformer::clusterField(const pcl::PointCloud<pcl::PointXYZ>& points, const std::vector<float>& phi,
+                                  const Handles& handles, const std::vector<std::uint32_t>* weight,
+                                  Stopwatch& sw) {
+  const NeighborGraph& graph = field_.graph();
+  // Stray points of a scan stay out of the sample (meshes have none).
+  const std::vector<char>& outliers = field_.outliers();
+  const std::vector<int> sample =
+      sampleSurface(points, handles, options_.clusters.samples, outliers.empty() ? nullptr : &outliers);
+  build_.sampling_ms = sw.lap();
+  pieces_ = analysePieces(points, graph, field_.pieceLabels(), handles, sample, 2.0, weight);
+  return buildClusters(points, graph, phi, handles, field_.unreachable(), sample, options_.clusters,
+                       pieces_.follow, outliers);
 }
 
 void Deformer::buildCoarse(Stopwatch& sw) {
@@ -158,13 +164,7 @@ void Deformer::buildCoarse(Stopwatch& sw) {
   for (const int a : field_.unreachable()) unreachable_points_ += coarse_.weight[static_cast<std::size_t>(a)];
 
   // Pieces and clusters on the coarse level, then every point takes its anchor's.
-  const std::vector<char>& outliers = field_.outliers();
-  const std::vector<int> sample = sampleSurface(*cloud, coarse_handles, options_.clusters.samples,
-                                                outliers.empty() ? nullptr : &outliers);
-  build_.sampling_ms = sw.lap();
-  pieces_ = analysePieces(*cloud, graph, field_.pieceLabels(), coarse_handles, sample, 2.0, &coarse_.weight);
-  Clustering coarse_clusters = buildClusters(*cloud, graph, coarse_phi, coarse_handles, field_.unreachable(),
-                                             sample, options_.clusters, pieces_.follow, outliers);
+  Clustering coarse_clusters = clusterField(*cloud, coarse_phi, coarse_handles, &coarse_.weight, sw);
   pieces_.follow.clear();  // the coarse points' (each point takes its anchor's clusters)
   clustering_ = prolongClustering(std::move(coarse_clusters), coarse_, coarse_phi, phi_);
   char note[200];

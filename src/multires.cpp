@@ -3,10 +3,9 @@
 #include <Eigen/Cholesky>
 #include <algorithm>
 #include <cmath>
-#include <flann/flann.hpp>
-#include <memory>
 #include <numeric>
 
+#include "nearest.h"
 #include "parallel.h"
 #include "radix_sort.h"
 
@@ -51,7 +50,7 @@ std::size_t countCells(const pcl::PointCloud<pcl::PointXYZ>& points, const std::
 // where a cell typically holds four or more, a free point with fewer than two other points
 // within three times the typical distance to the second nearest (at most a cell side) is a
 // stray: no coarse point (as findOutliers' strays hang from the surface at full resolution).
-std::vector<char> findStrays(const pcl::PointCloud<pcl::PointXYZ>& points, const Grid& grid, int class_bits,
+std::vector<char> findStrays(const pcl::PointCloud<pcl::PointXYZ>& points, const Grid& grid,
                              std::size_t classes, const std::vector<std::uint64_t>& keys,
                              const std::vector<std::uint32_t>& order,
                              const std::vector<std::size_t>& starts) {
@@ -64,7 +63,6 @@ std::vector<char> findStrays(const pcl::PointCloud<pcl::PointXYZ>& points, const
   if (median < 4) return stray;
   const int ab = grid.axis_bits;
   const std::uint64_t axis_mask = (std::uint64_t{1} << ab) - 1;
-  (void)class_bits;
   // Calls fn(j) for every point j in the 3 x 3 x 3 cells around point i, of every class, until
   // fn returns false.
   auto around = [&](std::size_t i, auto&& fn) {
@@ -206,9 +204,8 @@ CoarseLevel coarsen(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles&
   for (std::size_t k = 0; k < n; ++k)
     if (k == 0 || keys[k] != keys[k - 1]) starts.push_back(k);
   starts.push_back(n);
-  const std::vector<char> stray = find_strays
-                                      ? findStrays(points, grid, class_bits, classes, keys, order, starts)
-                                      : std::vector<char>(n, 0);
+  const std::vector<char> stray =
+      find_strays ? findStrays(points, grid, classes, keys, order, starts) : std::vector<char>(n, 0);
 
   out.anchor.assign(n, 0);
   for (std::size_t c = 0; c + 1 < starts.size(); ++c) {
@@ -239,26 +236,11 @@ CoarseLevel coarsen(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles&
     if (stray[i]) out.strays.push_back(static_cast<int>(i));
   if (out.strays.empty()) return out;
   // A stray hangs from the nearest coarse point.
-  const std::size_t m = out.points.size();
-  std::unique_ptr<float[]> xyz(new float[m * 3]);
-  for (std::size_t a = 0; a < m; ++a)
-    for (int c = 0; c < 3; ++c)
-      xyz[3 * a + static_cast<std::size_t>(c)] = points[static_cast<std::size_t>(out.points[a])].data[c];
-  const flann::Matrix<float> data(xyz.get(), m, 3);
-  flann::Index<flann::L2_Simple<float>> index(data, flann::KDTreeSingleIndexParams(15));
-  index.buildIndex();
-  const flann::SearchParams params(flann::FLANN_CHECKS_UNLIMITED, 0.0f, true);
-  for (const int i : out.strays) {
-    float q[3] = {points[static_cast<std::size_t>(i)].x, points[static_cast<std::size_t>(i)].y,
-                  points[static_cast<std::size_t>(i)].z};
-    int nearest = 0;
-    float d2 = 0;
-    flann::Matrix<float> mq(q, 1, 3);
-    flann::Matrix<int> mi(&nearest, 1, 1);
-    flann::Matrix<float> md(&d2, 1, 1);
-    index.knnSearch(mq, mi, md, 1, params);
-    out.anchor[static_cast<std::size_t>(i)] = static_cast<std::uint32_t>(nearest);
-    ++out.weight[static_cast<std::size_t>(nearest)];
+  const std::vector<int> nearest = nearestAmong(points, out.points, out.strays);
+  for (std::size_t s = 0; s < out.strays.size(); ++s) {
+    const auto a = static_cast<std::size_t>(std::max(0, nearest[s]));  // (the targets are not empty)
+    out.anchor[static_cast<std::size_t>(out.strays[s])] = static_cast<std::uint32_t>(a);
+    ++out.weight[a];
   }
   return out;
 }

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "grid_knn.h"
+#include "nearest.h"
 #include "parallel.h"
 #include "timer.h"
 
@@ -409,6 +410,27 @@ std::vector<char> findOutliers(const pcl::PointCloud<pcl::PointXYZ>& points, con
   return out;
 }
 
+std::vector<int> nearestAmong(const pcl::PointCloud<pcl::PointXYZ>& points, const std::vector<int>& targets,
+                              const std::vector<int>& queries) {
+  std::vector<float> xyz(targets.size() * 3), q(queries.size() * 3), d2(queries.size());
+  std::vector<int> hit(queries.size(), -1);
+  if (targets.empty() || queries.empty()) return hit;
+  for (std::size_t m = 0; m < targets.size(); ++m)
+    for (int a = 0; a < 3; ++a)
+      xyz[m * 3 + static_cast<std::size_t>(a)] = points[static_cast<std::size_t>(targets[m])].data[a];
+  for (std::size_t m = 0; m < queries.size(); ++m)
+    for (int a = 0; a < 3; ++a)
+      q[m * 3 + static_cast<std::size_t>(a)] = points[static_cast<std::size_t>(queries[m])].data[a];
+  const flann::Matrix<float> data(xyz.data(), targets.size(), 3);
+  flann::Index<flann::L2_Simple<float>> index(data, flann::KDTreeSingleIndexParams(15));
+  index.buildIndex();
+  flann::Matrix<float> mq(q.data(), queries.size(), 3), md(d2.data(), queries.size(), 1);
+  flann::Matrix<int> mi(hit.data(), queries.size(), 1);
+  const flann::SearchParams params(flann::FLANN_CHECKS_UNLIMITED, 0.0f, true);
+  index.knnSearch(mq, mi, md, 1, params);
+  return hit;
+}
+
 NeighborGraph attachOutliers(const pcl::PointCloud<pcl::PointXYZ>& points, const NeighborGraph& graph,
                              const KnnTable& knn, const std::vector<char>& outlier) {
   const std::size_t n = graph.size();
@@ -418,14 +440,14 @@ NeighborGraph attachOutliers(const pcl::PointCloud<pcl::PointXYZ>& points, const
   // so no path between two inliers runs through outliers (it would need one pair more than
   // its outliers add).
   std::vector<int> anchor(n, -1);
-  std::vector<std::size_t> far;
+  std::vector<int> far;
   for (std::size_t i = 0; i < n; ++i) {
     if (!outlier[i]) continue;
     for (int m = 0; m < knn.k && anchor[i] < 0; ++m) {
       const int j = knn.row(i)[m];
       if (j != static_cast<int>(i) && !outlier[static_cast<std::size_t>(j)]) anchor[i] = j;
     }
-    if (anchor[i] < 0) far.push_back(i);
+    if (anchor[i] < 0) far.push_back(static_cast<int>(i));
   }
   if (!far.empty()) {
     std::vector<int> inliers;
@@ -435,22 +457,9 @@ NeighborGraph attachOutliers(const pcl::PointCloud<pcl::PointXYZ>& points, const
     std::vector<int> pick;
     for (std::size_t m = 0; m < inliers.size(); m += stride) pick.push_back(inliers[m]);
     if (!pick.empty()) {
-      std::vector<float> xyz(pick.size() * 3), q(far.size() * 3), d2(far.size());
-      std::vector<int> hit(far.size(), -1);
-      for (std::size_t m = 0; m < pick.size(); ++m)
-        for (int a = 0; a < 3; ++a)
-          xyz[m * 3 + static_cast<std::size_t>(a)] = points[static_cast<std::size_t>(pick[m])].data[a];
+      const std::vector<int> hit = nearestAmong(points, pick, far);
       for (std::size_t m = 0; m < far.size(); ++m)
-        for (int a = 0; a < 3; ++a) q[m * 3 + static_cast<std::size_t>(a)] = points[far[m]].data[a];
-      const flann::Matrix<float> data(xyz.data(), pick.size(), 3);
-      flann::Index<flann::L2_Simple<float>> index(data, flann::KDTreeSingleIndexParams(15));
-      index.buildIndex();
-      flann::Matrix<float> mq(q.data(), far.size(), 3), md(d2.data(), far.size(), 1);
-      flann::Matrix<int> mi(hit.data(), far.size(), 1);
-      flann::SearchParams params(flann::FLANN_CHECKS_UNLIMITED, 0.0f, true);
-      index.knnSearch(mq, mi, md, 1, params);
-      for (std::size_t m = 0; m < far.size(); ++m)
-        if (hit[m] >= 0) anchor[far[m]] = pick[static_cast<std::size_t>(hit[m])];
+        if (hit[m] >= 0) anchor[static_cast<std::size_t>(far[m])] = pick[static_cast<std::size_t>(hit[m])];
     }
   }
   return symmetricGraph(n, [&](auto&& emit) {

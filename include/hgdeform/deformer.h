@@ -179,6 +179,12 @@ class Deformer {
   void rebuild();
   /// rebuild()'s field, pieces and clusters on coarse_ (a multi-resolution build).
   void buildCoarse(Stopwatch& sw);
+  /// The field's input: every point of the shape (its normals, its faces).
+  void fieldOnEveryPoint();
+  /// The sample, pieces_ and the clusters of `points` (the field's, which it has just solved
+  /// into `phi`); `weight`: the points each stands for in the pieces report (may be null).
+  Clustering clusterField(const pcl::PointCloud<pcl::PointXYZ>& points, const std::vector<float>& phi,
+                          const Handles& handles, const std::vector<std::uint32_t>* weight, Stopwatch& sw);
   SolveStats dragFrame(const Eigen::Vector3d& to);
   SolveStats solveHandle(const Eigen::Affine3d& transform);
   Eigen::Vector3d pickedWorld() const;
