@@ -284,4 +284,26 @@ TEST(Multires, MeshWithAJointMatchesFullResolution) {
   EXPECT_LT(e.move_rms, 0.022);
 }
 
+// A handle index past the end is refused before the coarse level reads it (the full build's
+// field refuses it the same way), naming the index.
+TEST(Multires, HandleIndexOutOfRangeIsRefused) {
+  const hgd::Geometry g = hgd::extractGeometry(hgd::shapes::bar(1.0f, 0.1f, 0.01f));
+  for (const bool joint : {false, true}) {
+    hgd::Handles h = hgdtest::endHandles(g, 0.05, 0.95);
+    const int bad = static_cast<int>(g.size());
+    if (joint)
+      h.joints.push_back({0, bad});
+    else
+      h.manipulated.push_back(bad);
+    try {
+      Deformer d(g, h, coarse(500));
+      ADD_FAILURE() << "accepted index " << bad;
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("handle index " + std::to_string(bad) + " out of range"),
+                std::string::npos)
+          << e.what();
+    }
+  }
+}
+
 }  // namespace
