@@ -16,19 +16,24 @@ constexpr double kPinWeight = 1e4;           // relative weight of the barycentr
 }  // namespace
 
 Deformer::Deformer(const Geometry& geometry, const Handles& handles, const DeformOptions& options)
-    : geometry_(geometry), handles_(handles), options_(options) {
+    : Deformer(std::make_shared<const Geometry>(geometry), handles, options) {}
+
+Deformer::Deformer(std::shared_ptr<const Geometry> geometry, const Handles& handles,
+                   const DeformOptions& options)
+    : geometry_(std::move(geometry)), handles_(handles), options_(options) {
+  if (!geometry_) throw std::invalid_argument("Deformer: no geometry");
   // The mesh's 1-ring, when asked for, is a graph over every vertex: full resolution.
-  multires_ = options_.multires_above > 0 && geometry_.size() > options_.multires_above &&
-              options_.coarse_points > 0 && options_.coarse_points < geometry_.size() &&
-              !(options_.field.mesh_ring && !geometry_.faces.empty());
+  multires_ = options_.multires_above > 0 && geometry_->size() > options_.multires_above &&
+              options_.coarse_points > 0 && options_.coarse_points < geometry_->size() &&
+              !(options_.field.mesh_ring && !geometry_->faces.empty());
   if (!multires_) fieldOnEveryPoint();  // else rebuild() gives the field the handles' coarse level
   field_.setOptions(options_.field);
-  const Eigen::AlignedBox3f box = boundingBox(*geometry_.points);
+  const Eigen::AlignedBox3f box = boundingBox(*geometry_->points);
   const Eigen::Vector3d lo = box.min().cast<double>(), hi = box.max().cast<double>();
   centre_ = 0.5 * (lo + hi);
   const double diag = (hi - lo).norm();
   scale_ = diag > 0 ? 1.0 / diag : 1.0;
-  positions_.resize(geometry_.size());  // (normals are sized when first derived)
+  positions_.resize(geometry_->size());  // (normals are sized when first derived)
   rebuild();
 }
 
@@ -48,13 +53,13 @@ void Deformer::rebuild() {
   if (multires_) {
     auto check = [&](const std::vector<int>& idx) {
       for (const int i : idx)
-        if (i < 0 || static_cast<std::size_t>(i) >= geometry_.size())
+        if (i < 0 || static_cast<std::size_t>(i) >= geometry_->size())
           throw std::invalid_argument("Deformer: handle index " + std::to_string(i) + " out of range");
     };
     for (const auto& f : handles_.fixed) check(f);
     check(handles_.manipulated);
     for (const auto& j : handles_.joints) check(j);
-    coarse_ = coarsen(*geometry_.points, handles_, options_.coarse_points, geometry_.faces.empty());
+    coarse_ = coarsen(*geometry_->points, handles_, options_.coarse_points, geometry_->faces.empty());
     if (coarse_.empty()) {  // thousands of handles: no cell key holds them all
       multires_ = false;
       fieldOnEveryPoint();
@@ -71,13 +76,20 @@ void Deformer::rebuild() {
     build_.coarse_ms = 0;
     unreachable_points_ = field_.unreachable().size();
 
-    const auto& pts = *geometry_.points;
+    const auto& pts = *geometry_->points;
     clustering_ = clusterField(pts, phi_, handles_, nullptr, sw);
     // Normals rotate with the shape as the file gave them (the filter may have re-oriented its
-    // own copy).
-    table_ =
-        buildInterpolation(phi_, handles_, clustering_, pts,
-                           geometry_.hasFileNormals() ? geometry_.file_normals.get() : &field_.normals());
+    // own copy): the file's are shared with the table, not copied.
+    if (geometry_->hasFileNormals())
+      table_ = buildInterpolation(phi_, handles_, clustering_, pts,
+                                  pcl::PointCloud<pcl::Normal>::ConstPtr(geometry_->file_normals));
+    else
+      table_ = buildInterpolation(phi_, handles_, clustering_, pts, &field_.normals());
+    // The per-point brackets live on in the table alone (interpolationTable().bracket()).
+    clustering_.lower = {};
+    clustering_.upper = {};
+    clustering_.alpha = {};
+    clustering_.nearest = {};
   }
   buildPreviewTable();
   build_.clusters_ms = sw.lap();
@@ -90,9 +102,9 @@ void Deformer::rebuild() {
 }
 
 void Deformer::fieldOnEveryPoint() {
-  field_.setInputCloud(geometry_.points);
-  field_.setInputNormals(geometry_.hasFileNormals() ? geometry_.file_normals : nullptr);
-  if (!geometry_.faces.empty()) field_.setPolygons(geometry_.faces);
+  field_.setInputCloud(geometry_->points);
+  field_.setInputNormals(geometry_->hasFileNormals() ? geometry_->file_normals : nullptr);
+  if (!geometry_->faces.empty()) field_.setPolygons(geometry_->faces);
 }
 
 Clustering Deformer::clusterField(const pcl::PointCloud<pcl::PointXYZ>& points, const std::vector<float>& phi,
@@ -110,7 +122,7 @@ Clustering Deformer::clusterField(const pcl::PointCloud<pcl::PointXYZ>& points, 
 }
 
 void Deformer::buildCoarse(Stopwatch& sw) {
-  const auto& pts = *geometry_.points;
+  const auto& pts = *geometry_->points;
   const std::size_t m = coarse_.points.size();
   pcl::PointCloud<pcl::PointXYZ>::Ptr cloud(new pcl::PointCloud<pcl::PointXYZ>);
   cloud->resize(m);
@@ -118,8 +130,9 @@ void Deformer::buildCoarse(Stopwatch& sw) {
   // The coarse level is a cloud: the file's normals, else a mesh's (where every coarse vertex
   // has one), else estimated there.
   pcl::PointCloud<pcl::Normal>::Ptr normals;
-  pcl::PointCloud<pcl::Normal>::ConstPtr full = geometry_.hasFileNormals() ? geometry_.file_normals : nullptr;
-  if (!full && !geometry_.faces.empty()) full = meshNormals(pts, geometry_.faces);
+  pcl::PointCloud<pcl::Normal>::ConstPtr full =
+      geometry_->hasFileNormals() ? geometry_->file_normals : nullptr;
+  if (!full && !geometry_->faces.empty()) full = meshNormals(pts, geometry_->faces);
   if (full) {
     normals.reset(new pcl::PointCloud<pcl::Normal>);
     normals->resize(m);
@@ -163,19 +176,22 @@ void Deformer::buildCoarse(Stopwatch& sw) {
   unreachable_points_ = 0;
   for (const int a : field_.unreachable()) unreachable_points_ += coarse_.weight[static_cast<std::size_t>(a)];
 
-  // Pieces and clusters on the coarse level, then every point takes its anchor's.
+  // Pieces and clusters on the coarse level, then every point takes its anchor's, straight into
+  // the table (no per-point labels in between).
   Clustering coarse_clusters = clusterField(*cloud, coarse_phi, coarse_handles, &coarse_.weight, sw);
   pieces_.follow.clear();  // the coarse points' (each point takes its anchor's clusters)
-  clustering_ = prolongClustering(std::move(coarse_clusters), coarse_, coarse_phi, phi_);
+  table_ = prolongInterpolation(coarse_clusters, coarse_, coarse_phi, phi_, handles_, pts);
+  clustering_ = prolongClusters(std::move(coarse_clusters), coarse_);
   char note[200];
   std::snprintf(note, sizeof note,
                 "multi-resolution: field, pieces and clusters on %zu of %zu points (voxel side %.3g); "
                 "full resolution on request",
                 m, pts.size(), static_cast<double>(coarse_.cell));
   clustering_.notes.emplace_back(note);
-  table_ = buildInterpolation(phi_, handles_, clustering_, pts,
-                              geometry_.hasFileNormals() ? geometry_.file_normals.get() : nullptr);
-  if (!table_.has_normals) {  // a point's rest normal: its anchor's
+  if (geometry_->hasFileNormals()) {  // shared, not copied
+    table_.normal_cloud = geometry_->file_normals;
+    table_.has_normals = true;
+  } else {  // a point's rest normal: its anchor's
     const auto& coarse_normals = field_.normals();
     table_.normals.resize(pts.size());
     for (std::size_t i = 0; i < pts.size(); ++i)
@@ -212,7 +228,7 @@ void Deformer::setupSolver() {
     sc[c].points.reserve(cl.members.size());
     for (int i : cl.members)
       sc[c].points.push_back(
-          normalise((*geometry_.points)[static_cast<std::size_t>(i)].getVector3fMap().cast<double>()));
+          normalise((*geometry_->points)[static_cast<std::size_t>(i)].getVector3fMap().cast<double>()));
     // The manipulated cluster is free: a frame move holds it (solveHandle), a drag matches it.
     sc[c].constant = cl.kind == ClusterKind::Fixed || cl.kind == ClusterKind::Static;
     const double w_mhc =
@@ -240,7 +256,7 @@ Eigen::Vector3d Deformer::currentNormalised(int cluster, const Eigen::Vector3d& 
 }
 
 void Deformer::pick(const Eigen::Vector3d& world) {
-  const Eigen::Vector3f local = (world - geometry_.origin).cast<float>();
+  const Eigen::Vector3f local = (world - geometry_->origin).cast<float>();
   float best = INFINITY;
   picked_ = handles_.manipulated.front();
   for (int i : handles_.manipulated) {
@@ -258,12 +274,12 @@ void Deformer::pick(const Eigen::Vector3d& world) {
   manip_weight_.clear();
   for (std::size_t k = 0; k < members.size(); k += stride) {
     if (members[k] == picked_) continue;
-    manip_rest_.push_back(
-        normalise((*geometry_.points)[static_cast<std::size_t>(members[k])].getVector3fMap().cast<double>()));
+    manip_rest_.push_back(normalise(
+        (*geometry_->points)[static_cast<std::size_t>(members[k])].getVector3fMap().cast<double>()));
     manip_weight_.push_back(1.0);
   }
   manip_rest_.push_back(
-      normalise((*geometry_.points)[static_cast<std::size_t>(picked_)].getVector3fMap().cast<double>()));
+      normalise((*geometry_->points)[static_cast<std::size_t>(picked_)].getVector3fMap().cast<double>()));
   manip_weight_.push_back(options_.weights.picked);
   // The paper's t_MC = c - c0: the handle's weighted barycentre goes exactly to the targets'
   // weighted barycentre. Imposed as one extra matching point of overwhelming weight, so that
@@ -297,7 +313,7 @@ SolveStats Deformer::dragFrame(const Eigen::Vector3d& to) {
   double wsum = 0;
   for (std::size_t k = 0; k < pin; ++k) {
     manip_target_[k] =
-        k == picked_slot ? normalise(to - geometry_.origin) : currentNormalised(mc, manip_rest_[k]);
+        k == picked_slot ? normalise(to - geometry_->origin) : currentNormalised(mc, manip_rest_[k]);
     c += manip_weight_[k] * manip_target_[k];
     wsum += manip_weight_[k];
   }
@@ -318,8 +334,8 @@ SolveStats Deformer::translateHandle(const Eigen::Vector3d& from, const Eigen::V
 
 Eigen::Vector3d Deformer::pickedWorld() const {
   const Eigen::Vector3d rest =
-      normalise((*geometry_.points)[static_cast<std::size_t>(picked_)].getVector3fMap().cast<double>());
-  return currentNormalised(clustering_.manipulated, rest) / scale_ + centre_ + geometry_.origin;
+      normalise((*geometry_->points)[static_cast<std::size_t>(picked_)].getVector3fMap().cast<double>());
+  return currentNormalised(clustering_.manipulated, rest) / scale_ + centre_ + geometry_->origin;
 }
 
 DragResult Deformer::dragTo(const Eigen::Vector3d& from, const Eigen::Vector3d& to) {
@@ -410,7 +426,7 @@ SolveStats Deformer::solveHandle(const Eigen::Affine3d& transform) {
   if (!frame_mode_) picked_ = -1;  // a drag after the frame move picks again
   frame_mode_ = true;
   const Eigen::Matrix3d a = transform.linear();
-  const Eigen::Vector3d o = geometry_.origin;
+  const Eigen::Vector3d o = geometry_->origin;
   // The world transform in the solver's normalised frame, about the cluster's barycentre.
   const Eigen::Vector3d shift = scale_ * (a * (centre_ + o) + transform.translation() - o - centre_);
   const int mc = clustering_.manipulated;
@@ -424,7 +440,7 @@ Eigen::Affine3d Deformer::handleTransform() const {
   const NormalisedTransform& t = solver_.transforms()[static_cast<std::size_t>(mc)];
   const Eigen::Vector3d g = normalise(clustering_.clusters[static_cast<std::size_t>(mc)].barycentre);
   const Eigen::Vector3d shift = t.t + g - t.A * g;  // normalised: x -> A x + shift
-  const Eigen::Vector3d o = geometry_.origin;
+  const Eigen::Vector3d o = geometry_->origin;
   Eigen::Affine3d w = Eigen::Affine3d::Identity();
   w.linear() = t.A;
   w.translation() = shift / scale_ - t.A * (centre_ + o) + o + centre_;
@@ -440,7 +456,7 @@ void Deformer::reset() {
 
 void Deformer::setPreview(std::vector<int> points) {
   for (const int i : points)
-    if (i < 0 || static_cast<std::size_t>(i) >= geometry_.size())
+    if (i < 0 || static_cast<std::size_t>(i) >= geometry_->size())
       throw std::invalid_argument("Deformer::setPreview: point index out of range");
   const bool was = !preview_.empty();
   // The old preview's normals, if due, before its table goes (a full frame's keep: they are
@@ -463,7 +479,7 @@ void Deformer::buildPreviewTable() {
   preview_table_.has_normals = table_.has_normals;
   if (table_.has_normals)
     for (const int i : preview_)
-      preview_table_.normals.push_back(table_.normals[static_cast<std::size_t>(i)]);
+      preview_table_.normals.push_back(table_.restNormal(static_cast<std::size_t>(i)));
   preview_table_.pairs = table_.pairs;
   preview_table_.pair_centre = table_.pair_centre;
   preview_table_.points.reserve(preview_.size());
@@ -514,10 +530,11 @@ SurfaceStretch Deformer::surfaceStretch() const {
   double moved = 1e-4 / scale_;
   for (std::size_t u = 0; u < positions_.size(); ++u)
     moved = std::max(moved,
-                     static_cast<double>((positions_[u] - (*geometry_.points)[u].getVector3fMap()).norm()));
+                     static_cast<double>((positions_[u] - (*geometry_->points)[u].getVector3fMap()).norm()));
   // Mesh edges where there are faces (what the user sees joined), else the neighbour graph.
-  if (!geometry_.faces.empty())
-    return measureStretch(*geometry_.points, positions_, ringGraph(geometry_.size(), geometry_.faces), moved);
+  if (!geometry_->faces.empty())
+    return measureStretch(*geometry_->points, positions_, ringGraph(geometry_->size(), geometry_->faces),
+                          moved);
   // A stray's one pair to the surface point it hangs from is no surface pair (a stray inside
   // the dragged handle moves with it, its anchor maybe not).
   const std::vector<char>& strays = field_.outliers();
@@ -529,24 +546,24 @@ SurfaceStretch Deformer::surfaceStretch() const {
         if (static_cast<int>(a) < *j)
           pairs.emplace_back(coarse_.points[a], coarse_.points[static_cast<std::size_t>(*j)]);
     NeighborGraph none;
-    none.offsets.assign(geometry_.size() + 1, 0);
+    none.offsets.assign(geometry_->size() + 1, 0);
     std::vector<char> shape_strays;
     if (!strays.empty() || !coarse_.strays.empty()) {
-      shape_strays.assign(geometry_.size(), 0);
+      shape_strays.assign(geometry_->size(), 0);
       for (std::size_t a = 0; a < strays.size(); ++a)
         if (strays[a]) shape_strays[static_cast<std::size_t>(coarse_.points[a])] = 1;
       for (const int i : coarse_.strays) shape_strays[static_cast<std::size_t>(i)] = 1;
     }
-    return measureStretch(*geometry_.points, positions_, addEdges(none, pairs), moved,
+    return measureStretch(*geometry_->points, positions_, addEdges(none, pairs), moved,
                           shape_strays.empty() ? nullptr : &shape_strays);
   }
-  return measureStretch(*geometry_.points, positions_, field_.graph(), moved,
+  return measureStretch(*geometry_->points, positions_, field_.graph(), moved,
                         strays.empty() ? nullptr : &strays);
 }
 
 void Deformer::updateNormals() const {
   const std::lock_guard<std::mutex> lock(normals_.mutex);
-  out_normals_.resize(geometry_.size());
+  out_normals_.resize(geometry_->size());
   // The last full frame's (the points a preview frame left alone keep those), then the preview's.
   if (normals_.all_due) {
     interpolateNormals(table_, normals_.all_transforms, out_normals_, normals_.all_blend);
@@ -567,20 +584,17 @@ const std::vector<Eigen::Vector3f>& Deformer::deformedNormals() const {
 
 void Deformer::writeDeformed(Shape& shape) const {
   updateNormals();
-  storePositions(shape, geometry_, positions_, &out_normals_);
+  storePositions(shape, *geometry_, positions_, &out_normals_);
   // An OBJ's own normals ('vn', indexed apart from the vertices) turn as the normal of the
   // vertex a face pairs them with turns.
   FileExtras& x = shape.extras;
   x.obj_normals_out = x.obj_normals;
-  const std::vector<Eigen::Vector3f>& rest = table_.normals;  // the rest normals that turn
   for (std::size_t j = 0; j < x.obj_normals.size() && j < x.obj_normal_vertex.size(); ++j) {
     const int v = x.obj_normal_vertex[j];
-    if (v < 0 || static_cast<std::size_t>(v) >= geometry_.finite_index.size()) continue;
-    const int i = geometry_.finite_index[static_cast<std::size_t>(v)];
-    if (i < 0 || static_cast<std::size_t>(i) >= out_normals_.size() ||
-        static_cast<std::size_t>(i) >= rest.size())
-      continue;
-    const Eigen::Vector3f n0 = rest[static_cast<std::size_t>(i)];
+    if (v < 0 || static_cast<std::size_t>(v) >= geometry_->finite_index.size()) continue;
+    const int i = geometry_->finite_index[static_cast<std::size_t>(v)];
+    if (i < 0 || static_cast<std::size_t>(i) >= out_normals_.size() || !table_.has_normals) continue;
+    const Eigen::Vector3f n0 = table_.restNormal(static_cast<std::size_t>(i));  // the rest normal that turns
     const Eigen::Vector3f n1 = out_normals_[static_cast<std::size_t>(i)];
     if (!(n0.squaredNorm() > 0) || !(n1.squaredNorm() > 0) || !n0.allFinite() || !n1.allFinite()) continue;
     x.obj_normals_out[j] = Eigen::Quaternionf::FromTwoVectors(n0, n1) * x.obj_normals[j];

@@ -3,62 +3,56 @@
 #include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
 
 #include "hgdeform/geometry.h"
+#include "table_build.h"
 #include "timer.h"
 
 namespace hgd {
 
+namespace {
+InterpolationTable tableOf(const std::vector<float>& phi, const Handles& handles, const Clustering& c,
+                           const pcl::PointCloud<pcl::PointXYZ>& points) {
+  const std::size_t n = phi.size();
+  if (points.size() != n || c.lower.size() != n || c.upper.size() != n || c.alpha.size() != n)
+    throw std::invalid_argument(
+        "buildInterpolation: the field, the points and the clustering's per-point labels differ in size");
+  std::vector<std::pair<int, int>> pairs;  // runs of equal pairs kept once
+  pairs.reserve(c.adjacency.size() * 2 + c.clusters.size());
+  for (std::size_t i = 0; i < n; ++i)
+    if (pairs.empty() || pairs.back() != std::make_pair(c.lower[i], c.upper[i]))
+      pairs.emplace_back(c.lower[i], c.upper[i]);
+  return detail::buildTable(handles, c, points, std::move(pairs),
+                            [&](std::size_t i, int& lo, int& hi, float& alpha) {
+                              lo = c.lower[i];
+                              hi = c.upper[i];
+                              alpha = c.alpha[i];
+                            });
+}
+}  // namespace
+
 InterpolationTable buildInterpolation(const std::vector<float>& phi, const Handles& handles,
                                       const Clustering& c, const pcl::PointCloud<pcl::PointXYZ>& points,
                                       const pcl::PointCloud<pcl::Normal>* normals) {
-  const std::size_t n = phi.size();
-  InterpolationTable t;
-  // Handle points take their handle's transform exactly (pinned below, after the pass over
-  // every point: no per-point copy of the labels).
-  std::vector<int> fixed_cluster(handles.fixed.size(), -1);
-  for (const auto& cl : c.clusters)
-    if (cl.kind == ClusterKind::Fixed) fixed_cluster[static_cast<std::size_t>(cl.handle)] = cl.id;
-  // Pairs: sorted unique (lower, upper), looked up by binary search.
-  t.pairs.reserve(c.adjacency.size() * 2 + c.clusters.size());
-  for (std::size_t i = 0; i < n; ++i)
-    if (t.pairs.empty() || t.pairs.back() != std::make_pair(c.lower[i], c.upper[i]))
-      t.pairs.emplace_back(c.lower[i], c.upper[i]);
-  for (std::size_t k = 0; k < handles.fixed.size(); ++k)
-    if (!handles.fixed[k].empty()) t.pairs.emplace_back(fixed_cluster[k], fixed_cluster[k]);
-  if (!handles.manipulated.empty()) t.pairs.emplace_back(c.manipulated, c.manipulated);
-  std::sort(t.pairs.begin(), t.pairs.end());
-  t.pairs.erase(std::unique(t.pairs.begin(), t.pairs.end()), t.pairs.end());
-  auto pairOf = [&](int lo, int hi) {
-    return static_cast<std::uint32_t>(
-        std::lower_bound(t.pairs.begin(), t.pairs.end(), std::make_pair(lo, hi)) - t.pairs.begin());
-  };
-  t.has_normals = normals != nullptr && normals->size() == n;
-  t.points.resize(n);
-  if (t.has_normals) t.normals.resize(n);
-  const long long nn = static_cast<long long>(n);
+  InterpolationTable t = tableOf(phi, handles, c, points);
+  t.has_normals = normals != nullptr && normals->size() == t.size();
+  if (t.has_normals) {
+    t.normals.resize(t.size());
+    const long long nn = static_cast<long long>(t.size());
 #pragma omp parallel for schedule(static) if (nn > kParallelMin)
-  for (long long ii = 0; ii < nn; ++ii) {
-    const auto i = static_cast<std::size_t>(ii);
-    InterpolationTable::Point& r = t.points[i];
-    for (int a = 0; a < 3; ++a) r.p[a] = points[i].data[a];
-    if (t.has_normals) t.normals[i] = (*normals)[i].getNormalVector3fMap();
-    r.pair = pairOf(c.lower[i], c.upper[i]);
-    r.alpha = c.alpha[i];
+    for (long long i = 0; i < nn; ++i)
+      t.normals[static_cast<std::size_t>(i)] = (*normals)[static_cast<std::size_t>(i)].getNormalVector3fMap();
   }
-  auto pin = [&](const std::vector<int>& idx, int cluster) {
-    const std::uint32_t pair = pairOf(cluster, cluster);
-    for (const int i : idx) {
-      t.points[static_cast<std::size_t>(i)].pair = pair;
-      t.points[static_cast<std::size_t>(i)].alpha = 0.0f;
-    }
-  };
-  for (std::size_t k = 0; k < handles.fixed.size(); ++k) pin(handles.fixed[k], fixed_cluster[k]);
-  pin(handles.manipulated, c.manipulated);  // last: a point in both keeps the manipulated one
-  for (const auto& [a, b] : t.pairs)
-    t.pair_centre.push_back((0.5 * (c.clusters[static_cast<std::size_t>(a)].barycentre +
-                                    c.clusters[static_cast<std::size_t>(b)].barycentre))
-                                .cast<float>());
+  return t;
+}
+
+InterpolationTable buildInterpolation(const std::vector<float>& phi, const Handles& handles,
+                                      const Clustering& c, const pcl::PointCloud<pcl::PointXYZ>& points,
+                                      pcl::PointCloud<pcl::Normal>::ConstPtr normals) {
+  InterpolationTable t = tableOf(phi, handles, c, points);
+  t.has_normals = normals && normals->size() == t.size();
+  if (t.has_normals) t.normal_cloud = std::move(normals);
   return t;
 }
 
@@ -172,19 +166,25 @@ void interpolatePositions(const InterpolationTable& table, const std::vector<Loc
 
 void interpolateNormals(const InterpolationTable& table, const std::vector<LocalTransform>& transforms,
                         std::vector<Eigen::Vector3f>& out_normals, Blend blend) {
-  if (!table.has_normals) return;
+  if (!table.has_normals || table.size() == 0) return;
   using Point = InterpolationTable::Point;
-  const Eigen::Vector3f* rest = table.normals.data();
+  // The table's own normals or a shared cloud's (pcl::Normal: 8 floats, the normal first).
+  const float* base = table.normal_cloud ? (*table.normal_cloud)[0].normal : table.normals.data()->data();
+  const long long stride =
+      table.normal_cloud ? static_cast<long long>(sizeof(pcl::Normal) / sizeof(float)) : 3;
+  auto rest = [base, stride](long long i) {
+    return Eigen::Vector3f(Eigen::Map<const Eigen::Vector3f>(base + i * stride));
+  };
   Eigen::Vector3f* out = out_normals.data();
   forEachPoint(
       table, transforms, blend,
       [out, rest](long long i, const Point& r, const LocalTransform& a, const LocalTransform& b) {
         const float w = r.alpha;
-        out[i] = transformNormal((1.0f - w) * a.A + w * b.A, rest[i]);
+        out[i] = transformNormal((1.0f - w) * a.A + w * b.A, rest(i));
       },
       [out, rest](long long i, const Point& r, const PairFrame& f) {
         // A rotation: R^-T = R.
-        out[i] = f.own ? transformNormal(f.own->A, rest[i]) : blendedRotate(f, r.alpha, rest[i]);
+        out[i] = f.own ? transformNormal(f.own->A, rest(i)) : blendedRotate(f, r.alpha, rest(i));
       });
 }
 

@@ -4,10 +4,12 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
+#include <stdexcept>
 
 #include "nearest.h"
 #include "parallel.h"
 #include "radix_sort.h"
+#include "table_build.h"
 
 namespace hgd {
 
@@ -318,8 +320,57 @@ std::vector<float> prolongField(const pcl::PointCloud<pcl::PointXYZ>& points, co
   return phi;
 }
 
-Clustering prolongClustering(Clustering c, const CoarseLevel& level, const std::vector<float>& coarse_phi,
-                             const std::vector<float>& phi) {
+namespace {
+
+// The blend factor a shape point takes from the coarse level: a coarse point between two bands
+// whose factor is its place in the gap hands that rule on (the point's own φ placed in the same
+// gap); one that copied its factor from elsewhere (see buildClusters) hands on the factor.
+class AlphaRule {
+ public:
+  AlphaRule(const Clustering& c, const std::vector<float>& coarse_phi)
+      : c_(c), own_gap_(coarse_phi.size(), -1) {
+    const auto& bands = c.bands;
+    for (std::size_t a = 0; a < own_gap_.size(); ++a) {
+      const int lower = c.lower[a], upper = c.upper[a];
+      if (lower < 0 || upper < 0 || lower == upper) continue;
+      const int g = c.clusters[static_cast<std::size_t>(lower)].level;
+      if (g < 0 || static_cast<std::size_t>(g) + 1 >= bands.size() ||
+          c.clusters[static_cast<std::size_t>(upper)].level != g + 1)
+        continue;
+      // Inside its gap, not clamped at an end (an α of 0 or 1 copied from elsewhere would match a
+      // clamped one by chance).
+      const double v = coarse_phi[a];
+      const auto gs = static_cast<std::size_t>(g);
+      if (v > bands[gs].hi && v < bands[gs + 1].lo && std::abs(gapAlpha(gs, v) - c.alpha[a]) <= 1e-6f)
+        own_gap_[a] = g;
+    }
+  }
+  /// The factor of a point anchored at coarse point a with field value v.
+  float operator()(std::uint32_t a, float v) const {
+    return own_gap_[a] >= 0 ? gapAlpha(static_cast<std::size_t>(own_gap_[a]), v) : c_.alpha[a];
+  }
+
+ private:
+  float gapAlpha(std::size_t g, double v) const {
+    const double a = c_.bands[g].hi, b = c_.bands[g + 1].lo;
+    return b > a ? static_cast<float>(std::clamp((v - a) / (b - a), 0.0, 1.0)) : 0.0f;
+  }
+  const Clustering& c_;
+  std::vector<int> own_gap_;
+};
+
+void checkCoarseLabels(const Clustering& c, const CoarseLevel& level, const std::vector<float>& coarse_phi,
+                       const std::vector<float>& phi) {
+  const std::size_t m = level.points.size();
+  if (c.lower.size() != m || c.upper.size() != m || c.alpha.size() != m || coarse_phi.size() != m ||
+      phi.size() != level.anchor.size())
+    throw std::invalid_argument(
+        "prolong: the coarse clustering, the fields and the coarse level differ in size");
+}
+
+}  // namespace
+
+Clustering prolongClusters(Clustering c, const CoarseLevel& level) {
   const auto& to_shape = level.points;
   auto map = [&](std::vector<int>& idx) {
     for (int& i : idx) i = to_shape[static_cast<std::size_t>(i)];
@@ -327,52 +378,68 @@ Clustering prolongClustering(Clustering c, const CoarseLevel& level, const std::
   };
   map(c.sample);
   for (auto& cl : c.clusters) map(cl.members);
-  // A coarse point between two bands whose blend factor is its place in the gap hands that rule
-  // on; one that copied its factor from elsewhere (see buildClusters) hands on the factor.
-  const auto& bands = c.bands;
-  auto gapAlpha = [&](std::size_t g, double v) {
-    const double a = bands[g].hi, b = bands[g + 1].lo;
-    return b > a ? static_cast<float>(std::clamp((v - a) / (b - a), 0.0, 1.0)) : 0.0f;
-  };
-  const std::size_t m = to_shape.size();
-  std::vector<int> own_gap(m, -1);
-  for (std::size_t a = 0; a < m; ++a) {
-    const int lower = c.lower[a], upper = c.upper[a];
-    if (lower < 0 || upper < 0 || lower == upper) continue;
-    const int g = c.clusters[static_cast<std::size_t>(lower)].level;
-    if (g < 0 || static_cast<std::size_t>(g) + 1 >= bands.size() ||
-        c.clusters[static_cast<std::size_t>(upper)].level != g + 1)
-      continue;
-    // Inside its gap, not clamped at an end (an α of 0 or 1 copied from elsewhere would match a
-    // clamped one by chance).
-    const double v = coarse_phi[a];
-    const auto gs = static_cast<std::size_t>(g);
-    if (v > bands[gs].hi && v < bands[gs + 1].lo && std::abs(gapAlpha(gs, v) - c.alpha[a]) <= 1e-6f)
-      own_gap[a] = g;
-  }
+  c.lower.clear();
+  c.upper.clear();
+  c.alpha.clear();
+  c.nearest.clear();
+  return c;
+}
+
+Clustering prolongClustering(Clustering c, const CoarseLevel& level, const std::vector<float>& coarse_phi,
+                             const std::vector<float>& phi) {
+  checkCoarseLabels(c, level, coarse_phi, phi);
   const std::size_t n = level.anchor.size();
   std::vector<int> lower(n), upper(n), nearest(n);
   std::vector<float> alpha(n);
-  const long long nn = static_cast<long long>(n);
+  {
+    const AlphaRule rule(c, coarse_phi);
+    const long long nn = static_cast<long long>(n);
 #pragma omp parallel for schedule(static) if (nn > kParallelMin)
-  for (long long ii = 0; ii < nn; ++ii) {
-    const auto i = static_cast<std::size_t>(ii);
-    const std::uint32_t a = level.anchor[i];
-    lower[i] = c.lower[a];
-    upper[i] = c.upper[a];
-    alpha[i] = own_gap[a] >= 0 ? gapAlpha(static_cast<std::size_t>(own_gap[a]), phi[i]) : c.alpha[a];
-    nearest[i] = alpha[i] < 0.5f ? lower[i] : upper[i];
+    for (long long ii = 0; ii < nn; ++ii) {
+      const auto i = static_cast<std::size_t>(ii);
+      const std::uint32_t a = level.anchor[i];
+      lower[i] = c.lower[a];
+      upper[i] = c.upper[a];
+      alpha[i] = rule(a, phi[i]);
+    }
+    for (const int i : level.strays) {  // a stray moves as the point it hangs from
+      const auto x = static_cast<std::size_t>(i);
+      alpha[x] = c.alpha[level.anchor[x]];
+    }
+#pragma omp parallel for schedule(static) if (nn > kParallelMin)
+    for (long long ii = 0; ii < nn; ++ii) {
+      const auto i = static_cast<std::size_t>(ii);
+      nearest[i] = alpha[i] < 0.5f ? lower[i] : upper[i];
+    }
   }
-  for (const int i : level.strays) {  // a stray moves as the point it hangs from
-    const auto x = static_cast<std::size_t>(i);
-    alpha[x] = c.alpha[level.anchor[x]];
-    nearest[x] = alpha[x] < 0.5f ? lower[x] : upper[x];
-  }
+  c = prolongClusters(std::move(c), level);
   c.lower = std::move(lower);
   c.upper = std::move(upper);
   c.alpha = std::move(alpha);
   c.nearest = std::move(nearest);
   return c;
+}
+
+InterpolationTable prolongInterpolation(const Clustering& c, const CoarseLevel& level,
+                                        const std::vector<float>& coarse_phi, const std::vector<float>& phi,
+                                        const Handles& handles,
+                                        const pcl::PointCloud<pcl::PointXYZ>& points) {
+  checkCoarseLabels(c, level, coarse_phi, phi);
+  if (points.size() != phi.size())
+    throw std::invalid_argument("prolongInterpolation: the points and the field differ in size");
+  const AlphaRule rule(c, coarse_phi);
+  std::vector<std::pair<int, int>> pairs(c.lower.size());
+  for (std::size_t a = 0; a < pairs.size(); ++a) pairs[a] = {c.lower[a], c.upper[a]};
+  InterpolationTable t = detail::buildTable(handles, c, points, std::move(pairs),
+                                            [&](std::size_t i, int& lo, int& hi, float& alpha) {
+                                              const std::uint32_t a = level.anchor[i];
+                                              lo = c.lower[a];
+                                              hi = c.upper[a];
+                                              alpha = rule(a, phi[i]);
+                                            });
+  for (const int i : level.strays)  // a stray moves as the point it hangs from (strays hold no handle)
+    t.points[static_cast<std::size_t>(i)].alpha = c.alpha[level.anchor[static_cast<std::size_t>(i)]];
+  return t;
 }
 
 }  // namespace hgd

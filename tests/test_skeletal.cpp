@@ -15,9 +15,28 @@ using hgdtest::pointsWhere;
 
 namespace {
 
+// The Deformer's clusters with every point's two clusters and blend factor, as interpolation
+// applies them (the Deformer keeps those in its table alone).
+hgd::Clustering bracketed(const hgd::Deformer& d) {
+  hgd::Clustering c = d.clustering();
+  const hgd::InterpolationTable& t = d.interpolationTable();
+  c.lower.resize(t.size());
+  c.upper.resize(t.size());
+  c.alpha.resize(t.size());
+  c.nearest.resize(t.size());
+  for (std::size_t i = 0; i < t.size(); ++i) {
+    const hgd::InterpolationTable::Bracket b = t.bracket(i);
+    c.lower[i] = b.lower;
+    c.upper[i] = b.upper;
+    c.alpha[i] = b.alpha;
+    c.nearest[i] = b.nearest();
+  }
+  return c;
+}
+
 // The points that lie wholly in one bone (both bracketing clusters are that range cluster).
 std::vector<std::vector<int>> bones(const hgd::Deformer& d) {
-  const auto& c = d.clustering();
+  const hgd::Clustering c = bracketed(d);
   std::vector<std::vector<int>> out(c.clusters.size());
   for (std::size_t i = 0; i < c.lower.size(); ++i)
     if (c.lower[i] == c.upper[i] &&
@@ -106,7 +125,7 @@ struct Recomputed {
 Recomputed equationOne(const hgd::Deformer& d, hgd::Blend blend, BoneValue bone_value = BoneValue::FacingEnd,
                        bool snap = true) {
   const hgd::Geometry& g = d.geometry();
-  const hgd::Clustering& c = d.clustering();
+  const hgd::Clustering c = bracketed(d);
   // The solver works on the shape scaled to a unit diagonal, each transform about its cluster's
   // barycentre g: x -> A (x - g) + g + t there, so x -> A (x - g) + g + t * diagonal here.
   const double diag = hgd::boundingBoxDiagonal(g);
@@ -185,7 +204,7 @@ Recomputed equationOne(const hgd::Deformer& d, hgd::Blend blend, BoneValue bone_
 // the bone's end gives at most 5% of the step to the next cluster; one that jumps gives the jump.
 double jumpAtBoneEnds(const hgd::Deformer& d, const std::vector<Eigen::Vector3d>& deformed, int* counted) {
   const hgd::Geometry& g = d.geometry();
-  const hgd::Clustering& c = d.clustering();
+  const hgd::Clustering c = bracketed(d);
   double worst = 0;
   *counted = 0;
   for (const hgd::Cluster& bone : c.clusters) {
@@ -228,7 +247,7 @@ double jumpAtBoneEnds(const hgd::Deformer& d, const std::vector<Eigen::Vector3d>
 // largest over all handles, as a fraction of the diagonal.
 double stepAtHandleEdges(const hgd::Deformer& d, const std::vector<Eigen::Vector3d>& deformed) {
   const hgd::Geometry& g = d.geometry();
-  const hgd::Clustering& c = d.clustering();
+  const hgd::Clustering c = bracketed(d);
   std::vector<std::vector<int>> handles = d.handles().fixed;
   handles.push_back(d.handles().manipulated);
   const hgd::KnnTable knn = hgd::computeKnn(*g.points, 8);

@@ -10,6 +10,7 @@
 #pragma once
 
 #include <Eigen/Geometry>
+#include <memory>
 #include <mutex>
 #include <string>
 #include <vector>
@@ -74,7 +75,13 @@ struct DragResult {
 
 class Deformer {
  public:
+  /// The Deformer keeps a copy of `geometry` (its point and normal clouds are shared, not
+  /// copied; its index maps are copied).
   Deformer(const Geometry& geometry, const Handles& handles, const DeformOptions& options = {});
+  /// The geometry shared, nothing of it copied (what ScenarioRunner does: the shape's index maps
+  /// held once). It must not change while the Deformer lives.
+  Deformer(std::shared_ptr<const Geometry> geometry, const Handles& handles,
+           const DeformOptions& options = {});
   Deformer(const Deformer&) = delete;
   Deformer& operator=(const Deformer&) = delete;
 
@@ -141,13 +148,13 @@ class Deformer {
   /// normals as of that call until this is called again.
   const std::vector<Eigen::Vector3f>& deformedNormals() const;
   Eigen::Vector3d deformedWorld(std::size_t i) const {
-    return positions_[i].cast<double>() + geometry_.origin;
+    return positions_[i].cast<double>() + geometry_->origin;
   }
   /// Stores the deformed positions (and normals, where the shape has normal fields; derived
   /// here if a move left them due, as deformedNormals() does).
   void writeDeformed(Shape& shape) const;
 
-  const Geometry& geometry() const { return geometry_; }
+  const Geometry& geometry() const { return *geometry_; }
   const Handles& handles() const { return handles_; }
   const std::vector<float>& field() const { return phi_; }
   /// The field's stage: at full resolution over every point; on a multi-resolution build over
@@ -157,6 +164,8 @@ class Deformer {
   const CoarseLevel& coarseLevel() const { return coarse_; }
   /// Points in parts that touch no handle (at any resolution, counted over every point).
   std::size_t unreachablePoints() const { return unreachable_points_; }
+  /// The clusters, bands and sample. Its per-point labels (lower, upper, alpha, nearest) are
+  /// empty: a point's two clusters and blend factor are interpolationTable().bracket(i).
   const Clustering& clustering() const { return clustering_; }
   const InterpolationTable& interpolationTable() const { return table_; }
   /// The pieces the field did not reach, and what became of them (see pieces.h).
@@ -196,7 +205,7 @@ class Deformer {
   Eigen::Vector3d currentNormalised(int cluster, const Eigen::Vector3d& rest) const;
   void pick(const Eigen::Vector3d& world);
 
-  Geometry geometry_;
+  std::shared_ptr<const Geometry> geometry_;
   Handles handles_;
   DeformOptions options_;
   HarmonicField field_;

@@ -40,21 +40,48 @@ struct InterpolationTable {
     std::uint32_t pair;  ///< index into `pairs`
   };
   std::vector<Point> points;
-  /// Rest normals, apart from the records: only a normals pass reads them (empty: none).
+  /// Rest normals, apart from the records: only a normals pass reads them. Either the table's
+  /// own (`normals`), or, so that a file's normals are not held twice, the cloud given to
+  /// buildInterpolation (`normal_cloud`, shared, not copied); restNormal() reads whichever.
   std::vector<Eigen::Vector3f> normals;
+  pcl::PointCloud<pcl::Normal>::ConstPtr normal_cloud;
   bool has_normals = false;
   /// The distinct (lower, upper) pairs and each pair's rest centre (the mean of the two clusters'
   /// barycentres): the rotation-aware blend works per pair.
   std::vector<std::pair<int, int>> pairs;
   std::vector<Eigen::Vector3f> pair_centre;
   std::size_t size() const { return points.size(); }
+
+  /// Point i's rest normal (has_normals must be true).
+  Eigen::Vector3f restNormal(std::size_t i) const {
+    return normal_cloud ? Eigen::Vector3f((*normal_cloud)[i].getNormalVector3fMap()) : normals[i];
+  }
+
+  /// A point's two clusters and its blend factor between them, as interpolation applies them
+  /// (handle points: their handle's cluster on both sides).
+  struct Bracket {
+    int lower = -1, upper = -1;
+    float alpha = 0;
+    /// The nearer of the two (for display).
+    int nearest() const { return alpha < 0.5f ? lower : upper; }
+  };
+  Bracket bracket(std::size_t i) const {
+    const Point& r = points[i];
+    return {pairs[r.pair].first, pairs[r.pair].second, r.alpha};
+  }
 };
 
-/// The table for `points` (and their `normals`, which may be null) under a clustering.
+/// The table for `points` (and their `normals`, which may be null: copied into the table) under
+/// a clustering with per-point brackets (Clustering::lower, upper, alpha).
 InterpolationTable buildInterpolation(const std::vector<float>& phi, const Handles& handles,
                                       const Clustering& clustering,
                                       const pcl::PointCloud<pcl::PointXYZ>& points,
                                       const pcl::PointCloud<pcl::Normal>* normals);
+/// The same, the normals shared with the table (normal_cloud) rather than copied.
+InterpolationTable buildInterpolation(const std::vector<float>& phi, const Handles& handles,
+                                      const Clustering& clustering,
+                                      const pcl::PointCloud<pcl::PointXYZ>& points,
+                                      pcl::PointCloud<pcl::Normal>::ConstPtr normals);
 
 /// Applies the blended transforms to the positions, p -> T p. Parallel over points; writes into
 /// a preallocated output (sized like the table).

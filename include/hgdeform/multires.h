@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "hgdeform/clustering.h"
+#include "hgdeform/interpolation.h"
 #include "hgdeform/neighbors.h"
 #include "hgdeform/regions.h"
 
@@ -50,5 +51,16 @@ std::vector<float> prolongField(const pcl::PointCloud<pcl::PointXYZ>& points, co
 /// its own φ where the anchor's came from φ (else the anchor's).
 Clustering prolongClustering(Clustering coarse, const CoarseLevel& level,
                              const std::vector<float>& coarse_phi, const std::vector<float>& phi);
+
+/// What buildInterpolation(phi, handles, prolongClustering(coarse, ...), points, nullptr) gives,
+/// straight from the coarse level's clustering, with no per-point labels in between (16 bytes
+/// a point fewer at the peak). `handles`: the shape's; normals are left to the caller.
+InterpolationTable prolongInterpolation(const Clustering& coarse, const CoarseLevel& level,
+                                        const std::vector<float>& coarse_phi, const std::vector<float>& phi,
+                                        const Handles& handles, const pcl::PointCloud<pcl::PointXYZ>& points);
+
+/// The clusters of the shape from the coarse level's: member and sample indices become shape
+/// indices; no per-point labels (lower, upper, alpha and nearest are left empty).
+Clustering prolongClusters(Clustering coarse, const CoarseLevel& level);
 
 }  // namespace hgd

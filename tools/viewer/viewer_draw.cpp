@@ -115,7 +115,7 @@ void Viewer::refresh() {
     p.getVector3fMap() = deformed(i).cast<float>();
     Eigen::Vector3f c = colours_[i];
     if (field_view) c = hgd::colourMap(run_.deformer().field()[i]);
-    if (cluster_view) c = clusterColour(run_.deformer().clustering().nearest[i]);
+    if (cluster_view) c = clusterColour(run_.deformer().interpolationTable().bracket(i).nearest());
     if (!field_view && role_[i] != 0) c = 0.35f * c + 0.65f * kRole[static_cast<int>(role_[i])];
     if (selected_[i]) c = Eigen::Vector3f(1.0f, 0.85f, 0.1f);
     p.r = static_cast<std::uint8_t>(std::clamp(c.x(), 0.0f, 1.0f) * 255);
