@@ -42,7 +42,7 @@ ScenarioRunner::ScenarioRunner(Shape shape, const RunOptions& options)
     : shape_(std::move(shape)), options_(options) {
   Stopwatch t;
   read_warnings_ = shape_.warnings;  // what reading noted (a format told by content, ...)
-  geometry_ = extractGeometry(shape_);
+  geometry_ = std::make_shared<const Geometry>(extractGeometry(shape_));
   build_ms_ = t.ms();
 }
 
@@ -53,9 +53,9 @@ ScenarioRunner::~ScenarioRunner() = default;
 void ScenarioRunner::setScenario(const Scenario& scenario) {
   Stopwatch t;
   scenario_ = scenario;
-  handles_ = resolveHandles(scenario_, geometry_, shape_);
+  handles_ = resolveHandles(scenario_, *geometry_, shape_);
   clearHistory();
-  build(mergedOptions(options_, scenario_, shape_, geometry_));
+  build(mergedOptions(options_, scenario_, shape_, *geometry_));
   build_ms_ += t.ms();
 }
 
@@ -66,7 +66,7 @@ void ScenarioRunner::setHandles(const Handles& handles) {
     deformer_.reset();
     return;
   }
-  build(mergedOptions(options_, scenario_, shape_, geometry_));
+  build(mergedOptions(options_, scenario_, shape_, *geometry_));
 }
 
 void ScenarioRunner::setRegions(std::vector<Region> fixed, Region manipulated, std::vector<Region> joints) {
@@ -218,7 +218,7 @@ DeformReport ScenarioRunner::report() const {
   DeformReport rep;
   rep.read_ms = read_ms_;
   rep.build_ms = read_ms_ + build_ms_;  // everything before the first solve
-  rep.points = geometry_.size();
+  rep.points = geometry_->size();
   rep.write_ms = write_ms_;
   if (deformer_) {
     const Deformer& d = *deformer_;
@@ -229,7 +229,7 @@ DeformReport ScenarioRunner::report() const {
     rep.clusters_ms = b.clusters_ms;
     rep.sample = d.clustering().sample.size();
     rep.clusters = d.clustering().clusters.size();
-    rep.isovalues = mergedOptions(options_, scenario_, shape_, geometry_).clusters.isovalues;
+    rep.isovalues = mergedOptions(options_, scenario_, shape_, *geometry_).clusters.isovalues;
     rep.unreachable = d.unreachablePoints();
     rep.notes = d.clustering().notes;
     if (d.harmonicField().normalsReoriented())
@@ -274,12 +274,23 @@ Shape ScenarioRunner::deformedShape() const {
 
 void ScenarioRunner::write(const std::string& path, const WriteOptions& options,
                            const std::vector<std::string>& inputs) {
+  writeOut(path, options, inputs, false);
+}
+
+void ScenarioRunner::writeAndRelease(const std::string& path, const WriteOptions& options,
+                                     const std::vector<std::string>& inputs) {
+  writeOut(path, options, inputs, true);
+}
+
+void ScenarioRunner::writeOut(const std::string& path, const WriteOptions& options,
+                              const std::vector<std::string>& inputs, bool release_shape) {
   std::vector<std::string> all = inputs;
   if (!shape_.path.empty()) all.push_back(shape_.path);
   refuseInputs(path, all);
   const FileFormat format = formatFromPath(path);
   Stopwatch t;
-  const Shape out = deformedShape();
+  // Released: the deformed positions go into the runner's own shape, held once.
+  const Shape out = release_shape ? release(true) : deformedShape();
   writeShape(path, out, options);
   write_ms_ = t.ms();
   if (const std::string lost = extrasLost(out, format); !lost.empty()) {

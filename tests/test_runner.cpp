@@ -291,6 +291,30 @@ TEST(ScenarioRunner, ReportsReadAndWriteTimesAndNeverWritesOverItsInput) {
   EXPECT_GT(tip, 0.15);
 }
 
+// writeAndRelease (the one-shot commands' write: the runner's own shape deformed in place, not a
+// copy) refuses its input like write(), and then writes the same bytes write() writes.
+TEST(ScenarioRunner, WriteAndReleaseWritesWhatWriteWrites) {
+  hgdtest::TempDir dir;
+  const std::string in = dir.file("bar.ply"), a = dir.file("a.ply"), b = dir.file("b.ply");
+  hgd::writeShape(in, hgd::shapes::bar(1.0f, 0.1f, 0.01f));
+  const std::string before = hgdtest::slurp(in);
+  auto run = [&] {
+    hgd::ScenarioRunner r = hgd::ScenarioRunner::read(in);
+    r.setScenario(barScenario());
+    r.apply(dragMove(kTip, kTip + Eigen::Vector3d(0, 0, 0.2)));
+    return r;
+  };
+  hgd::ScenarioRunner ra = run(), rb = run();
+  ra.write(a);
+  EXPECT_THROW(rb.writeAndRelease(in), hgd::IoError);
+  EXPECT_EQ(hgdtest::slurp(in), before);
+  hgd::ScenarioRunner rc = run();
+  rc.writeAndRelease(b);
+  EXPECT_EQ(hgdtest::slurp(a), hgdtest::slurp(b));
+  EXPECT_NE(hgdtest::slurp(b), before);
+  EXPECT_GT(rc.report().write_ms, 0.0);
+}
+
 }  // namespace
 
 namespace {

@@ -203,7 +203,12 @@ ScanResult processScan(const Scan& s, const Context& ctx) {
     fs::create_directories(s.output.parent_path());
     std::error_code gone;
     fs::remove(record_path, gone);  // from here until the new record, the output is unrecorded
-    run.write(s.output.string(), {}, {s.scenario.string()});
+    // Without a thumbnail (which draws the rest shape beside the deformed one), the shape is
+    // held once: deformed in place to be written.
+    if (ctx.thumbnails)
+      run.write(s.output.string(), {}, {s.scenario.string()});
+    else
+      run.writeAndRelease(s.output.string(), {}, {s.scenario.string()});
     const hgd::DeformReport rep = run.report();
     testHook(s.rel);
     batch::Provenance p;

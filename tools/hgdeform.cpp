@@ -245,7 +245,7 @@ int runDeform(const DeformArgs& a) {
   run.applyMoves();
   hgd::WriteOptions wo;
   if (a.ascii) wo.encoding = hgd::Encoding::Ascii;
-  run.write(output, wo, {scenario_path});
+  run.writeAndRelease(output, wo, {scenario_path});  // the shape held once, not copied to write
   const hgd::DeformReport report = run.report();
   // A failed run leaves no output: when the report cannot be written, the shape goes too.
   if (!report_path.empty()) {

@@ -143,11 +143,16 @@ class ScenarioRunner {
   /// report. A failed write leaves no file.
   void write(const std::string& path, const WriteOptions& options = {},
              const std::vector<std::string>& inputs = {});
+  /// write() for a run that ends with it: the deformed positions go into the runner's own shape
+  /// instead of a copy, so the shape is held once (what a one-shot command wants). The runner
+  /// holds no shape afterwards, written or not; only report() may still be called.
+  void writeAndRelease(const std::string& path, const WriteOptions& options = {},
+                       const std::vector<std::string>& inputs = {});
   /// Hands the shape over without a copy: deformed (positions and normals written into it) or
   /// at rest. The runner holds no shape afterwards; only report() may still be called.
   Shape release(bool deformed = true);
 
-  const Geometry& geometry() const { return geometry_; }
+  const Geometry& geometry() const { return *geometry_; }
   const Handles& handles() const { return handles_; }
   /// The deformer (ready() must be true).
   const Deformer& deformer() const { return *deformer_; }
@@ -158,10 +163,12 @@ class ScenarioRunner {
 
  private:
   void build(const DeformOptions& options);
+  void writeOut(const std::string& path, const WriteOptions& options, const std::vector<std::string>& inputs,
+                bool release_shape);
   void clearHistory();
 
   Shape shape_;
-  Geometry geometry_;
+  std::shared_ptr<const Geometry> geometry_;  // shared with the deformer
   RunOptions options_;
   Scenario scenario_;  // regions and moves given to setScenario()
   Handles handles_;
