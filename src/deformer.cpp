@@ -22,6 +22,10 @@ Deformer::Deformer(std::shared_ptr<const Geometry> geometry, const Handles& hand
                    const DeformOptions& options)
     : geometry_(std::move(geometry)), handles_(handles), options_(options) {
   if (!geometry_) throw std::invalid_argument("Deformer: no geometry");
+  if (geometry_->hasFileNormals() && geometry_->file_normals->size() != geometry_->size())
+    throw std::invalid_argument("Deformer: the geometry has " +
+                                std::to_string(geometry_->file_normals->size()) + " normals for " +
+                                std::to_string(geometry_->size()) + " points");
   // The mesh's 1-ring, when asked for, is a graph over every vertex: full resolution.
   multires_ = options_.multires_above > 0 && geometry_->size() > options_.multires_above &&
               options_.coarse_points > 0 && options_.coarse_points < geometry_->size() &&

@@ -23,12 +23,14 @@ InterpolationTable tableOf(const std::vector<float>& phi, const Handles& handles
   for (std::size_t i = 0; i < n; ++i)
     if (pairs.empty() || pairs.back() != std::make_pair(c.lower[i], c.upper[i]))
       pairs.emplace_back(c.lower[i], c.upper[i]);
-  return detail::buildTable(handles, c, points, std::move(pairs),
-                            [&](std::size_t i, int& lo, int& hi, float& alpha) {
-                              lo = c.lower[i];
-                              hi = c.upper[i];
-                              alpha = c.alpha[i];
-                            });
+  return detail::buildTable(
+      handles, c, points, std::move(pairs),
+      [&](std::size_t i, int& lo, int& hi, float& alpha) {
+        lo = c.lower[i];
+        hi = c.upper[i];
+        alpha = c.alpha[i];
+      },
+      [](InterpolationTable&) {});
 }
 }  // namespace
 
@@ -164,18 +166,12 @@ void interpolatePositions(const InterpolationTable& table, const std::vector<Loc
       });
 }
 
-void interpolateNormals(const InterpolationTable& table, const std::vector<LocalTransform>& transforms,
-                        std::vector<Eigen::Vector3f>& out_normals, Blend blend) {
-  if (!table.has_normals || table.size() == 0) return;
+namespace {
+// The normals pass with the rest normals read by `rest(i)` (the table's own, or a shared cloud's).
+template <typename Rest>
+void turnNormals(const InterpolationTable& table, const std::vector<LocalTransform>& transforms,
+                 Eigen::Vector3f* out, Blend blend, Rest rest) {
   using Point = InterpolationTable::Point;
-  // The table's own normals or a shared cloud's (pcl::Normal: 8 floats, the normal first).
-  const float* base = table.normal_cloud ? (*table.normal_cloud)[0].normal : table.normals.data()->data();
-  const long long stride =
-      table.normal_cloud ? static_cast<long long>(sizeof(pcl::Normal) / sizeof(float)) : 3;
-  auto rest = [base, stride](long long i) {
-    return Eigen::Vector3f(Eigen::Map<const Eigen::Vector3f>(base + i * stride));
-  };
-  Eigen::Vector3f* out = out_normals.data();
   forEachPoint(
       table, transforms, blend,
       [out, rest](long long i, const Point& r, const LocalTransform& a, const LocalTransform& b) {
@@ -186,6 +182,21 @@ void interpolateNormals(const InterpolationTable& table, const std::vector<Local
         // A rotation: R^-T = R.
         out[i] = f.own ? transformNormal(f.own->A, rest(i)) : blendedRotate(f, r.alpha, rest(i));
       });
+}
+}  // namespace
+
+void interpolateNormals(const InterpolationTable& table, const std::vector<LocalTransform>& transforms,
+                        std::vector<Eigen::Vector3f>& out_normals, Blend blend) {
+  if (!table.has_normals) return;
+  if (table.normal_cloud) {
+    const pcl::Normal* rest = table.normal_cloud->data();
+    turnNormals(table, transforms, out_normals.data(), blend, [rest](long long i) {
+      return Eigen::Vector3f(rest[i].normal_x, rest[i].normal_y, rest[i].normal_z);
+    });
+  } else {
+    const Eigen::Vector3f* rest = table.normals.data();
+    turnNormals(table, transforms, out_normals.data(), blend, [rest](long long i) { return rest[i]; });
+  }
 }
 
 void interpolate(const InterpolationTable& table, const std::vector<LocalTransform>& transforms,

@@ -430,15 +430,19 @@ InterpolationTable prolongInterpolation(const Clustering& c, const CoarseLevel& 
   const AlphaRule rule(c, coarse_phi);
   std::vector<std::pair<int, int>> pairs(c.lower.size());
   for (std::size_t a = 0; a < pairs.size(); ++a) pairs[a] = {c.lower[a], c.upper[a]};
-  InterpolationTable t = detail::buildTable(handles, c, points, std::move(pairs),
-                                            [&](std::size_t i, int& lo, int& hi, float& alpha) {
-                                              const std::uint32_t a = level.anchor[i];
-                                              lo = c.lower[a];
-                                              hi = c.upper[a];
-                                              alpha = rule(a, phi[i]);
-                                            });
-  for (const int i : level.strays)  // a stray moves as the point it hangs from (strays hold no handle)
-    t.points[static_cast<std::size_t>(i)].alpha = c.alpha[level.anchor[static_cast<std::size_t>(i)]];
+  InterpolationTable t = detail::buildTable(
+      handles, c, points, std::move(pairs),
+      [&](std::size_t i, int& lo, int& hi, float& alpha) {
+        const std::uint32_t a = level.anchor[i];
+        lo = c.lower[a];
+        hi = c.upper[a];
+        alpha = rule(a, phi[i]);
+      },
+      [&](InterpolationTable& table) {  // a stray moves as the point it hangs from
+        for (const int x : level.strays)
+          table.points[static_cast<std::size_t>(x)].alpha =
+              c.alpha[level.anchor[static_cast<std::size_t>(x)]];
+      });
   return t;
 }
 

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <stdexcept>
 #include <utility>
 
 #include "hgdeform/regions.h"
@@ -51,6 +52,7 @@ ScenarioRunner& ScenarioRunner::operator=(ScenarioRunner&&) noexcept = default;
 ScenarioRunner::~ScenarioRunner() = default;
 
 void ScenarioRunner::setScenario(const Scenario& scenario) {
+  requireShape("setScenario");
   Stopwatch t;
   scenario_ = scenario;
   handles_ = resolveHandles(scenario_, *geometry_, shape_);
@@ -60,6 +62,7 @@ void ScenarioRunner::setScenario(const Scenario& scenario) {
 }
 
 void ScenarioRunner::setHandles(const Handles& handles) {
+  requireShape("setHandles");
   handles_ = handles;
   clearHistory();
   if (handles_.fixed.empty() || handles_.manipulated.empty()) {
@@ -96,6 +99,7 @@ void ScenarioRunner::applyMoves() {
 }
 
 MoveResult ScenarioRunner::apply(const Move& move) {
+  requireShape("apply");
   if (!deformer_) throw std::logic_error("ScenarioRunner::apply: no handles yet");
   dropLive();
   Deformer& d = *deformer_;
@@ -155,6 +159,7 @@ MoveResult ScenarioRunner::apply(const Move& move) {
 
 SolveStats ScenarioRunner::liveDrag(const Eigen::Vector3d& from, const Eigen::Vector3d& to,
                                     bool keep_orientation, const std::vector<int>* preview) {
+  requireShape("liveDrag");
   if (!deformer_) throw std::logic_error("ScenarioRunner::liveDrag: no handles yet");
   if (!live_) {
     history_.push_back(deformer_->state());  // the last applied state, taken back by dropLive()
@@ -267,6 +272,7 @@ DeformReport ScenarioRunner::report() const {
 }
 
 Shape ScenarioRunner::deformedShape() const {
+  requireShape("deformedShape");
   Shape out = shape_;
   if (deformer_) deformer_->writeDeformed(out);
   return out;
@@ -284,6 +290,7 @@ void ScenarioRunner::writeAndRelease(const std::string& path, const WriteOptions
 
 void ScenarioRunner::writeOut(const std::string& path, const WriteOptions& options,
                               const std::vector<std::string>& inputs, bool release_shape) {
+  requireShape("write");
   std::vector<std::string> all = inputs;
   if (!shape_.path.empty()) all.push_back(shape_.path);
   refuseInputs(path, all);
@@ -301,8 +308,17 @@ void ScenarioRunner::writeOut(const std::string& path, const WriteOptions& optio
 }
 
 Shape ScenarioRunner::release(bool deformed) {
+  requireShape("release");
   if (deformed && deformer_) deformer_->writeDeformed(shape_);
-  return std::move(shape_);
+  released_ = true;
+  Shape out = std::move(shape_);
+  shape_ = Shape{};
+  return out;
+}
+
+void ScenarioRunner::requireShape(const char* what) const {
+  if (released_)
+    throw std::logic_error(std::string("ScenarioRunner::") + what + ": the shape was handed over (release)");
 }
 
 DeformReport deformShape(Shape& shape, const Scenario& scenario, const DeformOptions& options) {

@@ -15,12 +15,14 @@ namespace hgd::detail {
 
 /// The table of `points` under the clusters of `c` (their barycentres and kinds; not its per-point
 /// labels). `candidates`: every (lower, upper) pair a point may take, in any order, repeats
-/// allowed. `bracket(i, lower, upper, alpha)` gives point i's; it is called in parallel. Handle
-/// points are pinned to their handle's cluster afterwards. Normals are left to the caller.
-template <class Bracket>
+/// allowed. `bracket(i, lower, upper, alpha)` gives point i's; it is called in parallel. Then
+/// `adjust(table)` may change records, before handle points are pinned to their handle's cluster
+/// (so that the pins hold whatever it does). Normals are left to the caller.
+template <class Bracket, class Adjust>
 InterpolationTable buildTable(const Handles& handles, const Clustering& c,
                               const pcl::PointCloud<pcl::PointXYZ>& points,
-                              std::vector<std::pair<int, int>> candidates, Bracket&& bracket) {
+                              std::vector<std::pair<int, int>> candidates, Bracket&& bracket,
+                              Adjust&& adjust) {
   const std::size_t n = points.size();
   InterpolationTable t;
   std::vector<int> fixed_cluster(handles.fixed.size(), -1);
@@ -50,6 +52,7 @@ InterpolationTable buildTable(const Handles& handles, const Clustering& c,
     r.pair = pairOf(lo, hi);
     r.alpha = alpha;
   }
+  adjust(t);
   // Handle points take their handle's transform exactly.
   auto pin = [&](const std::vector<int>& idx, int cluster) {
     const std::uint32_t pair = pairOf(cluster, cluster);

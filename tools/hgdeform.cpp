@@ -246,21 +246,20 @@ int runDeform(const DeformArgs& a) {
   hgd::WriteOptions wo;
   if (a.ascii) wo.encoding = hgd::Encoding::Ascii;
   run.writeAndRelease(output, wo, {scenario_path});  // the shape held once, not copied to write
-  const hgd::DeformReport report = run.report();
-  // A failed run leaves no output: when the report cannot be written, the shape goes too.
-  if (!report_path.empty()) {
-    try {
-      if (report_path == "-") {
-        const std::string json = hgd::reportJson(report);
-        if (std::fwrite(json.data(), 1, json.size(), stdout) != json.size() || std::fflush(stdout) != 0)
-          throw hgd::IoError("-: cannot write the report to standard output");
-      } else {
-        hgd::writeReportJson(report_path, report);
-      }
-    } catch (...) {
-      hgd::removeOutput(output);
-      throw;
+  // A failed run leaves no output: when the report cannot be made or written, the shape goes too.
+  hgd::DeformReport report;
+  try {
+    report = run.report();
+    if (report_path == "-") {
+      const std::string json = hgd::reportJson(report);
+      if (std::fwrite(json.data(), 1, json.size(), stdout) != json.size() || std::fflush(stdout) != 0)
+        throw hgd::IoError("-: cannot write the report to standard output");
+    } else if (!report_path.empty()) {
+      hgd::writeReportJson(report_path, report);
     }
+  } catch (...) {
+    hgd::removeOutput(output);
+    throw;
   }
   for (const auto& note : report.notes) std::fprintf(stderr, "hgdeform: note: %s\n", note.c_str());
   for (const auto& w : report.warnings) std::fprintf(stderr, "hgdeform: warning: %s\n", w.c_str());

@@ -75,11 +75,11 @@ struct DragResult {
 
 class Deformer {
  public:
-  /// The Deformer keeps a copy of `geometry` (its point and normal clouds are shared, not
-  /// copied; its index maps are copied).
+  /// The Deformer keeps a copy of `geometry`: its index maps and faces are copied, its point and
+  /// normal clouds shared, so those clouds must not change while the Deformer lives.
   Deformer(const Geometry& geometry, const Handles& handles, const DeformOptions& options = {});
   /// The geometry shared, nothing of it copied (what ScenarioRunner does: the shape's index maps
-  /// held once). It must not change while the Deformer lives.
+  /// held once). Neither it nor its clouds may change while the Deformer lives.
   Deformer(std::shared_ptr<const Geometry> geometry, const Handles& handles,
            const DeformOptions& options = {});
   Deformer(const Deformer&) = delete;

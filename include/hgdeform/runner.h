@@ -144,12 +144,15 @@ class ScenarioRunner {
   void write(const std::string& path, const WriteOptions& options = {},
              const std::vector<std::string>& inputs = {});
   /// write() for a run that ends with it: the deformed positions go into the runner's own shape
-  /// instead of a copy, so the shape is held once (what a one-shot command wants). The runner
-  /// holds no shape afterwards, written or not; only report() may still be called.
+  /// instead of a copy, so the shape is held once (what a one-shot command wants). Once the
+  /// write has begun (the output path was accepted), the runner holds no shape, written or not:
+  /// only report() may still be called; anything else that needs the shape throws
+  /// std::logic_error.
   void writeAndRelease(const std::string& path, const WriteOptions& options = {},
                        const std::vector<std::string>& inputs = {});
   /// Hands the shape over without a copy: deformed (positions and normals written into it) or
-  /// at rest. The runner holds no shape afterwards; only report() may still be called.
+  /// at rest. The runner holds no shape afterwards; only report() may still be called (as after
+  /// writeAndRelease()).
   Shape release(bool deformed = true);
 
   const Geometry& geometry() const { return *geometry_; }
@@ -163,6 +166,8 @@ class ScenarioRunner {
 
  private:
   void build(const DeformOptions& options);
+  /// Throws std::logic_error naming `what` once the shape was handed over.
+  void requireShape(const char* what) const;
   void writeOut(const std::string& path, const WriteOptions& options, const std::vector<std::string>& inputs,
                 bool release_shape);
   void clearHistory();
@@ -179,6 +184,7 @@ class ScenarioRunner {
   std::vector<MoveResult> results_;  // one per applied move
   std::vector<std::string> read_warnings_, write_warnings_;
   bool live_ = false;
+  bool released_ = false;  // the shape was handed over (release, writeAndRelease)
   double read_ms_ = 0, build_ms_ = 0, write_ms_ = 0;
 };
 
