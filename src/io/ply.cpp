@@ -445,6 +445,18 @@ void writePlyWithExtras(const std::string& path, const Shape& shape, bool ascii,
     const auto& el = shape.extras.ply_elements[e];
     const bool is_vertex = el.name == "vertex";
     const std::uint64_t records = is_vertex ? n : el.count;
+    // Binary vertices made of cloud fields alone (a file's usual case): copied per point, or in
+    // one write where the cloud holds exactly those fields in that order, not value by value.
+    if (b && is_vertex && std::all_of(sources[e].begin(), sources[e].end(), [](const Source& so) {
+          return so.field != nullptr;
+        })) {
+      std::vector<const Field*> packed;
+      for (const Source& so : sources[e]) packed.push_back(so.field);
+      w.write(bin.data(), bin.size());
+      bin.clear();
+      writePackedBinary(w, c, n, packed);
+      continue;
+    }
     std::size_t at = 0;  // into el.values
     for (std::uint64_t r = 0; r < records; ++r) {
       bool first = true;
