@@ -8,6 +8,7 @@ packages=(
   ccache                                    # scripts/ccache.sh: rebuilds from the cache, in any clone
   libpcl-dev libeigen3-dev libflann-dev libboost-dev
   liblz4-dev                                # FLANN's headers call LZ4: libhgdeform links it
+  liblzf-dev                                # PCD binary_compressed (LZF) without linking pcl_io (and VTK)
   libsuitesparse-dev libopenblas0-pthread   # CHOLMOD for the exact field solve; OpenBLAS ~3x faster than reference BLAS
   nlohmann-json3-dev                        # scenario JSON
   libcli11-dev                              # the tools' command lines (header-only)

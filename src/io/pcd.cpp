@@ -1,6 +1,6 @@
 // PCD reading and writing: ascii, binary and binary_compressed (LZF), organized clouds, the
 // VIEWPOINT, padding fields.
-#include <pcl/io/lzf.h>
+#include <lzf.h>  // Debian liblzf
 
 #include <algorithm>
 #include <cmath>
@@ -214,7 +214,7 @@ Shape readPcd(const std::string& path) {
     in.read(packed.data(), comp, "compressed block");
     std::vector<std::uint8_t> soa(uncomp);
     if (uncomp > 0) {
-      const unsigned got = pcl::lzfDecompress(packed.data(), comp, soa.data(), uncomp);
+      const unsigned got = lzf_decompress(packed.data(), comp, soa.data(), uncomp);
       if (got != uncomp)
         fail(path, "malformed data: corrupt compressed block (LZF produced " + num(got) +
                        " bytes, expected " + num(uncomp) + ")");
@@ -324,7 +324,7 @@ void writePcd(const std::string& path, const Shape& shape, bool ascii) {
       fail(path, "cannot write: too much data for one compressed PCD block");
     std::vector<std::uint8_t> packed(soa.size() + soa.size() / 2 + 64);
     const unsigned got = soa.empty() ? 0
-                                     : pcl::lzfCompress(soa.data(), static_cast<unsigned>(soa.size()),
+                                     : lzf_compress(soa.data(), static_cast<unsigned>(soa.size()),
                                                         packed.data(), static_cast<unsigned>(packed.size()));
     if (!soa.empty() && got == 0) fail(path, "cannot write: LZF compression failed");
     const std::uint32_t sizes[2] = {got, static_cast<std::uint32_t>(soa.size())};
