@@ -24,4 +24,19 @@ double pclNormalEstimationMs(const pcl::PointCloud<pcl::PointXYZ>::ConstPtr& clo
 /// OpenMP over every thread. What an interpolation costs when it does nothing else.
 double streamingReferenceMs(std::size_t n, int repeat);
 
+/// The streaming reference as an object, its buffers (32 bytes a point) made once: runMs() is
+/// one pass, so that passes can alternate with the interpolation they are compared with.
+class StreamingReference {
+ public:
+  explicit StreamingReference(std::size_t n);
+  ~StreamingReference();
+  StreamingReference(const StreamingReference&) = delete;
+  StreamingReference& operator=(const StreamingReference&) = delete;
+  double runMs();
+
+ private:
+  struct Buffers;
+  Buffers* b_;
+};
+
 }  // namespace hgdbench
