@@ -325,7 +325,7 @@ void writePcd(const std::string& path, const Shape& shape, bool ascii) {
     std::vector<std::uint8_t> packed(soa.size() + soa.size() / 2 + 64);
     const unsigned got = soa.empty() ? 0
                                      : lzf_compress(soa.data(), static_cast<unsigned>(soa.size()),
-                                                        packed.data(), static_cast<unsigned>(packed.size()));
+                                                    packed.data(), static_cast<unsigned>(packed.size()));
     if (!soa.empty() && got == 0) fail(path, "cannot write: LZF compression failed");
     const std::uint32_t sizes[2] = {got, static_cast<std::uint32_t>(soa.size())};
     w.write(sizes, sizeof sizes);
