@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <stdexcept>
 
+#include "hgdeform/fields.h"
 #include "timer.h"
 
 namespace hgd {
@@ -100,6 +101,7 @@ void Deformer::rebuild() {
 
   setupSolver();
   local_.resize(clustering_.clusters.size());
+  exact_.assign(clustering_.clusters.size(), ExactTransform{});
   picked_ = -1;
   updateShape();
   build_.setup_ms = sw.lap();
@@ -506,8 +508,13 @@ void Deformer::updateShape() {
     Eigen::Matrix3d a = tr[c].A;
     // The barycentre's image, g + t in the normalised frame, back in the local frame.
     const Eigen::Vector3d image = (g + tr[c].t) / scale_ + centre_;
-    if (cl.kind == ClusterKind::Range) a = nearestRotation(a);  // bones move rigidly
-    local_[c].set(a.cast<float>(), (image - a * cl.barycentre).cast<float>(), cl.barycentre.cast<float>());
+    const bool identity = tr[c].A == Eigen::Matrix3d::Identity() && tr[c].t.isZero(0);
+    if (cl.kind == ClusterKind::Range && !identity) a = nearestRotation(a);  // bones move rigidly
+    ExactTransform& e = exact_[c];
+    e.identity = identity;
+    e.A = identity ? Eigen::Matrix3d::Identity() : a;
+    e.b = identity ? Eigen::Vector3d::Zero() : Eigen::Vector3d(image - a * cl.barycentre);
+    local_[c].set(e.A.cast<float>(), e.b.cast<float>(), cl.barycentre.cast<float>());
   }
   if (preview_.empty()) {
     interpolatePositions(table_, local_, positions_, options_.blend);
@@ -586,23 +593,117 @@ const std::vector<Eigen::Vector3f>& Deformer::deformedNormals() const {
   return out_normals_;
 }
 
-void Deformer::writeDeformed(Shape& shape) const {
-  updateNormals();
-  storePositions(shape, *geometry_, positions_, &out_normals_);
+ExactInterpolation Deformer::exactInterpolation() const {
+  std::vector<Eigen::Vector3d> barycentres;
+  barycentres.reserve(clustering_.clusters.size());
+  for (const Cluster& cl : clustering_.clusters) barycentres.push_back(cl.barycentre);
+  return ExactInterpolation(table_, exact_, barycentres, options_.blend);
+}
+
+std::vector<Eigen::Affine3d> Deformer::worldTransforms() const {
+  std::vector<Eigen::Affine3d> out;
+  const Eigen::Vector3d o = geometry_->origin;
+  for (const ExactTransform& e : exact_) {
+    Eigen::Affine3d t = Eigen::Affine3d::Identity();
+    t.linear() = e.A;
+    t.translation() = e.b + o - e.A * o;
+    out.push_back(t);
+  }
+  return out;
+}
+
+std::vector<std::string> Deformer::writeDeformed(Shape& shape) const {
+  std::vector<std::string> warnings;
+  pcl::PCLPointCloud2& c = shape.cloud;
+  XyzFields f = findXyzFields(c);
+  const Geometry& g = *geometry_;
+  if (!f.hasXyz() || g.raw_index.size() != table_.size() ||
+      g.finite_index.size() != static_cast<std::size_t>(c.width) * c.height)
+    throw std::logic_error("Deformer::writeDeformed: the shape is not the one the deformer was built on");
+  const ExactInterpolation exact = exactInterpolation();
+  const long long n = static_cast<long long>(g.size());
+  // The shape must hold the rest positions (a second call on the same shape would move it twice):
+  // its values give the table's float rest positions exactly, as extractGeometry made them.
+  {
+    bool rest = true;
+    const pcl::PCLPointField &fx = c.fields[f.x], &fy = c.fields[f.y], &fz = c.fields[f.z];
+#pragma omp parallel for schedule(static) reduction(&& : rest) if (n > kParallelMin)
+    for (long long k = 0; k < n; ++k) {
+      const auto i = static_cast<std::size_t>(g.raw_index[static_cast<std::size_t>(k)]);
+      const Eigen::Vector3f p =
+          (Eigen::Vector3d(readValue(c, i, fx), readValue(c, i, fy), readValue(c, i, fz)) - g.origin)
+              .cast<float>();
+      const float* r = table_.points[static_cast<std::size_t>(k)].p;
+      rest = rest && p.x() == r[0] && p.y() == r[1] && p.z() == r[2];
+    }
+    if (!rest)
+      throw std::logic_error(
+          "Deformer::writeDeformed: the shape does not hold the rest positions (written to already?)");
+  }
+  bool any_moves = false;
+  for (long long k = 0; k < n && !any_moves; ++k) any_moves = exact.moves(static_cast<std::size_t>(k));
+  if (!any_moves) return warnings;  // every point as the file had it, to the bit
+  // Integer coordinates cannot hold a deformed position: widened, said, never rounded or clipped.
+  {
+    const std::uint8_t type = c.fields[f.x].datatype;
+    const bool integer = type != pcl::PCLPointField::FLOAT32 && type != pcl::PCLPointField::FLOAT64;
+    const bool wide = c.fields[f.y].datatype == pcl::PCLPointField::FLOAT64 ||
+                      c.fields[f.z].datatype == pcl::PCLPointField::FLOAT64 ||
+                      type == pcl::PCLPointField::INT32 || type == pcl::PCLPointField::UINT32;
+    if (integer || c.fields[f.y].datatype != type || c.fields[f.z].datatype != type) {
+      const bool any_integer = integer ||
+                               (c.fields[f.y].datatype != pcl::PCLPointField::FLOAT32 &&
+                                c.fields[f.y].datatype != pcl::PCLPointField::FLOAT64) ||
+                               (c.fields[f.z].datatype != pcl::PCLPointField::FLOAT32 &&
+                                c.fields[f.z].datatype != pcl::PCLPointField::FLOAT64);
+      if (any_integer) {
+        const std::uint8_t to = wide ? pcl::PCLPointField::FLOAT64 : pcl::PCLPointField::FLOAT32;
+        retypeFields(c, {f.x, f.y, f.z}, to);
+        f = findXyzFields(c);
+        warnings.push_back((shape.path.empty() ? std::string("the shape") : shape.path) +
+                           ": x/y/z are stored as integers, which cannot hold the deformed positions: "
+                           "written as " +
+                           (wide ? "double" : "float"));
+      }
+    }
+  }
+  const bool write_normals = f.hasNormals() && table_.has_normals;
+  const pcl::PCLPointField &fx = c.fields[f.x], &fy = c.fields[f.y], &fz = c.fields[f.z];
+#pragma omp parallel for schedule(static) if (n > kParallelMin)
+  for (long long kk = 0; kk < n; ++kk) {
+    const auto k = static_cast<std::size_t>(kk);
+    if (!exact.moves(k)) continue;  // left as the file had it
+    const auto i = static_cast<std::size_t>(g.raw_index[k]);
+    const Eigen::Vector3d rest(readValue(c, i, fx), readValue(c, i, fy), readValue(c, i, fz));
+    const Eigen::Vector3d p = exact.apply(k, rest - g.origin) + g.origin;
+    writeValue(c, i, fx, p.x());
+    writeValue(c, i, fy, p.y());
+    writeValue(c, i, fz, p.z());
+    if (write_normals) {
+      const Eigen::Vector3d nv = exact.applyNormal(k, table_.restNormal(k).cast<double>());
+      writeValue(c, i, c.fields[f.nx], nv.x());
+      writeValue(c, i, c.fields[f.ny], nv.y());
+      writeValue(c, i, c.fields[f.nz], nv.z());
+    }
+  }
   // An OBJ's own normals ('vn', indexed apart from the vertices) turn as the normal of the
   // vertex a face pairs them with turns.
   FileExtras& x = shape.extras;
   x.obj_normals_out = x.obj_normals;
+  if (!table_.has_normals) return warnings;
   for (std::size_t j = 0; j < x.obj_normals.size() && j < x.obj_normal_vertex.size(); ++j) {
     const int v = x.obj_normal_vertex[j];
-    if (v < 0 || static_cast<std::size_t>(v) >= geometry_->finite_index.size()) continue;
-    const int i = geometry_->finite_index[static_cast<std::size_t>(v)];
-    if (i < 0 || static_cast<std::size_t>(i) >= out_normals_.size() || !table_.has_normals) continue;
-    const Eigen::Vector3f n0 = table_.restNormal(static_cast<std::size_t>(i));  // the rest normal that turns
-    const Eigen::Vector3f n1 = out_normals_[static_cast<std::size_t>(i)];
+    if (v < 0 || static_cast<std::size_t>(v) >= g.finite_index.size()) continue;
+    const int fi = g.finite_index[static_cast<std::size_t>(v)];
+    if (fi < 0 || !exact.moves(static_cast<std::size_t>(fi))) continue;
+    const auto i = static_cast<std::size_t>(fi);
+    const Eigen::Vector3d n0 = table_.restNormal(i).cast<double>();  // the rest normal that turns
+    const Eigen::Vector3d n1 = exact.applyNormal(i, n0);
     if (!(n0.squaredNorm() > 0) || !(n1.squaredNorm() > 0) || !n0.allFinite() || !n1.allFinite()) continue;
-    x.obj_normals_out[j] = Eigen::Quaternionf::FromTwoVectors(n0, n1) * x.obj_normals[j];
+    x.obj_normals_out[j] =
+        (Eigen::Quaterniond::FromTwoVectors(n0, n1) * x.obj_normals[j].cast<double>()).cast<float>();
   }
+  return warnings;
 }
 
 }  // namespace hgd

@@ -70,6 +70,37 @@ int addFloatField(pcl::PCLPointCloud2& cloud, const std::string& name) {
   return static_cast<int>(cloud.fields.size()) - 1;
 }
 
+void retypeFields(pcl::PCLPointCloud2& cloud, const std::vector<int>& fields, std::uint8_t datatype) {
+  const std::size_t n = static_cast<std::size_t>(cloud.width) * cloud.height;
+  pcl::PCLPointCloud2 out = cloud;
+  out.data.clear();
+  std::uint32_t offset = 0;  // repacked in field order, each field at its (new) size
+  for (std::size_t k = 0; k < out.fields.size(); ++k) {
+    auto& f = out.fields[k];
+    if (std::find(fields.begin(), fields.end(), static_cast<int>(k)) != fields.end()) f.datatype = datatype;
+    f.offset = offset;
+    offset += static_cast<std::uint32_t>(datatypeSize(f.datatype) * std::max<std::uint32_t>(f.count, 1));
+  }
+  out.point_step = offset;
+  out.row_step = out.point_step * out.width;
+  out.data.assign(n * out.point_step, 0);
+  for (std::size_t k = 0; k < out.fields.size(); ++k) {
+    const auto& nf = out.fields[k];
+    const auto& of = cloud.fields[k];
+    const std::size_t count = std::max<std::uint32_t>(nf.count, 1);
+    if (nf.datatype == of.datatype) {
+      const std::size_t bytes = datatypeSize(nf.datatype) * count;
+      for (std::size_t i = 0; i < n; ++i)
+        std::memcpy(out.data.data() + i * out.point_step + nf.offset,
+                    cloud.data.data() + i * cloud.point_step + of.offset, bytes);
+    } else {
+      for (std::size_t i = 0; i < n; ++i)
+        for (std::size_t e = 0; e < count; ++e) writeValue(out, i, nf, readValue(cloud, i, of, e), e);
+    }
+  }
+  cloud = std::move(out);
+}
+
 XyzFields findXyzFields(const pcl::PCLPointCloud2& cloud) {
   XyzFields f;
   f.x = findField(cloud, "x");

@@ -1,13 +1,51 @@
 #include "hgdeform/geometry.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 
 #include "hgdeform/fields.h"
 #include "hgdeform/io.h"
 #include "radix_sort.h"
 
 namespace hgd {
+
+namespace {
+
+constexpr double kFarFactor = 1e6;   // a point this many times the shape's size away is set apart
+constexpr double kMaxOffset = 1e12;  // and any point this far from the shape's centre
+constexpr double kMaxExtent = 1e11;  // a shape larger than this is refused
+
+struct RobustFrame {
+  Eigen::Vector3d centre;  ///< the per-axis median
+  double extent = 0;       ///< the largest per-axis spread of the middle 98% of the points
+};
+
+// The median and spread of a sample of at most 65,536 points taken evenly (in file order): far
+// strays, however many digits they have, cannot move either.
+RobustFrame robustFrame(const std::vector<Eigen::Vector3d>& world) {
+  const std::size_t m = world.size();
+  const std::size_t step = std::max<std::size_t>(1, m / 65536);
+  std::vector<double> v;
+  v.reserve(m / step + 1);
+  RobustFrame f;
+  for (int a = 0; a < 3; ++a) {
+    v.clear();
+    for (std::size_t k = 0; k < m; k += step) v.push_back(world[k][a]);
+    const std::size_t s = v.size();
+    auto at = [&](std::size_t r) {
+      std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(r), v.end());
+      return v[r];
+    };
+    f.centre[a] = at(s / 2);
+    const double p1 = at(s / 100), p99 = at(s - 1 - s / 100);
+    f.extent = std::max(f.extent, p99 - p1);
+  }
+  return f;
+}
+
+}  // namespace
 
 Geometry extractGeometry(const Shape& shape) {
   const pcl::PCLPointCloud2& c = shape.cloud;
@@ -21,7 +59,6 @@ Geometry extractGeometry(const Shape& shape) {
   g.raw_index.reserve(n);
   std::vector<Eigen::Vector3d> world;
   world.reserve(n);
-  Eigen::Vector3d lo = Eigen::Vector3d::Constant(INFINITY), hi = -lo;
   for (std::size_t i = 0; i < n; ++i) {
     const Eigen::Vector3d p(readValue(c, i, c.fields[f.x]), readValue(c, i, c.fields[f.y]),
                             readValue(c, i, c.fields[f.z]));
@@ -29,11 +66,57 @@ Geometry extractGeometry(const Shape& shape) {
     g.finite_index[i] = static_cast<int>(g.raw_index.size());
     g.raw_index.push_back(static_cast<int>(i));
     world.push_back(p);
-    lo = lo.cwiseMin(p);
-    hi = hi.cwiseMax(p);
   }
   if (world.empty())
     throw IoError(shape.path + ": no finite points (all " + std::to_string(n) + " are NaN/inf)");
+
+  // The local frame: its origin is the shape's median, not its bounding box's centre, so that
+  // one far point (a bad return at 1e10) neither moves the frame nor spends the float's bits on
+  // empty space. Points absurdly far from the shape (over a million times its size, or beyond
+  // 1e12 units: a corrupt block decoded to 1e22) cannot be deformed with it in any precision that
+  // means something (and their squared distances would overflow): they are set apart like NaN
+  // points, written back untouched, with a warning.
+  const RobustFrame frame = robustFrame(world);
+  if (frame.extent > kMaxExtent) {
+    char buf[200];
+    std::snprintf(buf, sizeof buf,
+                  ": the points span %.3g units (the middle 98%% of them): more than hgdeform can deform "
+                  "(%.0e); are the coordinates corrupt?",
+                  frame.extent, kMaxExtent);
+    throw IoError(shape.path + buf);
+  }
+  const double far = frame.extent > 0 ? std::min(kFarFactor * frame.extent, kMaxOffset) : kMaxOffset;
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(INFINITY), hi = -lo;
+  {
+    std::size_t kept = 0, far_count = 0;
+    double farthest = 0;
+    for (std::size_t k = 0; k < world.size(); ++k) {
+      const double d = (world[k] - frame.centre).cwiseAbs().maxCoeff();
+      if (d > far) {
+        ++far_count;
+        farthest = std::max(farthest, d);
+        g.finite_index[static_cast<std::size_t>(g.raw_index[k])] = -1;
+        continue;
+      }
+      g.finite_index[static_cast<std::size_t>(g.raw_index[k])] = static_cast<int>(kept);
+      g.raw_index[kept] = g.raw_index[k];
+      world[kept++] = world[k];
+      lo = lo.cwiseMin(world[k]);
+      hi = hi.cwiseMax(world[k]);
+    }
+    world.resize(kept);
+    g.raw_index.resize(kept);
+    g.far_points = far_count;
+    if (far_count > 0) {
+      char buf[300];
+      std::snprintf(buf, sizeof buf,
+                    "%zu %s more than %.3g units from the shape (whose size is %.3g; the farthest "
+                    "%.3g away): left where they are, untouched",
+                    far_count, far_count == 1 ? "point lies" : "points lie", far, frame.extent, farthest);
+      g.warnings.push_back((shape.path.empty() ? std::string() : shape.path + ": ") + buf);
+    }
+  }
+  if (world.empty()) throw IoError(shape.path + ": no finite points");
 
   // Points in space-filling-curve order (Morton, 10 bits per axis of the bounding cube; file
   // order among points of one cell): neighbours then lie near each other in memory, so kNN,
@@ -69,8 +152,7 @@ Geometry extractGeometry(const Shape& shape) {
     g.raw_index.swap(raw);
   }
 
-  // Centre of the bounding box, rounded so that the offset itself is exact in float output.
-  g.origin = (0.5 * (lo + hi)).array().round().matrix();
+  g.origin = frame.centre;
   g.points->resize(world.size());
   for (std::size_t i = 0; i < world.size(); ++i)
     (*g.points)[i].getVector3fMap() = (world[perm[i]] - g.origin).cast<float>();

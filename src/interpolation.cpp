@@ -206,4 +206,85 @@ void interpolate(const InterpolationTable& table, const std::vector<LocalTransfo
   if (out_normals != nullptr) interpolateNormals(table, transforms, *out_normals, blend);
 }
 
+ExactInterpolation::ExactInterpolation(const InterpolationTable& table,
+                                       std::vector<ExactTransform> transforms,
+                                       const std::vector<Eigen::Vector3d>& barycentres, Blend blend)
+    : table_(&table), transforms_(std::move(transforms)), blend_(blend) {
+  pairs_.resize(table.pairs.size());
+  std::vector<Eigen::Quaterniond> q(transforms_.size());
+  std::vector<Eigen::Matrix3d> r(transforms_.size());
+  for (std::size_t c = 0; c < transforms_.size(); ++c) {
+    r[c] = transforms_[c].identity ? Eigen::Matrix3d::Identity() : nearestRotation(transforms_[c].A);
+    q[c] = Eigen::Quaterniond(r[c]).normalized();
+  }
+  for (std::size_t k = 0; k < table.pairs.size(); ++k) {
+    Pair& p = pairs_[k];
+    p.lower = table.pairs[k].first;
+    p.upper = table.pairs[k].second;
+    const auto a = static_cast<std::size_t>(p.lower), b = static_cast<std::size_t>(p.upper);
+    p.c = 0.5 * (barycentres[a] + barycentres[b]);
+    // The rigid part x -> R x + rb maps the cluster's barycentre g where A maps it.
+    auto rigidImage = [&](std::size_t t, const Eigen::Vector3d& x) {
+      const ExactTransform& e = transforms_[t];
+      const Eigen::Vector3d& g = barycentres[t];
+      return Eigen::Vector3d(r[t] * (x - g) + e.A * g + e.b);
+    };
+    p.ta = rigidImage(a, p.c);
+    p.tb = rigidImage(b, p.c);
+    p.qa = q[a].coeffs();
+    p.qb = q[a].dot(q[b]) < 0 ? Eigen::Vector4d(-q[b].coeffs()) : Eigen::Vector4d(q[b].coeffs());
+  }
+}
+
+bool ExactInterpolation::moves(std::size_t i) const {
+  const InterpolationTable::Point& rec = table_->points[i];
+  const Pair& p = pairs_[rec.pair];
+  const bool lower_moves = rec.alpha != 1.0f && !transforms_[static_cast<std::size_t>(p.lower)].identity;
+  const bool upper_moves = rec.alpha != 0.0f && !transforms_[static_cast<std::size_t>(p.upper)].identity;
+  return lower_moves || upper_moves;
+}
+
+namespace {
+// x turned by the rotation of the quaternion (1 - w) qa + w qb (normalised), as blendedRotate.
+Eigen::Vector3d blendedRotateExact(const Eigen::Vector4d& qa, const Eigen::Vector4d& qb, double w,
+                                   const Eigen::Vector3d& x) {
+  const Eigen::Vector4d q = (1.0 - w) * qa + w * qb;
+  const double s = 2.0 / q.squaredNorm();
+  const Eigen::Vector3d u = q.head<3>();
+  const Eigen::Vector3d a = u.cross(x);
+  return x + s * (q[3] * a + u.cross(a));
+}
+}  // namespace
+
+Eigen::Vector3d ExactInterpolation::apply(std::size_t i, const Eigen::Vector3d& x) const {
+  const InterpolationTable::Point& rec = table_->points[i];
+  const Pair& p = pairs_[rec.pair];
+  const double w = rec.alpha;
+  const ExactTransform& a = transforms_[static_cast<std::size_t>(p.lower)];
+  const ExactTransform& b = transforms_[static_cast<std::size_t>(p.upper)];
+  if (p.lower == p.upper) return a.identity ? x : Eigen::Vector3d(a.A * x + a.b);
+  if (blend_ == Blend::Linear) return ((1.0 - w) * a.A + w * b.A) * x + (1.0 - w) * a.b + w * b.b;
+  return blendedRotateExact(p.qa, p.qb, w, x - p.c) + (1.0 - w) * p.ta + w * p.tb;
+}
+
+Eigen::Vector3d ExactInterpolation::applyNormal(std::size_t i, const Eigen::Vector3d& n) const {
+  const InterpolationTable::Point& rec = table_->points[i];
+  const Pair& p = pairs_[rec.pair];
+  const double w = rec.alpha;
+  const ExactTransform& a = transforms_[static_cast<std::size_t>(p.lower)];
+  const ExactTransform& b = transforms_[static_cast<std::size_t>(p.upper)];
+  auto cofactor = [&](const Eigen::Matrix3d& m) {  // A^-T n up to scale, as transformNormal
+    Eigen::Matrix3d cof;
+    cof.col(0) = m.col(1).cross(m.col(2));
+    cof.col(1) = m.col(2).cross(m.col(0));
+    cof.col(2) = m.col(0).cross(m.col(1));
+    const Eigen::Vector3d out = cof * n;
+    const double len = out.norm();
+    return len > 0 ? Eigen::Vector3d(out / len) : n;
+  };
+  if (p.lower == p.upper) return a.identity ? n : cofactor(a.A);
+  if (blend_ == Blend::Linear) return cofactor((1.0 - w) * a.A + w * b.A);
+  return blendedRotateExact(p.qa, p.qb, w, n);
+}
+
 }  // namespace hgd

@@ -44,6 +44,7 @@ ScenarioRunner::ScenarioRunner(Shape shape, const RunOptions& options)
   Stopwatch t;
   read_warnings_ = shape_.warnings;  // what reading noted (a format told by content, ...)
   geometry_ = std::make_shared<const Geometry>(extractGeometry(shape_));
+  read_warnings_.insert(read_warnings_.end(), geometry_->warnings.begin(), geometry_->warnings.end());
   build_ms_ = t.ms();
 }
 
@@ -278,6 +279,12 @@ Shape ScenarioRunner::deformedShape() const {
   return out;
 }
 
+void ScenarioRunner::noteWriteWarnings(const std::vector<std::string>& warnings) {
+  for (const std::string& w : warnings)
+    if (std::find(write_warnings_.begin(), write_warnings_.end(), w) == write_warnings_.end())
+      write_warnings_.push_back(w);
+}
+
 void ScenarioRunner::write(const std::string& path, const WriteOptions& options,
                            const std::vector<std::string>& inputs) {
   writeOut(path, options, inputs, false);
@@ -297,19 +304,17 @@ void ScenarioRunner::writeOut(const std::string& path, const WriteOptions& optio
   const FileFormat format = formatFromPath(path);
   Stopwatch t;
   // Released: the deformed positions go into the runner's own shape, held once.
-  const Shape out = release_shape ? release(true) : deformedShape();
+  Shape out = release_shape ? release(false) : shape_;
+  if (deformer_) noteWriteWarnings(deformer_->writeDeformed(out));
   writeShape(path, out, options);
   write_ms_ = t.ms();
-  if (const std::string lost = extrasLost(out, format); !lost.empty()) {
-    const std::string w = path + ": " + lost;
-    if (std::find(write_warnings_.begin(), write_warnings_.end(), w) == write_warnings_.end())
-      write_warnings_.push_back(w);
-  }
+  if (const std::string lost = extrasLost(out, format); !lost.empty())
+    noteWriteWarnings({path + ": " + lost});
 }
 
 Shape ScenarioRunner::release(bool deformed) {
   requireShape("release");
-  if (deformed && deformer_) deformer_->writeDeformed(shape_);
+  if (deformed && deformer_) noteWriteWarnings(deformer_->writeDeformed(shape_));
   released_ = true;
   Shape out = std::move(shape_);
   shape_ = Shape{};
@@ -332,9 +337,8 @@ DeformReport deformShape(Shape& shape, const Scenario& scenario, const DeformOpt
     shape = run.release(false);  // the caller's shape, unchanged
     throw;
   }
-  const DeformReport rep = run.report();
   shape = run.release(true);
-  return rep;
+  return run.report();  // with what writing the shape said
 }
 
 }  // namespace hgd

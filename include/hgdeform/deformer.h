@@ -150,9 +150,19 @@ class Deformer {
   Eigen::Vector3d deformedWorld(std::size_t i) const {
     return positions_[i].cast<double>() + geometry_->origin;
   }
-  /// Stores the deformed positions (and normals, where the shape has normal fields; derived
-  /// here if a move left them due, as deformedNormals() does).
-  void writeDeformed(Shape& shape) const;
+  /// Writes the deformed shape into `shape`, which must hold the rest shape this deformer was
+  /// built on (its geometry's source; std::logic_error otherwise, so a shape is never moved
+  /// twice). Positions (and normals, where the shape has normal fields) are computed in double
+  /// from the shape's own values with the current transforms (ExactInterpolation), so moved
+  /// points keep the input's precision; points that do not move are not written at all and stay
+  /// as the file had them, to the bit. Returns what it had to change that a front end should say
+  /// (integer x/y/z widened to float or double).
+  std::vector<std::string> writeDeformed(Shape& shape) const;
+  /// The current deformation evaluated in double (see writeDeformed()).
+  ExactInterpolation exactInterpolation() const;
+  /// Each cluster's current transform in world coordinates, x -> A x + b, in double: what
+  /// writeDeformed() blends (bones already projected onto rotations).
+  std::vector<Eigen::Affine3d> worldTransforms() const;
 
   const Geometry& geometry() const { return *geometry_; }
   const Handles& handles() const { return handles_; }
@@ -232,6 +242,7 @@ class Deformer {
   Eigen::Vector3d last_to_ = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
   // Per-frame buffers.
   std::vector<LocalTransform> local_;
+  std::vector<ExactTransform> exact_;  ///< the same transforms in double, for writing
   std::vector<Eigen::Vector3f> positions_;
   // Normals are derived when asked for, each point's from the transforms its position came
   // from: the last full frame's (kept here) and, for the preview's points, the current ones.

@@ -7,6 +7,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <string>
+#include <vector>
 
 namespace hgd {
 
@@ -28,6 +29,11 @@ void writeValue(pcl::PCLPointCloud2& cloud, std::size_t point, const pcl::PCLPoi
 /// Appends a FLOAT32 scalar field called `name` (or reuses an existing field of that name) and
 /// returns its index. Existing data is kept; the new field is zero until written.
 int addFloatField(pcl::PCLPointCloud2& cloud, const std::string& name);
+
+/// Changes the datatype of the given fields (indices into cloud.fields), converting every value;
+/// the point record is repacked (fields in their order). Used to widen integer coordinates that
+/// cannot hold a deformed position.
+void retypeFields(pcl::PCLPointCloud2& cloud, const std::vector<int>& fields, std::uint8_t datatype);
 
 /// Name of the x/y/z or normal component field actually used by a cloud: normals are
 /// "normal_x" in PCD/PCL and "nx" in PLY; both are recognised.

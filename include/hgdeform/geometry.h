@@ -1,5 +1,7 @@
 // The computational view of a shape: its finite points (NaNs dropped, index maps kept), in a
-// local frame so that georeferenced coordinates keep float precision.
+// local frame about the shape's median so that georeferenced coordinates keep float precision
+// and a far stray does not spend it. The float positions are for computing the deformation;
+// what is written back is computed in double from the file's own values (Deformer::writeDeformed).
 #pragma once
 
 #include <pcl/point_cloud.h>
@@ -8,6 +10,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <Eigen/SVD>
+#include <string>
 #include <vector>
 
 #include "hgdeform/shape.h"
@@ -26,6 +29,12 @@ struct Geometry {
   Eigen::Vector3d origin = Eigen::Vector3d::Zero();
   std::vector<int> raw_index;     ///< finite point -> index in the file
   std::vector<int> finite_index;  ///< index in the file -> finite point, or -1 for NaN/inf points
+                                  ///< and points set apart as absurdly far (far_points)
+  /// Points set apart because they lie more than a million times the shape's size (or 1e12
+  /// units) from its median: they are not deformed and are written back untouched.
+  std::size_t far_points = 0;
+  /// What extraction noticed that a front end should print (far points set apart).
+  std::vector<std::string> warnings;
 
   std::size_t size() const { return points->size(); }
   bool hasFileNormals() const { return !file_normals->empty(); }
@@ -34,7 +43,8 @@ struct Geometry {
 };
 
 /// Extracts the finite points (and normals, faces) of a shape. Throws IoError naming the file
-/// when it has no x/y/z fields or no finite point.
+/// when it has no x/y/z fields or no finite point, or when its points span more than 1e11 units
+/// (the middle 98% of them: corrupt coordinates).
 Geometry extractGeometry(const Shape& shape);
 
 /// Writes positions (local frame of `geometry`) and, when given and the shape has normal

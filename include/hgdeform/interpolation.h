@@ -98,4 +98,42 @@ void interpolate(const InterpolationTable& table, const std::vector<LocalTransfo
                  std::vector<Eigen::Vector3f>& out_points, std::vector<Eigen::Vector3f>* out_normals,
                  Blend blend = Blend::Linear);
 
+/// A cluster's transform in the shape's local frame in double precision, x -> A x + b, for the
+/// pass that writes the result (ExactInterpolation). `identity`: the transform is exactly the
+/// identity (fixed handles, parts that stay, a shape not moved): its points do not move at all.
+struct ExactTransform {
+  Eigen::Matrix3d A = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d b = Eigen::Vector3d::Zero();
+  bool identity = true;
+};
+
+/// The blend of interpolatePositions() evaluated in double, point by point, on rest positions
+/// given in double (the file's own values, not the table's float copies): what is written back
+/// keeps the input's precision, and a point whose clusters do not move is reported as unmoved, so
+/// that its value is left as the file had it, to the bit.
+class ExactInterpolation {
+ public:
+  /// `barycentres`: each cluster's rest barycentre (local frame), for the rotation-aware blend's
+  /// pair centres.
+  ExactInterpolation(const InterpolationTable& table, std::vector<ExactTransform> transforms,
+                     const std::vector<Eigen::Vector3d>& barycentres, Blend blend);
+  /// Whether table point i moves (some cluster it blends with a non-zero weight is not the identity).
+  bool moves(std::size_t i) const;
+  /// Table point i's deformed position (local frame) from its rest position `p` (local frame).
+  Eigen::Vector3d apply(std::size_t i, const Eigen::Vector3d& p) const;
+  /// Table point i's turned normal (unit; the blend of interpolateNormals() in double).
+  Eigen::Vector3d applyNormal(std::size_t i, const Eigen::Vector3d& n) const;
+
+ private:
+  struct Pair {
+    Eigen::Vector4d qa, qb;
+    Eigen::Vector3d c, ta, tb;
+    int lower = 0, upper = 0;
+  };
+  const InterpolationTable* table_;
+  std::vector<ExactTransform> transforms_;
+  std::vector<Pair> pairs_;
+  Blend blend_;
+};
+
 }  // namespace hgd

@@ -170,6 +170,7 @@ class ScenarioRunner {
   void requireShape(const char* what) const;
   void writeOut(const std::string& path, const WriteOptions& options, const std::vector<std::string>& inputs,
                 bool release_shape);
+  void noteWriteWarnings(const std::vector<std::string>& warnings);
   void clearHistory();
 
   Shape shape_;

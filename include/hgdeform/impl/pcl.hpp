@@ -31,25 +31,26 @@ void copyDeformed(const ScenarioRunner& runner, pcl::PointCloud<PointT>& output)
   if (!runner.ready()) return;  // no handles: the rest shape
   const Geometry& g = runner.geometry();
   const Deformer& d = runner.deformer();
-  const auto& positions = d.deformedPoints();
-  for (std::size_t k = 0; k < positions.size(); ++k) {
+  // In double from the cloud's own values; points that do not move are not written (to the bit).
+  const ExactInterpolation exact = d.exactInterpolation();
+  const InterpolationTable& table = d.interpolationTable();
+  for (std::size_t k = 0; k < g.size(); ++k) {
+    if (!exact.moves(k)) continue;
     PointT& p = output[static_cast<std::size_t>(g.raw_index[k])];
-    const Eigen::Vector3d w = positions[k].cast<double>() + g.origin;
+    const Eigen::Vector3d rest(p.x, p.y, p.z);
+    const Eigen::Vector3d w = exact.apply(k, rest - g.origin) + g.origin;
     p.x = static_cast<float>(w.x());
     p.y = static_cast<float>(w.y());
     p.z = static_cast<float>(w.z());
-  }
-  if constexpr (pcl::traits::has_normal_v<PointT>) {
-    const auto& normals = d.deformedNormals();
-    // Only where the cloud's own normals were used: a cloud whose normals are unset keeps them.
-    if (g.hasFileNormals() && normals.size() == positions.size())
-      for (std::size_t k = 0; k < normals.size(); ++k) {
-        PointT& p = output[static_cast<std::size_t>(g.raw_index[k])];
-        if (!p.getNormalVector3fMap().allFinite()) continue;
-        p.normal_x = normals[k].x();
-        p.normal_y = normals[k].y();
-        p.normal_z = normals[k].z();
+    if constexpr (pcl::traits::has_normal_v<PointT>) {
+      // Only where the cloud's own normals were used: a cloud whose normals are unset keeps them.
+      if (g.hasFileNormals() && table.has_normals && p.getNormalVector3fMap().allFinite()) {
+        const Eigen::Vector3d n = exact.applyNormal(k, table.restNormal(k).template cast<double>());
+        p.normal_x = static_cast<float>(n.x());
+        p.normal_y = static_cast<float>(n.y());
+        p.normal_z = static_cast<float>(n.z());
       }
+    }
   }
 }
 

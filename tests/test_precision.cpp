@@ -1,0 +1,417 @@
+// Precision: what did not move comes back bit for bit, what moved keeps the input's precision.
+//
+//  - A run that moves nothing, or the points of a fixed handle in a run that does, write every
+//    coordinate back as the file had it (bit for bit; the same text in a text format), in float
+//    and double PLY, PCD and XYZ, with one far stray in the cloud.
+//  - Moved points agree with the same deformation computed here in double (the clusters'
+//    transforms in world coordinates, blended as docs/method.md §6 says) within 1e-9 of the
+//    shape's size for double input, and within one float ulp for float input: with strays at
+//    1e5, 1e10 and 1e22, and on a georeferenced patch at (5e5, 5e6) with millimetre bumps and a
+//    scanner's no-return point at the origin.
+//  - Points absurdly far from the shape (1e22 in a 3-unit grid) are set apart with a warning,
+//    never a crash; a cloud whose bulk spans 1e22 units is refused with a message naming it.
+//  - Integer coordinates that cannot hold the result are widened with a warning, not clipped.
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <Eigen/SVD>
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <limits>
+#include <map>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "hgdeform/deformer.h"
+#include "hgdeform/fields.h"
+#include "hgdeform/io.h"
+#include "hgdeform/runner.h"
+#include "hgdeform/scenario.h"
+#include "support/shapes.h"
+#include "test_util.h"
+
+using namespace hgdtest;
+
+namespace {
+
+// The grid of the issue: 30 x 30 points, x and y from 0 to 2.9 in steps of 0.1, gentle bumps in
+// z, in a shuffled order (as resampled scans arrive), plus the given strays.
+std::vector<Eigen::Vector3d> grid(const std::vector<Eigen::Vector3d>& strays, unsigned seed = 7) {
+  std::vector<Eigen::Vector3d> p;
+  for (int i = 0; i < 30; ++i)
+    for (int j = 0; j < 30; ++j) {
+      const double x = 0.1 * i, y = 0.1 * j;
+      p.emplace_back(x, y, 0.05 * std::sin(3 * x) * std::cos(2 * y));
+    }
+  std::mt19937 rng(seed);
+  std::shuffle(p.begin(), p.end(), rng);
+  for (const auto& s : strays) p.insert(p.begin() + static_cast<std::ptrdiff_t>(p.size() / 2), s);
+  return p;
+}
+
+const char* kGridScenario = R"({
+  "format": "hgdeform-scenario/1",
+  "fixed": [ {"box": {"min": [-1, -1, -1], "max": [4, 0.35, 1]}} ],
+  "manipulated": {"box": {"min": [-1, 2.55, -1], "max": [4, 3, 1]}},
+  "clusters": 8,
+  "move": {"drag": {"from": [1.5, 2.9, 0], "to": [1.9, 3.3, 0.6]}}
+})";
+const char* kGridScenarioNoMove = R"({
+  "format": "hgdeform-scenario/1",
+  "fixed": [ {"box": {"min": [-1, -1, -1], "max": [4, 0.35, 1]}} ],
+  "manipulated": {"box": {"min": [-1, 2.55, -1], "max": [4, 3, 1]}},
+  "clusters": 8
+})";
+
+std::string shortest(double v, bool as_float) {
+  char buf[64];
+  const auto r = as_float ? std::to_chars(buf, buf + sizeof buf, static_cast<float>(v))
+                          : std::to_chars(buf, buf + sizeof buf, v);
+  return std::string(buf, r.ptr);
+}
+
+// A PLY of the points with x/y/z of the given type (binary little endian).
+void writePly(const std::string& path, const std::vector<Eigen::Vector3d>& pts, bool as_double) {
+  std::string s = "ply\nformat binary_little_endian 1.0\ncomment made by test_precision\nelement vertex " +
+                  std::to_string(pts.size()) + "\n";
+  for (const char* a : {"x", "y", "z"})
+    s += std::string("property ") + (as_double ? "double " : "float ") + a + "\n";
+  s += "end_header\n";
+  for (const auto& p : pts)
+    for (int a = 0; a < 3; ++a) {
+      if (as_double)
+        put(s, p[a]);
+      else
+        put(s, static_cast<float>(p[a]));
+    }
+  writeText(path, s);
+}
+
+// The points as an XYZ text file (float spellings: what the reader keeps).
+std::string xyzText(const std::vector<Eigen::Vector3d>& pts) {
+  std::string s;
+  for (const auto& p : pts)
+    s += shortest(p.x(), true) + " " + shortest(p.y(), true) + " " + shortest(p.z(), true) + "\n";
+  return s;
+}
+
+Eigen::Vector3d valueOf(const hgd::Shape& s, std::size_t i) {
+  const hgd::XyzFields f = hgd::findXyzFields(s.cloud);
+  return {hgd::readValue(s.cloud, i, s.cloud.fields[f.x]), hgd::readValue(s.cloud, i, s.cloud.fields[f.y]),
+          hgd::readValue(s.cloud, i, s.cloud.fields[f.z])};
+}
+
+bool sameBits(double a, double b) {
+  return std::memcmp(&a, &b, sizeof a) == 0;
+}
+
+// The nearest rotation by SVD, computed here (not the library's).
+Eigen::Matrix3d polarRotation(const Eigen::Matrix3d& a) {
+  Eigen::JacobiSVD<Eigen::Matrix3d> svd(a, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::Matrix3d u = svd.matrixU();
+  if ((u * svd.matrixV().transpose()).determinant() < 0) u.col(2) *= -1;
+  return u * svd.matrixV().transpose();
+}
+
+// Point k's deformation computed here in double, in world coordinates, from the clusters' world
+// transforms: the linear blend of the two matrices, or the rotation-aware one (the rigid parts
+// about each cluster's barycentre, their quaternions blended on one hemisphere and normalised,
+// turning about the pair's centre).
+Eigen::Vector3d referenceBlend(const hgd::Deformer& d, const std::vector<Eigen::Affine3d>& T, std::size_t k,
+                               const Eigen::Vector3d& x, hgd::Blend blend) {
+  const auto br = d.interpolationTable().bracket(k);
+  const auto lo = static_cast<std::size_t>(br.lower), hi = static_cast<std::size_t>(br.upper);
+  if (lo == hi) return T[lo] * x;
+  const double w = br.alpha;
+  if (blend == hgd::Blend::Linear)
+    return ((1 - w) * T[lo].linear() + w * T[hi].linear()) * x + (1 - w) * T[lo].translation() +
+           w * T[hi].translation();
+  const Eigen::Vector3d o = d.geometry().origin;
+  const Eigen::Vector3d ga = d.clustering().clusters[lo].barycentre + o;
+  const Eigen::Vector3d gb = d.clustering().clusters[hi].barycentre + o;
+  const Eigen::Vector3d c = 0.5 * (ga + gb);
+  const Eigen::Matrix3d ra = polarRotation(T[lo].linear()), rb = polarRotation(T[hi].linear());
+  const Eigen::Vector3d ta = ra * (c - ga) + T[lo] * ga, tb = rb * (c - gb) + T[hi] * gb;
+  Eigen::Quaterniond qa(ra), qb(rb);
+  if (qa.dot(qb) < 0) qb.coeffs() *= -1;
+  Eigen::Quaterniond q;
+  q.coeffs() = (1 - w) * qa.coeffs() + w * qb.coeffs();
+  q.normalize();
+  return q.toRotationMatrix() * (x - c) + (1 - w) * ta + w * tb;
+}
+
+struct Compared {
+  double max_moved_error = 0;  ///< largest |written - reference| over moved points
+  double max_float_ulps = 0;   ///< float input: the same in units of the written value's ulp
+  std::size_t moved = 0, unmoved = 0, unmoved_changed = 0, fixed_changed = 0;
+};
+
+// Deforms `path` with `scenario` through the library, writes `out`, and compares every written
+// coordinate with the input's (unmoved points) or the reference (moved points).
+Compared deformAndCompare(const std::string& path, const std::string& scenario, const std::string& out,
+                          hgd::Blend blend = hgd::Blend::Rotation) {
+  hgd::RunOptions ro;
+  ro.blend = blend;
+  hgd::ScenarioRunner run = hgd::ScenarioRunner::read(path, ro);
+  run.setScenario(hgd::parseScenario(scenario, "test.json"));
+  run.applyMoves();
+  const hgd::Deformer& d = run.deformer();
+  const std::vector<Eigen::Affine3d> T = d.worldTransforms();
+  run.write(out);
+  const hgd::Shape in = hgd::readShape(path), res = hgd::readShape(out);
+  const bool is_float = in.cloud.fields[static_cast<std::size_t>(hgd::findXyzFields(in.cloud).x)].datatype ==
+                        pcl::PCLPointField::FLOAT32;
+  const hgd::Geometry& g = d.geometry();
+  std::vector<char> fixed(g.size(), 0);
+  for (const auto& h : d.handles().fixed)
+    for (const int i : h) fixed[static_cast<std::size_t>(i)] = 1;
+  Compared c;
+  for (std::size_t i = 0; i < in.size(); ++i) {
+    const Eigen::Vector3d a = valueOf(in, i), b = valueOf(res, i);
+    const int k = g.finite_index[i];
+    const bool identical = sameBits(a.x(), b.x()) && sameBits(a.y(), b.y()) && sameBits(a.z(), b.z());
+    if (k < 0) {  // NaN, or set apart as absurdly far: untouched
+      c.unmoved_changed += !identical;
+      continue;
+    }
+    const auto ku = static_cast<std::size_t>(k);
+    const Eigen::Vector3d ref = referenceBlend(d, T, ku, a, blend);
+    if (fixed[ku]) c.fixed_changed += !identical;
+    if (ref == a) {  // the reference does not move it either
+      ++c.unmoved;
+      c.unmoved_changed += !identical;
+      continue;
+    }
+    ++c.moved;
+    c.max_moved_error = std::max(c.max_moved_error, (b - ref).cwiseAbs().maxCoeff());
+    if (is_float)
+      for (int ax = 0; ax < 3; ++ax) {
+        const float bf = static_cast<float>(b[ax]);
+        const double ulp = std::nextafter(bf, std::numeric_limits<float>::infinity()) - bf;
+        c.max_float_ulps = std::max(c.max_float_ulps, std::abs(b[ax] - ref[ax]) / ulp);
+      }
+  }
+  std::printf("  %zu moved (largest error %.3g, %.3g float ulps), %zu unmoved\n", c.moved, c.max_moved_error,
+              c.max_float_ulps, c.unmoved);
+  return c;
+}
+
+}  // namespace
+
+// The issue's case: a no-move run with one far stray wrote every y as 0. Now every value comes
+// back bit for bit, in every format, and the far stray is named.
+TEST(Precision, NoMoveWritesEveryValueBackBitForBit) {
+  TempDir dir;
+  const auto pts = grid({{0, 1e10, 0}});
+  writeText(dir.file("s.json"), kGridScenarioNoMove);
+  std::vector<std::string> inputs;
+  writePly(dir.file("float.ply"), pts, false);
+  writePly(dir.file("double.ply"), pts, true);
+  writeText(dir.file("points.xyz"), xyzText(pts));
+  {
+    std::vector<Eigen::Vector3f> f;
+    for (const auto& p : pts) f.push_back(p.cast<float>());
+    hgd::Shape s = hgd::shapes::cloudShape(f, {});
+    hgd::writeShape(dir.file("cloud.pcd"), s);
+  }
+  for (const std::string name : {"float.ply", "double.ply", "points.xyz", "cloud.pcd"}) {
+    SCOPED_TRACE(name);
+    const std::string ext = name.substr(name.find('.'));
+    const CommandResult r =
+        shell(quote(HGD_TOOL) + " deform " + quote(dir.file(name)) + " -s " + quote(dir.file("s.json")) +
+              " -o " + quote(dir.file("out" + ext)) + " --report " + quote(dir.file("r.json")));
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_TRUE(contains(r.err, "left where they are")) << r.err;  // the 1e10 point, said
+    const hgd::Shape a = hgd::readShape(dir.file(name)), b = hgd::readShape(dir.file("out" + ext));
+    ASSERT_EQ(a.size(), b.size());
+    std::size_t changed = 0;
+    for (std::size_t i = 0; i < a.size(); ++i) {
+      const Eigen::Vector3d va = valueOf(a, i), vb = valueOf(b, i);
+      changed += !(sameBits(va.x(), vb.x()) && sameBits(va.y(), vb.y()) && sameBits(va.z(), vb.z()));
+    }
+    EXPECT_EQ(changed, 0u);
+    if (ext == ".xyz") {
+      EXPECT_EQ(slurp(dir.file("out.xyz")), slurp(dir.file("points.xyz")));  // the same text
+    }
+  }
+}
+
+// A drag with a stray at 1e5 (kept: it hangs from the surface), 1e10 or 1e22 (set apart): the
+// fixed points come back bit for bit, the moved ones within 1e-9 of the shape's size (double
+// input) or one ulp (float input) of the deformation computed here in double.
+TEST(Precision, StraysDoNotCostTheOtherPointsTheirPrecision) {
+  TempDir dir;
+  const double size = std::sqrt(2.0) * 2.9;  // the grid's diagonal, without its stray
+  for (const double far : {1e5, 1e10, 1e22}) {
+    for (const bool as_double : {true, false}) {
+      SCOPED_TRACE("stray at " + shortest(far, false) + (as_double ? ", double" : ", float"));
+      const auto pts = grid({{0, far, 0}});
+      writePly(dir.file("in.ply"), pts, as_double);
+      for (const hgd::Blend blend : {hgd::Blend::Rotation, hgd::Blend::Linear}) {
+        const Compared c = deformAndCompare(dir.file("in.ply"), kGridScenario, dir.file("out.ply"), blend);
+        EXPECT_GT(c.moved, 400u);
+        EXPECT_GT(c.unmoved, 50u);
+        EXPECT_EQ(c.fixed_changed, 0u);
+        EXPECT_EQ(c.unmoved_changed, 0u);
+        if (as_double)
+          EXPECT_LE(c.max_moved_error, 1e-9 * size) << c.max_moved_error;
+        else
+          EXPECT_LE(c.max_float_ulps, 1.0) << c.max_float_ulps;
+      }
+    }
+  }
+}
+
+// A survey patch: 20 m x 20 m at (5e5, 5e6, 120), 1 mm bumps, 0.25 m spacing, with a scanner's
+// no-return point at (0, 0, 0). Before, the frame's centre sat half-way to the origin and a float
+// there has a quarter-metre step: the bumps were gone. Now they keep their millimetres.
+TEST(Precision, GeoreferencedPatchKeepsMillimetresThroughADrag) {
+  TempDir dir;
+  std::vector<Eigen::Vector3d> pts;
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> bump(-0.001, 0.001);
+  for (int i = 0; i <= 80; ++i)
+    for (int j = 0; j <= 80; ++j) pts.emplace_back(5e5 + 0.25 * i, 5e6 + 0.25 * j, 120 + bump(rng));
+  std::shuffle(pts.begin(), pts.end(), rng);
+  pts.emplace_back(0, 0, 0);
+  writePly(dir.file("survey.ply"), pts, true);
+  const std::string scenario = R"({
+    "format": "hgdeform-scenario/1",
+    "fixed": [ {"box": {"min": [499990, 4999990, 100], "max": [500004, 5000030, 140]}} ],
+    "manipulated": {"box": {"min": [500017, 4999990, 100], "max": [500030, 5000030, 140]}},
+    "clusters": 8,
+    "move": {"drag": {"from": [500020, 5000010, 120], "to": [500021, 5000010, 122]}}
+  })";
+  const Compared c = deformAndCompare(dir.file("survey.ply"), scenario, dir.file("out.ply"));
+  EXPECT_GT(c.moved, 2000u);
+  EXPECT_EQ(c.fixed_changed, 0u);
+  EXPECT_EQ(c.unmoved_changed, 0u);
+  EXPECT_LE(c.max_moved_error, 1e-9 * 28.3) << c.max_moved_error;
+
+  // The millimetre bumps of the handle, which moves rigidly, are still there: each handle point's
+  // height above its neighbours' mean changes by far less than a millimetre.
+  const hgd::Shape in = hgd::readShape(dir.file("survey.ply")), out = hgd::readShape(dir.file("out.ply"));
+  std::map<std::pair<long, long>, std::size_t> at;  // grid cell -> point
+  for (std::size_t i = 0; i < in.size(); ++i) {
+    const Eigen::Vector3d a = valueOf(in, i);
+    at[{std::lround((a.x() - 5e5) * 4), std::lround((a.y() - 5e6) * 4)}] = i;
+  }
+  double worst = 0;
+  std::size_t pairs = 0;
+  for (const auto& [cell, i] : at) {
+    const auto next = at.find({cell.first + 1, cell.second});
+    if (cell.first < 74 || cell.second < 4 || cell.second > 76 || next == at.end()) continue;  // the handle
+    const std::size_t j = next->second;
+    const double rest = (valueOf(in, j) - valueOf(in, i)).norm(),
+                 now = (valueOf(out, j) - valueOf(out, i)).norm();
+    worst = std::max(worst, std::abs(now - rest));
+    ++pairs;
+  }
+  EXPECT_GT(pairs, 300u);
+  std::printf("  handle neighbour distances changed by at most %.3g m\n", worst);
+  EXPECT_LT(worst, 5e-5) << "neighbour distances on the rigid handle changed by " << worst << " m";
+}
+
+// A frame move far out (translate 1e12, inside the allowed range) on a double file: the handle
+// moves rigidly to within double rounding at 1e12 (1.2e-4), not 4,096 units.
+TEST(Precision, HugeTranslationKeepsTheHandleRigid) {
+  TempDir dir;
+  const auto pts = grid({});
+  writePly(dir.file("in.ply"), pts, true);
+  const std::string scenario = R"({
+    "format": "hgdeform-scenario/1",
+    "fixed": [ {"box": {"min": [-1, -1, -1], "max": [4, 0.35, 1]}} ],
+    "manipulated": {"box": {"min": [-1, 2.55, -1], "max": [4, 3, 1]}},
+    "move": {"frame": {"translate": [1e12, 0, 0]}}
+  })";
+  writeText(dir.file("s.json"), scenario);
+  const CommandResult r2 = shell(quote(HGD_TOOL) + " deform " + quote(dir.file("in.ply")) + " -s " +
+                                 quote(dir.file("s.json")) + " -o " + quote(dir.file("out.ply")));
+  ASSERT_EQ(r2.code, 0) << r2.err;
+  const hgd::Shape in = hgd::readShape(dir.file("in.ply")), out = hgd::readShape(dir.file("out.ply"));
+  double worst = 0, worst_fixed = 0;
+  for (std::size_t i = 0; i < in.size(); ++i) {
+    const Eigen::Vector3d a = valueOf(in, i), b = valueOf(out, i);
+    if (a.y() >= 2.55) worst = std::max(worst, (b - a - Eigen::Vector3d(1e12, 0, 0)).cwiseAbs().maxCoeff());
+    if (a.y() <= 0.35) worst_fixed = std::max(worst_fixed, (b - a).cwiseAbs().maxCoeff());
+  }
+  std::printf("  handle off the exact translation by at most %.3g\n", worst);
+  EXPECT_LE(worst, 2.5e-4) << worst;
+  EXPECT_EQ(worst_fixed, 0.0);
+}
+
+// 50 runs with points at 1e22 among a 3-unit grid (a corrupt block's values): set apart, said,
+// never a crash; and a cloud whose bulk spans 1e22 units is refused with a message naming it.
+TEST(Precision, PointsNear1e22NeverCrash) {
+  TempDir dir;
+  std::vector<Eigen::Vector3d> strays;
+  for (int k = 0; k < 5; ++k) strays.emplace_back(k % 2 ? 1e22 : -3e21, 1e20 * k, k % 3 ? 7e29 : 1);
+  writePly(dir.file("in.ply"), grid(strays), false);
+  for (int run = 0; run < 50; ++run) {
+    hgd::ScenarioRunner r = hgd::ScenarioRunner::read(dir.file("in.ply"));
+    EXPECT_EQ(r.geometry().far_points, 5u);
+    r.setScenario(hgd::parseScenario(kGridScenario, "s.json"));
+    r.applyMoves();
+    const hgd::DeformReport rep = r.report();
+    bool said = false;
+    for (const auto& w : rep.warnings) said = said || contains(w, "5 points lie more than");
+    EXPECT_TRUE(said);
+    for (const auto& p : r.deformer().deformedPoints()) ASSERT_TRUE(p.allFinite());
+  }
+  // Most of the cloud garbage: refused, naming the file.
+  std::vector<Eigen::Vector3d> bad;
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-1, 1);
+  for (int k = 0; k < 400; ++k) bad.emplace_back(u(rng) * 1e22, u(rng) * 1e22, u(rng));
+  writePly(dir.file("bad.ply"), grid(bad), false);
+  try {
+    hgd::ScenarioRunner::read(dir.file("bad.ply"));
+    FAIL() << "a cloud spanning 1e22 units was accepted";
+  } catch (const std::exception& e) {
+    EXPECT_TRUE(contains(e.what(), dir.file("bad.ply"))) << e.what();
+    EXPECT_TRUE(contains(e.what(), "corrupt")) << e.what();
+  }
+  const CommandResult r = shell(quote(HGD_TOOL) + " deform " + quote(dir.file("bad.ply")) + " -s " +
+                                quote(dir.file("s.json")) + " -o " + quote(dir.file("o.ply")));
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.code, -1);  // not killed by a signal
+}
+
+// uchar coordinates dragged past 255 and below 0 were written as 255 and 0. Now the property is
+// widened to float, with a warning, and the values are what the deformation gives.
+TEST(Precision, IntegerCoordinatesAreWidenedNotClipped) {
+  TempDir dir;
+  std::string s =
+      "ply\nformat ascii 1.0\nelement vertex 900\nproperty uchar x\nproperty uchar y\nproperty uchar z\n"
+      "end_header\n";
+  for (int i = 0; i < 30; ++i)
+    for (int j = 0; j < 30; ++j)
+      s += std::to_string(8 * i) + " " + std::to_string(8 * j) + " " +
+           std::to_string(100 + (i * 7 + j * 3) % 5) + "\n";
+  writeText(dir.file("in.ply"), s);
+  writeText(dir.file("s.json"), R"({
+    "format": "hgdeform-scenario/1",
+    "fixed": [ {"box": {"min": [-1, -1, 0], "max": [255, 20, 255]}} ],
+    "manipulated": {"box": {"min": [-1, 210, 0], "max": [255, 240, 255]}},
+    "move": {"frame": {"translate": [-60, 70, 0]}}
+  })");
+  const CommandResult r =
+      shell(quote(HGD_TOOL) + " deform " + quote(dir.file("in.ply")) + " -s " + quote(dir.file("s.json")) +
+            " -o " + quote(dir.file("out.ply")) + " --report " + quote(dir.file("r.json")));
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(contains(r.err, "integers")) << r.err;
+  EXPECT_TRUE(contains(slurp(dir.file("r.json")), "integers"));
+  const hgd::Shape out = hgd::readShape(dir.file("out.ply"));
+  const hgd::XyzFields f = hgd::findXyzFields(out.cloud);
+  EXPECT_EQ(out.cloud.fields[static_cast<std::size_t>(f.y)].datatype, pcl::PCLPointField::FLOAT32);
+  double max_y = -1e9, min_x = 1e9;
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    max_y = std::max(max_y, valueOf(out, i).y());
+    min_x = std::min(min_x, valueOf(out, i).x());
+  }
+  EXPECT_GT(max_y, 300.0);  // 232 + 70 on the handle
+  EXPECT_LT(min_x, -50.0);  // 0 - 60 on the handle
+}
