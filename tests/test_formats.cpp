@@ -222,6 +222,51 @@ TEST(Xyz, ErrorsNameFileAndLine) {
   expectReadError(p, "line 1");
 }
 
+// Separators and the row of names are written back as the file had them: tabs stay tabs,
+// ", " stays ", ", "//X Y Z Intensity" and "a b c d" stay as written (issue 28 item 8).
+TEST(Xyz, SeparatorsAndRowOfNamesAreKeptAsWritten) {
+  TempDir dir;
+  const std::string in = dir.file("in.xyz"), out = dir.file("out.xyz");
+  for (const std::string text :
+       {"1\t2\t3\n4\t5\t6\n", "1, 2, 3, 0.5\n4, 5, 6, 0.25\n", "//X Y Z Intensity\n1 2 3 0.5\n4 5 6 0.25\n",
+        "a b c d\n1 2 3 4\n5 6 7 8\n", "X\tY\tZ\n1\t2\t3\n", "x, y, z, i\n1, 2, 3, 4\n"}) {
+    hgdtest::writeText(in, text);
+    const Shape s = hgd::readShape(in);
+    hgd::writeShape(out, s);
+    EXPECT_EQ(hgdtest::slurp(out), text);
+  }
+  // The names as read: the coordinates x y z whatever the row called them.
+  hgdtest::writeText(in, "a b c d\n1 2 3 4\n");
+  EXPECT_EQ(names(hgd::readShape(in)), (std::vector<std::string>{"x", "y", "z", "d"}));
+  // A field added since: a new row of names, with the file's separator.
+  hgdtest::writeText(in, "1\t2\t3\n");
+  Shape s = hgd::readShape(in);
+  hgd::addFloatField(s.cloud, "w");
+  hgd::writeShape(out, s);
+  EXPECT_EQ(hgdtest::slurp(out), "x\ty\tz\tw\n1\t2\t3\t0\n");
+}
+
+// A '#' comment after a row's values is skipped, as a whole-line comment is; a value that is no
+// number (a hexadecimal float) is named with its line and column (issue 28 item 10).
+TEST(Xyz, TrailingCommentsAndBadValuesInTheFirstRow) {
+  TempDir dir;
+  const std::string p = dir.file("c.xyz");
+  hgdtest::writeText(p, "# scan\n# columns x y z\n0 0 0 # first\n1 2 3 #second\n4,5,6 #third\n");
+  const Shape s = hgd::readShape(p);
+  ASSERT_EQ(s.size(), 3u);
+  EXPECT_EQ(names(s), (std::vector<std::string>{"x", "y", "z"}));
+  EXPECT_EQ(value(s, 1, "y"), 2);
+  EXPECT_EQ(value(s, 2, "z"), 6);
+  hgdtest::writeText(p, "# scan\n\n0x1.8p1 0 0\n1 2 3\n");
+  expectReadError(p, "non-numeric value '0x1.8p1' at line 3 (column 1; hexadecimal numbers are not read)");
+  hgdtest::writeText(p, "0x0p+0 0x0p+0 0x0p+0\n1 2 3\n");  // all hexadecimal: still no row of names
+  expectReadError(p, "non-numeric value '0x0p+0' at line 1 (column 1; hexadecimal");
+  hgdtest::writeText(p, "1 2 3\n4 5 0x10\n");
+  expectReadError(p, "non-numeric value '0x10' at line 2 (column 3");
+  hgdtest::writeText(p, "0 0 0 zero\n1 2 3 4\n");
+  expectReadError(p, "non-numeric value 'zero' at line 1 (column 4)");
+}
+
 // --- OFF -----------------------------------------------------------------------------------
 
 TEST(Off, ReadsAMeshInPieces) {
@@ -284,6 +329,19 @@ TEST(Off, ColourAndNormalVariants) {
   EXPECT_EQ(names(b), names(s));
   for (std::size_t i = 0; i < 4; ++i)
     for (const auto& n : names(s)) EXPECT_EQ(value(b, i, n), value(s, i, n)) << n;
+}
+
+// More lines than the header declares: an error naming the line, as PLY does, instead of
+// faces silently dropped (issue 28 item 8).
+TEST(Off, MoreFacesThanTheHeaderDeclaresIsAnError) {
+  TempDir dir;
+  const std::string p = dir.file("m.off");
+  hgdtest::writeText(p, "OFF\n4 1 0\n0 0 0\n1 0 0\n0 1 0\n1 1 0\n3 0 1 2\n3 1 3 2 # one more\n");
+  expectReadError(p,
+                  "malformed data: line 8 '3 1 3 2 # one more': more lines than the header declares "
+                  "(4 vertices, 1 faces)");
+  hgdtest::writeText(p, "OFF\n4 2 0\n0 0 0\n1 0 0\n0 1 0\n1 1 0\n3 0 1 2\n3 1 3 2\n# the end\n\n");
+  EXPECT_EQ(hgd::readShape(p).polygons.size(), 2u);
 }
 
 TEST(Off, MalformedAndTruncated) {

@@ -47,13 +47,21 @@ struct WriteOptions {
 /// and OBJ are text whatever the encoding; STL needs faces), atomically: the data goes
 /// to a temporary file in the same directory which is renamed over `path` only when complete.
 /// Refuses (IoError) to write over `shape.path`, the file the shape was read from.
+/// A shape read from another format than the target's gets the field names the target's
+/// readers (PCL, Open3D, MeshLab, CloudCompare) expect: PLY nx/ny/nz and uchar
+/// red/green/blue(/alpha), PCD normal_x/normal_y/normal_z and a packed rgb (float, alpha 255)
+/// or rgba (uint32), intensity and curvature (from scalar_intensity, scalar_curvature too);
+/// a packed colour is written as red/green/blue(/alpha) in XYZ, OBJ and OFF. A shape written
+/// in its own format is written as it was read.
 void writeShape(const std::string& path, const Shape& shape, const WriteOptions& options = {});
 
-/// What writing `shape` in `format` would lose of what its file held beyond points and faces
-/// (FileExtras: an OBJ's texture coordinates and groups, a PLY's other elements), as a warning
-/// to print; "" when nothing is lost. A shape is written back whole in its own format. For STL
-/// and OFF, also the per-point fields they cannot hold (STL: all but x/y/z; OFF: all but
-/// x/y/z, normals and red/green/blue/alpha).
+/// What writing `shape` in `format` would lose, as a warning to print (every loss, joined
+/// with "; "); "" when nothing is lost. What its file held beyond points and faces (FileExtras:
+/// an OBJ's texture coordinates and groups, a PLY's other elements); a mesh's faces in PCD or
+/// XYZ; the per-point fields STL, OFF and OBJ cannot hold (STL: all but x/y/z; OFF: all but
+/// x/y/z, normals and red/green/blue/alpha; OBJ: all but x/y/z and red/green/blue), a packed
+/// rgb/rgba counting as the red/green/blue it is written as. A shape is written back whole in
+/// its own format.
 std::string extrasLost(const Shape& shape, FileFormat format);
 
 /// Writes bytes to `path` the same way: temporary file in the same directory, then rename.

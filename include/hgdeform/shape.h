@@ -53,10 +53,13 @@ struct FileExtras {
   /// as many 'vn' as 'v', the vertex of the same rank (as MeshLab and CloudCompare read one).
   std::vector<int> obj_normal_vertex;
   bool pcd_compressed = false;  ///< PCD read as binary_compressed
-  /// XYZ/TXT without a line of column names: the names its columns were given (written back
-  /// without such a line while the fields are these). And the separator of its values.
+  /// XYZ/TXT: the names its columns were given (written back without a line of names, or with
+  /// `xyz_header`, while the fields are these). The file's line of column names as it was
+  /// written ("" if it had none), and the separator of its values as in its first row ("\t",
+  /// ",", ", ", " "...).
   std::vector<std::string> xyz_names;
-  char xyz_separator = ' ';
+  std::string xyz_header;
+  std::string xyz_separator = " ";
   bool empty() const { return ply_elements.empty() && obj_lines.empty() && !pcd_compressed; }
 };
 

@@ -8,6 +8,7 @@
 #include <cctype>
 #include <cerrno>
 #include <limits>
+#include <unordered_map>
 
 #include "internal.h"
 
@@ -96,6 +97,168 @@ Parse parseInteger(std::string_view s, long long* v) {
   *v = static_cast<long long>(d);
   return Parse::Ok;
 }
+std::size_t xyzCommentStart(std::string_view line) {
+  for (std::size_t i = 0; i < line.size(); ++i)
+    if (line[i] == '#' && (i == 0 || isSpace(line[i - 1]) || line[i - 1] == ',')) return i;
+  return std::string_view::npos;
+}
+
+bool conventionalCloud(const Shape& shape, FileFormat target, pcl::PCLPointCloud2* out) {
+  if (shape.path.empty() || shape.format == target || target == FileFormat::Stl) return false;
+  const pcl::PCLPointCloud2& c = shape.cloud;
+  const std::vector<Field>& in = c.fields;
+  std::unordered_map<std::string, std::size_t> exact;  // name -> first field of that name
+  std::vector<std::string> low(in.size());
+  for (std::size_t k = 0; k < in.size(); ++k) {
+    exact.emplace(in[k].name, k);
+    low[k] = lower(in[k].name);
+  }
+  const auto scalarOf = [&](std::size_t k) {
+    return fieldCount(in[k]) == 1 && datatypeSize(in[k].datatype) > 0;
+  };
+  std::vector<std::string> name(in.size());
+  for (std::size_t k = 0; k < in.size(); ++k) name[k] = in[k].name;
+  bool changed = false;
+  // The first field whose name is one of `aliases` (any case), unless a field is called `to`.
+  const auto findAlias = [&](std::initializer_list<const char*> aliases, const char* to) -> long {
+    if (exact.count(to)) return -1;
+    for (std::size_t k = 0; k < in.size(); ++k)
+      for (const char* a : aliases)
+        if (low[k] == a && scalarOf(k)) return static_cast<long>(k);
+    return -1;
+  };
+  const bool ply = target == FileFormat::Ply, pcd = target == FileFormat::Pcd;
+  if (ply || pcd) {
+    static const char* const normal_names[2][3] = {{"nx", "ny", "nz"}, {"normal_x", "normal_y", "normal_z"}};
+    long idx[3];
+    for (int a = 0; a < 3; ++a)
+      idx[a] = findAlias({normal_names[0][a], normal_names[1][a]}, normal_names[pcd ? 1 : 0][a]);
+    if (idx[0] >= 0 && idx[1] >= 0 && idx[2] >= 0)
+      for (int a = 0; a < 3; ++a) name[static_cast<std::size_t>(idx[a])] = normal_names[pcd ? 1 : 0][a];
+    const long i = findAlias({"intensity", "scalar_intensity"}, "intensity");
+    if (i >= 0) name[static_cast<std::size_t>(i)] = "intensity";
+    const long cv = findAlias({"curvature", "scalar_curvature"}, "curvature");
+    if (cv >= 0) name[static_cast<std::size_t>(cv)] = "curvature";
+  }
+  for (std::size_t k = 0; k < in.size(); ++k) changed = changed || name[k] != in[k].name;
+
+  // The fields written, each a copy of a field (renamed), a byte of a packed colour, or a
+  // packed colour made of red/green/blue(/alpha) bytes.
+  struct Part {
+    Field f;
+    long src = -1;                    // a field copied
+    int shift = -1;                   // a byte of the packed colour `src`
+    long rgba[4] = {-1, -1, -1, -1};  // packed from these bytes
+  };
+  std::vector<Part> parts;
+  const auto byteField = [&](const char* n) {
+    const auto it = exact.find(n);
+    return it != exact.end() && scalarOf(it->second) && in[it->second].datatype == Field::UINT8
+               ? static_cast<long>(it->second)
+               : -1L;
+  };
+  long packed = -1;  // a packed colour (its bits: only PCD and PLY files hold one) to split
+  if (!pcd && (shape.format == FileFormat::Pcd || shape.format == FileFormat::Ply)) {
+    for (const char* n : {"rgb", "rgba"}) {
+      const auto it = exact.find(n);
+      if (packed < 0 && it != exact.end() && scalarOf(it->second) &&
+          datatypeSize(in[it->second].datatype) == 4 && in[it->second].datatype != Field::INT32)
+        packed = static_cast<long>(it->second);
+    }
+    if (packed >= 0 && (exact.count("red") || exact.count("green") || exact.count("blue") ||
+                        (in[static_cast<std::size_t>(packed)].name == "rgba" && exact.count("alpha"))))
+      packed = -1;
+  }
+  long pack[4] = {-1, -1, -1, -1};  // red, green, blue, alpha to pack
+  if (pcd && !exact.count("rgb") && !exact.count("rgba")) {
+    pack[0] = byteField("red");
+    pack[1] = byteField("green");
+    pack[2] = byteField("blue");
+    pack[3] = byteField("alpha");
+    if (pack[0] < 0 || pack[1] < 0 || pack[2] < 0) pack[0] = pack[1] = pack[2] = pack[3] = -1;
+  }
+  const auto packedPart = [&](long k) { return k == pack[1] || k == pack[2] || k == pack[3]; };
+  for (std::size_t k = 0; k < in.size(); ++k) {
+    const long kl = static_cast<long>(k);
+    if (kl == packed) {
+      // rgba has an alpha; rgb's alpha byte (PCL's 255) is kept too where it holds anything else.
+      bool alpha = in[k].name == "rgba";
+      const std::size_t npts = static_cast<std::size_t>(c.width) * c.height;
+      for (std::size_t i = 0; i < npts && !alpha; ++i)
+        alpha = c.data[i * c.point_step + in[k].offset + (kHostBigEndian ? 0 : 3)] != 255;
+      const char* const channel[4] = {"red", "green", "blue", "alpha"};
+      const int shifts[4] = {16, 8, 0, 24};
+      for (int j = 0; j < (alpha ? 4 : 3); ++j) {
+        Part p;
+        p.f.name = channel[j];
+        p.f.datatype = Field::UINT8;
+        p.f.count = 1;
+        p.src = kl;
+        p.shift = shifts[j];
+        parts.push_back(p);
+      }
+      changed = true;
+    } else if (pack[0] >= 0 && kl == pack[0]) {
+      Part p;
+      p.f.name = pack[3] >= 0 ? "rgba" : "rgb";
+      p.f.datatype = pack[3] >= 0 ? Field::UINT32 : Field::FLOAT32;
+      p.f.count = 1;
+      std::copy(pack, pack + 4, p.rgba);
+      parts.push_back(p);
+      changed = true;
+    } else if (pack[0] >= 0 && packedPart(kl)) {
+      continue;
+    } else {
+      Part p;
+      p.f = in[k];
+      p.f.name = name[k];
+      p.src = kl;
+      parts.push_back(p);
+    }
+  }
+  if (!changed) return false;
+
+  pcl::PCLPointCloud2 r;
+  r.header = c.header;
+  r.width = c.width;
+  r.height = c.height;
+  r.is_bigendian = c.is_bigendian;
+  r.is_dense = c.is_dense;
+  std::uint32_t step = 0;
+  for (Part& p : parts) {
+    p.f.offset = step;
+    step += static_cast<std::uint32_t>(datatypeSize(p.f.datatype) * fieldCount(p.f));
+    r.fields.push_back(p.f);
+  }
+  r.point_step = step;
+  r.row_step = step * r.width;
+  const std::size_t n = static_cast<std::size_t>(c.width) * c.height;
+  r.data.assign(n * step, 0);
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::uint8_t* src = c.data.data() + i * c.point_step;
+    std::uint8_t* dst = r.data.data() + i * step;
+    for (const Part& p : parts) {
+      std::uint8_t* d = dst + p.f.offset;
+      if (p.shift >= 0) {
+        std::uint32_t bits = 0;
+        std::memcpy(&bits, src + in[static_cast<std::size_t>(p.src)].offset, 4);
+        *d = static_cast<std::uint8_t>((bits >> p.shift) & 0xFFu);
+      } else if (p.src >= 0) {
+        const Field& f = in[static_cast<std::size_t>(p.src)];
+        std::memcpy(d, src + f.offset, datatypeSize(f.datatype) * fieldCount(f));
+      } else {
+        const auto byte = [&](int j) -> std::uint32_t {
+          return p.rgba[j] < 0 ? 255u : src[in[static_cast<std::size_t>(p.rgba[j])].offset];
+        };
+        const std::uint32_t bits = byte(3) << 24 | byte(0) << 16 | byte(1) << 8 | byte(2);
+        std::memcpy(d, &bits, 4);
+      }
+    }
+  }
+  *out = std::move(r);
+  return true;
+}
+
 bool computeDense(const pcl::PCLPointCloud2& cloud) {
   const XyzFields xyz = findXyzFields(cloud);
   if (!xyz.hasXyz()) return true;

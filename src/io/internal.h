@@ -104,6 +104,20 @@ void appendFloat(std::string& out, T v) {
 pcl::PCLPointCloud2 makeCloud(std::size_t n, const std::vector<std::pair<std::string, std::uint8_t>>& fields,
                               const std::vector<double>& values);
 
+/// Where a '#' comment starts in an XYZ row: at a '#' that begins a value (at the start of the
+/// line, or after a blank or a comma); npos if the row has none.
+std::size_t xyzCommentStart(std::string_view line);
+
+/// The cloud of `shape` with its fields under the names and layouts the readers of `target`
+/// expect, when the shape was read from a file of another format (`shape.path` set,
+/// `shape.format` not `target`): normals normal_x/normal_y/normal_z (PCD) or nx/ny/nz (PLY),
+/// intensity and curvature (also from CloudCompare's scalar_intensity, scalar_curvature), a
+/// packed rgb/rgba split into uchar red/green/blue(/alpha) for the text and mesh formats (PLY,
+/// XYZ, OBJ, OFF) and uchar red/green/blue(/alpha) packed into rgb (float, as PCL's PointXYZRGB)
+/// or rgba (uint32) for PCD. A name is given only when no other field has it. False (and `out`
+/// untouched) when nothing changes: a shape written in its own format is written as read.
+bool conventionalCloud(const Shape& shape, FileFormat target, pcl::PCLPointCloud2* out);
+
 /// False if any x, y or z value is NaN or infinite.
 bool computeDense(const pcl::PCLPointCloud2& cloud);
 

@@ -82,7 +82,8 @@ std::optional<FileFormat> sniff(std::string_view head, std::uint64_t size, bool 
   bool first = true;
   while (lex.nextLine()) {
     if (lex.peek() == '#') continue;
-    const std::string_view line = lex.lineText();
+    const std::string_view text = lex.lineText();
+    const std::string_view line = text.substr(0, xyzCommentStart(text));  // an XYZ row's "# note"
     const std::string_view w = lex.token();
     if (first) {
       first = false;
@@ -177,41 +178,70 @@ Shape readShape(const std::string& path) {
 
 std::string extrasLost(const Shape& shape, FileFormat format) {
   const FileExtras& x = shape.extras;
+  std::vector<std::string> lost;
   if (!x.obj_lines.empty() && format != FileFormat::Obj)
-    return "the OBJ's texture coordinates, normals, groups, materials and face corners are kept only when "
-           "writing OBJ";
+    lost.emplace_back(
+        "the OBJ's texture coordinates, normals, groups, materials, face corners, vertex weights and "
+        "colours of some vertices only are kept only when writing OBJ");
   if (!x.ply_elements.empty() && format != FileFormat::Ply)
-    return "the PLY's other elements, face properties and list properties are kept only when writing PLY";
-  if (format == FileFormat::Stl || format == FileFormat::Off) {
-    // STL holds positions and triangles only; OFF also normals and colours.
-    const XyzFields xyz = findXyzFields(shape.cloud);
-    std::string lost;
-    for (std::size_t k = 0; k < shape.cloud.fields.size(); ++k) {
-      const std::string& name = shape.cloud.fields[k].name;
+    lost.emplace_back(
+        "the PLY's other elements, face properties and list properties are kept only when writing PLY");
+  if (shape.isMesh() && (format == FileFormat::Pcd || format == FileFormat::Xyz))
+    lost.push_back(std::string(formatName(format)) + " holds points only: the " + num(shape.polygons.size()) +
+                   " faces are dropped");
+  if (format == FileFormat::Stl || format == FileFormat::Off || format == FileFormat::Obj) {
+    // STL holds positions and triangles only; OFF also normals and colours; OBJ colours (its
+    // normals are kept only as the 'vn' lines of an OBJ written back as it was read). The fields
+    // as the writer gets them: a packed colour is written as red, green and blue.
+    pcl::PCLPointCloud2 converted;
+    const pcl::PCLPointCloud2& c = conventionalCloud(shape, format, &converted) ? converted : shape.cloud;
+    const XyzFields xyz = findXyzFields(c);
+    const bool rgb = findField(c, "red") >= 0 && findField(c, "green") >= 0 && findField(c, "blue") >= 0;
+    std::string fields;
+    for (std::size_t k = 0; k < c.fields.size(); ++k) {
+      const std::string& name = c.fields[k].name;
       const int i = static_cast<int>(k);
+      const bool colour = rgb && (name == "red" || name == "green" || name == "blue");
       const bool kept =
           i == xyz.x || i == xyz.y || i == xyz.z || name == "_" ||
-          (format == FileFormat::Off && (i == xyz.nx || i == xyz.ny || i == xyz.nz || name == "red" ||
-                                         name == "green" || name == "blue" || name == "alpha"));
-      if (!kept) lost += (lost.empty() ? "" : ", ") + name;
+          (format == FileFormat::Off && ((xyz.hasNormals() && (i == xyz.nx || i == xyz.ny || i == xyz.nz)) ||
+                                         colour || (rgb && name == "alpha"))) ||
+          (format == FileFormat::Obj && colour);
+      if (!kept) fields += (fields.empty() ? "" : ", ") + name;
     }
-    if (!lost.empty())
-      return std::string(format == FileFormat::Stl ? "STL" : "OFF") + " cannot hold the fields " + lost;
+    if (!fields.empty())
+      lost.push_back(std::string(formatName(format)) + " cannot hold the fields " + fields);
   }
-  return "";
+  std::string out;
+  for (const std::string& l : lost) out += (out.empty() ? "" : "; ") + l;
+  return out;
 }
 
 void writeShape(const std::string& path, const Shape& shape, const WriteOptions& options) {
   const FileFormat format = formatFromPath(path);
   refuseInputs(path, {shape.path});
   const bool ascii = options.encoding == Encoding::Ascii;
+  // Read from another format: the fields under the names the target format's readers know.
+  pcl::PCLPointCloud2 converted;
+  Shape renamed;
+  const bool convert = conventionalCloud(shape, format, &converted);
+  if (convert) {
+    renamed.cloud = std::move(converted);
+    renamed.polygons = shape.polygons;
+    renamed.sensor_origin = shape.sensor_origin;
+    renamed.sensor_orientation = shape.sensor_orientation;
+    renamed.path = shape.path;
+    renamed.format = shape.format;
+    renamed.extras = shape.extras;
+  }
+  const Shape& s = convert ? renamed : shape;
   switch (format) {
-    case FileFormat::Ply: writePly(path, shape, ascii); break;
-    case FileFormat::Pcd: writePcd(path, shape, ascii); break;
-    case FileFormat::Obj: writeObj(path, shape); break;
-    case FileFormat::Xyz: writeXyz(path, shape); break;
-    case FileFormat::Off: writeOff(path, shape); break;
-    case FileFormat::Stl: writeStl(path, shape, ascii); break;
+    case FileFormat::Ply: writePly(path, s, ascii); break;
+    case FileFormat::Pcd: writePcd(path, s, ascii); break;
+    case FileFormat::Obj: writeObj(path, s); break;
+    case FileFormat::Xyz: writeXyz(path, s); break;
+    case FileFormat::Off: writeOff(path, s); break;
+    case FileFormat::Stl: writeStl(path, s, ascii); break;
   }
 }
 

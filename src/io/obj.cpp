@@ -48,6 +48,7 @@ Shape readObj(const std::string& path) {
         fail(path,
              "malformed data: line " + num(lex.line()) + ": a vertex needs 3 coordinates, found " + num(n));
       xyz.insert(xyz.end(), vals, vals + 3);
+      if (n != 3 && n != 6) extras = true;  // a weight (x y z w), or more: kept with the lines
       if (n == 6)
         rgb.insert(rgb.end(), vals + 3, vals + 6);
       else
@@ -105,6 +106,8 @@ Shape readObj(const std::string& path) {
   }
   const std::size_t nverts = xyz.size() / 3;
   if (nverts == 0) fail(path, "no points: the file has no 'v' lines");
+  // Colours on some vertices only: not fields of the cloud, but kept with the lines.
+  if (!rgb.empty() && !all_rgb) extras = true;
   if (static_cast<unsigned long long>(worst.value) > nverts)
     fail(path, "bad face index " + std::to_string(worst.value) + " at line " + num(worst.line) + " (" +
                    num(nverts) + " vertices)");

@@ -99,6 +99,11 @@ Shape readOff(const std::string& path) {
     face_colours = face_colours || w.size() > k + 1;
     shape.polygons.push_back(std::move(poly));
   }
+  // More lines than the header declares: its counts are wrong, and reading on would silently
+  // drop faces (as PLY, an error).
+  if (nextWords(lex, &w))
+    fail(path, "malformed data: line " + num(lex.line()) + " " + excerpt(lex.lineText()) +
+                   ": more lines than the header declares (" + num(nv) + " vertices, " + num(nf) + " faces)");
   std::vector<std::pair<std::string, std::uint8_t>> fields = {
       {"x", Field::FLOAT64}, {"y", Field::FLOAT64}, {"z", Field::FLOAT64}};
   if (normals)

@@ -286,7 +286,9 @@ void writePcd(const std::string& path, const Shape& shape, bool ascii) {
   h += "\nTYPE";
   for (const Field* f : fields) {
     h += ' ';
-    h += pcdTypeLetter(f->datatype);
+    // Ascii: a packed colour is written as the integer of its bits (see writeAsciiPoints), so
+    // its type is U, as PCL writes it (PCL reads an F value as a number, not as bits).
+    h += ascii && packedColour(*f) ? 'U' : pcdTypeLetter(f->datatype);
   }
   h += "\nCOUNT";
   for (const Field* f : fields) h += " " + num(fieldCount(*f));

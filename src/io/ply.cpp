@@ -5,6 +5,8 @@
 #include <cstring>
 #include <limits>
 #include <string>
+#include <unordered_map>
+#include <unordered_set>
 #include <vector>
 
 #include "internal.h"
@@ -48,6 +50,7 @@ Shape readPly(const std::string& path) {
   bool have_format = false, ended = false;
   std::vector<PlyElement> elements;
   std::vector<std::string> comments;
+  std::unordered_set<std::string> prop_names;  // of the last element: a second one is refused
   while (in.readLine(&line, kMaxHeaderLine)) {
     const auto bad = [&](const std::string& why) {
       fail(path, "malformed header: line " + num(in.linesRead()) + ": " + why + " (" + excerpt(line) + ")");
@@ -83,6 +86,7 @@ Shape readPly(const std::string& path) {
       for (const auto& e : elements)
         if (e.name == el.name) bad("second element '" + el.name + "'");
       elements.push_back(std::move(el));
+      prop_names.clear();
     } else if (kw == "property") {
       if (elements.empty()) bad("property before any element");
       PlyProperty p;
@@ -100,8 +104,7 @@ Shape readPly(const std::string& path) {
       } else {
         bad("expected 'property <type> <name>' or 'property list <type> <type> <name>'");
       }
-      for (const auto& q : elements.back().props)
-        if (q.name == p.name) bad("second property '" + p.name + "'");
+      if (!prop_names.insert(p.name).second) bad("second property '" + p.name + "'");
       elements.back().props.push_back(std::move(p));
     } else {
       bad("unknown keyword");
@@ -248,9 +251,18 @@ Shape readPly(const std::string& path) {
           poly.vertices.resize(len);
           for (std::uint64_t j = 0; j < len; ++j) {
             const double idx = decodeValue(items + j * isz, p.type, swap);
-            if (!(idx >= 0 && idx < nverts && idx == std::floor(idx)))
-              fail(path, "bad face index " + std::to_string(idx) + " in face " + num(r) + " (" + num(nverts) +
-                             " vertices)");
+            if (!(idx >= 0 && idx < nverts && idx == std::floor(idx))) {
+              std::string text;
+              if (idx == std::floor(idx) && std::abs(idx) < 9e15)
+                appendInt(text, static_cast<long long>(idx));
+              else
+                appendFloat(text, idx);
+              fail(path, "bad face index " + text + " in face " + num(r) + " (byte " +
+                             num(in.size() - in.remaining() - (len - j) * isz) + "): " +
+                             (idx == std::floor(idx) ? "the file has " + num(nverts) +
+                                                           " vertices, indices 0 to " + num(nverts - 1)
+                                                     : std::string("not an integer")));
+            }
             poly.vertices[j] = static_cast<pcl::index_t>(idx);
           }
           shape.polygons.push_back(std::move(poly));
@@ -390,6 +402,8 @@ void writePlyWithExtras(const std::string& path, const Shape& shape, bool ascii,
   for (const auto& poly : shape.polygons) max_face = std::max(max_face, poly.vertices.size());
   std::vector<std::vector<Source>> sources;
   std::vector<char> used(fields.size(), 0);
+  std::unordered_map<std::string, std::vector<std::size_t>> field_of;  // name -> fields, in order
+  for (std::size_t f = fields.size(); f-- > 0;) field_of[fields[f]->name].push_back(f);
   for (const auto& el : shape.extras.ply_elements) {
     const bool is_vertex = el.name == "vertex";
     h += "element " + el.name + " " + num(is_vertex ? n : el.count) + "\n";
@@ -401,10 +415,13 @@ void writePlyWithExtras(const std::string& path, const Shape& shape, bool ascii,
       if (el.kept[k]) {
         so.kept = true;
       } else if (is_vertex) {
-        for (std::size_t f = 0; f < fields.size() && !so.field; ++f)
-          if (!used[f] && fields[f]->name == p.name && fieldCount(*fields[f]) == 1) {
-            so.field = fields[f];
-            used[f] = 1;
+        if (const auto it = field_of.find(p.name); it != field_of.end())
+          for (std::size_t q = it->second.size(); q-- > 0 && !so.field;) {
+            const std::size_t f = it->second[q];
+            if (!used[f] && fieldCount(*fields[f]) == 1) {
+              so.field = fields[f];
+              used[f] = 1;
+            }
           }
         if (!so.field) continue;  // the field is gone from the cloud
       } else {
@@ -525,7 +542,9 @@ void writePly(const std::string& path, const Shape& shape, bool ascii) {
 
   std::string h = "ply\nformat ";
   h += ascii ? "ascii" : (kHostBigEndian ? "binary_big_endian" : "binary_little_endian");
-  h += " 1.0\ncomment written by hgdeform\nelement vertex " + num(n) + "\n";
+  h += " 1.0\n";
+  for (const auto& line : shape.extras.ply_comments) h += line + "\n";
+  h += "comment written by hgdeform\nelement vertex " + num(n) + "\n";
   for (const Field* f : fields) {
     const std::size_t cnt = fieldCount(*f);
     for (std::size_t k = 0; k < cnt; ++k) {

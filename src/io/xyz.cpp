@@ -1,5 +1,6 @@
 // ASCII point lists (.xyz, .txt): one point per row, `x y z` and any further columns, separated
-// by blanks or commas; '#' comments and blank lines skipped.
+// by blanks or commas; '#' comments (whole lines, or after a row's values) and blank lines
+// skipped.
 //
 // Column names, conservatively:
 //   - a first row that is not all numbers names the columns (a leading "//", as CloudCompare
@@ -10,10 +11,12 @@
 //     red green blue when every row's are integers 0..255 (stored as uchar, as in PLY) or numbers
 //     in 0..1 (floats, as in OBJ). Any other column k (counted from 0) is the float field
 //     "field<k>".
-// Written back with the same columns in the same order (and the same separator).
+// Written back with the same columns in the same order, the same separator (as between the
+// first row's first two values) and the row of names as it was written.
 #include <algorithm>
 #include <cmath>
 #include <string>
+#include <unordered_set>
 #include <vector>
 
 #include "internal.h"
@@ -54,46 +57,72 @@ Shape readXyz(const std::string& path) {
   std::vector<std::string> names;
   std::vector<double> values;
   std::size_t cols = 0, first_row = 0;
-  char separator = ' ';
+  std::string separator = " ", header;
   while (lex.nextLine()) {
     if (lex.peek() == '#') continue;
-    std::string_view line = lex.lineText();
-    if (line.find(',') != std::string_view::npos) separator = ',';
+    const std::string_view text = lex.lineText();
+    std::string_view line = text.substr(0, xyzCommentStart(text));  // "1 2 3 # a note"
     const std::vector<std::string_view> words = splitColumns(line);
-    const bool numeric = std::all_of(words.begin(), words.end(), [](std::string_view w) {
+    if (words.empty()) continue;
+    std::size_t bad = words.size();  // the first value that is no number
+    bool any_number = false;
+    for (std::size_t k = 0; k < words.size(); ++k) {
       double d = 0;
-      return parseFloating(w, &d);
-    });
-    if (!numeric && cols == 0 && names.empty()) {  // a row of names
+      if (parseFloating(words[k], &d)) {
+        any_number = true;
+      } else {
+        if (bad == words.size()) bad = k;
+        // A number in a spelling not read (a hexadecimal float, which strtod takes) is no name.
+        const std::string w(words[k]);
+        char* end = nullptr;
+        std::strtod(w.c_str(), &end);
+        any_number = any_number || (end == w.c_str() + w.size());
+      }
+    }
+    // A first row of names: none of them a number (a row with numbers is data, however malformed).
+    if (bad < words.size() && !any_number && cols == 0) {
+      header = std::string(text);
       if (line.rfind("//", 0) == 0) line.remove_prefix(2);
-      for (const auto w : splitColumns(line)) names.emplace_back(w);
+      std::unordered_set<std::string_view> seen;
+      for (const auto w : splitColumns(line)) {
+        if (!seen.insert(w).second)
+          fail(path,
+               "malformed header: line " + num(lex.line()) + " names column '" + std::string(w) + "' twice");
+        names.emplace_back(w);
+      }
       if (names.size() < 3)
         fail(path, "malformed header: line " + num(lex.line()) + " names " + num(names.size()) +
                        " columns, at least 3 (x y z) needed");
-      for (std::size_t k = 0; k < names.size(); ++k)
-        for (std::size_t j = 0; j < k; ++j)
-          if (names[j] == names[k])
-            fail(path,
-                 "malformed header: line " + num(lex.line()) + " names column '" + names[k] + "' twice");
       cols = names.size();
       first_row = lex.line();
       continue;
     }
-    if (cols == 0) {
-      cols = words.size();
-      first_row = lex.line();
-      if (cols < 3)
-        fail(path,
-             "malformed data: line " + num(lex.line()) + ": a point needs 3 coordinates, found " + num(cols));
+    if (values.empty()) {
+      if (cols == 0) {
+        cols = words.size();
+        first_row = lex.line();
+        if (cols < 3)
+          fail(path, "malformed data: line " + num(lex.line()) + ": a point needs 3 coordinates, found " +
+                         num(cols));
+      }
+      if (words.size() >= 2)  // what lies between the first two values, kept for writing back
+        separator = std::string(
+            line.substr(static_cast<std::size_t>(words[0].data() + words[0].size() - line.data()),
+                        static_cast<std::size_t>(words[1].data() - words[0].data()) - words[0].size()));
     }
     if (words.size() != cols)
       fail(path, "malformed data: line " + num(lex.line()) + " has " + num(words.size()) +
                      " values, expected " + num(cols) +
                      (names.empty() ? " (as line " : " (as named on line ") + num(first_row) + ")");
+    if (bad < words.size()) {
+      const std::string_view w = words[bad];
+      const bool hex = w.find("0x") != std::string_view::npos || w.find("0X") != std::string_view::npos;
+      fail(path, "non-numeric value " + excerpt(w) + " at line " + num(lex.line()) + " (column " +
+                     num(bad + 1) + (hex ? "; hexadecimal numbers are not read" : "") + ")");
+    }
     for (const auto w : words) {
       double d = 0;
-      if (!parseFloating(w, &d))
-        fail(path, "non-numeric value " + excerpt(w) + " at line " + num(lex.line()));
+      parseFloating(w, &d);
       values.push_back(d);
     }
   }
@@ -117,16 +146,15 @@ Shape readXyz(const std::string& path) {
       else
         fields.emplace_back(names[k], Field::FLOAT32);
     }
-    for (std::size_t k = 0; k < cols; ++k)  // "x" renamed from "X" may meet another column "x"
-      for (std::size_t j = 0; j < k; ++j)
-        if (fields[j].first == fields[k].first)
-          fail(path,
-               "malformed header: line " + num(first_row) + " names column '" + fields[k].first + "' twice");
+    std::unordered_set<std::string_view> seen;  // "x" renamed from "X" may meet another column "x"
+    for (const auto& f : fields)
+      if (!seen.insert(f.first).second)
+        fail(path, "malformed header: line " + num(first_row) + " names column '" + f.first + "' twice");
   }
   Shape shape;
   shape.cloud = makeCloud(n, fields, values);
-  if (names.empty())
-    for (const auto& f : fields) shape.extras.xyz_names.push_back(f.first);
+  for (const auto& f : fields) shape.extras.xyz_names.push_back(f.first);
+  shape.extras.xyz_header = std::move(header);
   shape.extras.xyz_separator = separator;
   return shape;
 }
@@ -135,7 +163,11 @@ void writeXyz(const std::string& path, const Shape& shape) {
   const std::vector<const Field*> fields = checkShape(path, shape, false);
   const pcl::PCLPointCloud2& c = shape.cloud;
   if (!findXyzFields(c).hasXyz()) fail(path, "cannot write: no x/y/z fields");
-  const char sep = shape.extras.xyz_separator == ',' ? ',' : ' ';
+  // The separator the file was read with: blanks and at most one comma, else a space.
+  std::string sep = shape.extras.xyz_separator;
+  if (sep.empty() || std::count(sep.begin(), sep.end(), ',') > 1 ||
+      !std::all_of(sep.begin(), sep.end(), [](char ch) { return ch == ',' || ch == ' ' || ch == '\t'; }))
+    sep = " ";
   std::vector<std::string> names;
   for (const Field* f : fields)
     for (std::size_t k = 0; k < fieldCount(*f); ++k)
@@ -143,10 +175,13 @@ void writeXyz(const std::string& path, const Shape& shape) {
   for (const std::string& name : names)
     if (name.find(',') != std::string::npos || name[0] == '#' || name.rfind("//", 0) == 0)
       fail(path, "cannot write: field name " + excerpt(name) + " cannot name an XYZ column");
-  // A row of names unless the reader would give the columns these names without one.
+  // The file's own row of names, as it was written, while the columns keep the names read from
+  // it; else a row of names unless the reader would give the columns these names without one.
   const bool plain = names == std::vector<std::string>{"x", "y", "z"};
   std::string buf;
-  if (!plain && names != shape.extras.xyz_names) {
+  if (names == shape.extras.xyz_names && !shape.extras.xyz_header.empty()) {
+    buf = shape.extras.xyz_header + "\n";
+  } else if (!plain && names != shape.extras.xyz_names) {
     for (std::size_t k = 0; k < names.size(); ++k) {
       if (k) buf += sep;
       buf += names[k];
