@@ -14,10 +14,12 @@
 #include <vector>
 
 #include "cli_common.h"
+#include "hgdeform/cleanup.h"
 #include "hgdeform/io.h"
 #include "hgdeform/render.h"
 
 int main(int argc, char** argv) {
+  hgd::removeTemporaryFilesOnSignals();  // no partial picture left by an interrupted run
   std::vector<std::string> inputs;
   std::string output;
   hgd::RenderOptions opt;

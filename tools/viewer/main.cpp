@@ -33,6 +33,7 @@
 
 #include "blas_guard.h"
 #include "cli_common.h"
+#include "hgdeform/cleanup.h"
 #include "hgdeform/io.h"
 #include "hgdeform/render.h"
 #include "replay.h"
@@ -95,7 +96,8 @@ int parseArgs(int argc, char** argv, ViewArgs& a) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  hgdcli::singleThreadBlas();  // as hgdeform does (blas_guard.h)
+  hgd::removeTemporaryFilesOnSignals();  // no partial save or screenshot left by an interrupted run
+  hgdcli::singleThreadBlas();            // as hgdeform does (blas_guard.h)
   ViewArgs args;
   if (const int status = parseArgs(argc, argv, args); status >= 0) return status;
   const std::string &input = args.input, &scenario = args.scenario, &replay = args.replay, &shot = args.shot;
