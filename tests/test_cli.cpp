@@ -237,6 +237,45 @@ TEST_P(CliField, WritesHarmonicFieldAndKeepsFields) {
 
 INSTANTIATE_TEST_SUITE_P(Cli, CliField, ::testing::Values("ply", "pcd"));
 
+// Issue 28: `field` replaced a 'harmonic' field the input already had, and with --color its
+// colours, without a word. Both are said (stderr), and done.
+TEST(CliFieldReplaces, ExistingFieldAndColoursAreSaid) {
+  TempDir dir;
+  const std::string input = dir.file("bar.ply"), scenario = dir.file("s.json");
+  hgd::writeShape(input, hgd::shapes::bar());
+  writeText(scenario, kBarScenario);
+  auto field = [&](const std::string& in, const std::string& out, const std::string& extra) {
+    const Result r = cli("field " + quote(in) + " -s " + quote(scenario) + " -q -o " + quote(out) + extra);
+    EXPECT_EQ(r.code, 0) << r.err;
+    return r.err;
+  };
+  // A fresh input: nothing replaced, nothing said.
+  const std::string once = dir.file("once.ply"), coloured = dir.file("coloured.ply");
+  EXPECT_FALSE(contains(field(input, once, ""), "replaced"));
+  // Its output again: the field is replaced.
+  std::string err = field(once, dir.file("twice.ply"), "");
+  EXPECT_TRUE(contains(
+      err, "hgdeform: warning: " + once + ": its field 'harmonic' is replaced in " + dir.file("twice.ply")))
+      << err;
+  EXPECT_FALSE(contains(err, "colours")) << err;
+  // With --color on a shape without colours: the field only.
+  err = field(once, coloured, " --color");
+  EXPECT_TRUE(contains(err, "its field 'harmonic' is replaced")) << err;
+  EXPECT_FALSE(contains(err, "colours")) << err;
+  // With --color on a coloured shape: the colours too.
+  ASSERT_GE(hgd::findField(hgd::readShape(coloured).cloud, "red"), 0);
+  err = field(coloured, dir.file("recoloured.ply"), " --color");
+  EXPECT_TRUE(contains(err, coloured + ": its colours (red/green/blue) are replaced in ")) << err;
+  // PCD: the packed rgb.
+  const std::string plain_pcd = dir.file("bar.pcd"), pcd = dir.file("coloured.pcd");
+  hgd::writeShape(plain_pcd, hgd::shapes::bar());
+  EXPECT_FALSE(contains(field(plain_pcd, pcd, " --color"), "replaced"));
+  ASSERT_GE(hgd::findField(hgd::readShape(pcd).cloud, "rgb"), 0);
+  err = field(pcd, dir.file("recoloured.pcd"), " --color");
+  EXPECT_TRUE(contains(err, pcd + ": its colours (field 'rgb') are replaced in ")) << err;
+  EXPECT_TRUE(contains(err, pcd + ": its field 'harmonic' is replaced in ")) << err;
+}
+
 // The parallel passes (kNN, graph, multigrid sums, clustering) give the same result whatever
 // the thread count: a 60k-point sphere (multilevel solve, parallel paths) deformed with one
 // thread and with two writes byte-identical files.

@@ -153,6 +153,23 @@ hgd::FieldSolver fieldSolver(const std::string& name) {
 
 // --- the work ----------------------------------------------------------------------------------
 
+/// What hgd::storeField(shape, ..., "harmonic", colour) writes over: the fields of `shape` it
+/// replaces, as phrases for a warning ("field 'harmonic' is").
+std::vector<std::string> replacedFields(const hgd::Shape& shape, bool colour) {
+  std::vector<std::string> out;
+  if (hgd::findField(shape.cloud, "harmonic") >= 0) out.push_back("field 'harmonic' is");
+  if (!colour) return out;
+  if (shape.format == hgd::FileFormat::Pcd || hgd::findField(shape.cloud, "rgb") >= 0) {
+    if (hgd::findField(shape.cloud, "rgb") >= 0) out.push_back("colours (field 'rgb') are");
+    return out;
+  }
+  std::string names;
+  for (const char* name : {"red", "green", "blue"})
+    if (hgd::findField(shape.cloud, name) >= 0) names += std::string(names.empty() ? "" : "/") + name;
+  if (!names.empty()) out.push_back("colours (" + names + ") are");
+  return out;
+}
+
 int runField(const FieldArgs& a) {
   const std::string& input = a.input;
   const std::string& scenario_path = a.scenario;
@@ -185,6 +202,10 @@ int runField(const FieldArgs& a) {
   std::vector<float> phi;
   field.compute(phi);
 
+  // What the new field replaces is said, never done in silence.
+  for (const std::string& replaced : replacedFields(shape, a.colour))
+    std::fprintf(stderr, "hgdeform: warning: %s: its %s replaced in %s\n", input.c_str(), replaced.c_str(),
+                 output.c_str());
   hgd::storeField(shape, geometry, phi, "harmonic", a.colour);
   if (const std::string lost = hgd::extrasLost(shape, hgd::formatFromPath(output)); !lost.empty())
     std::fprintf(stderr, "hgdeform: warning: %s: %s\n", output.c_str(), lost.c_str());
