@@ -75,8 +75,10 @@ int parseArgs(int argc, char** argv, ViewArgs& a) {
           [&a](std::string& text) -> std::string {
             int w = 0, h = 0;
             char rest = 0;
-            if (std::sscanf(text.c_str(), "%dx%d%c", &w, &h, &rest) != 2 || w < 64 || h < 64)
-              return "must be WIDTHxHEIGHT, each at least 64 (got '" + text + "')";
+            if (std::sscanf(text.c_str(), "%6dx%6d%c", &w, &h, &rest) != 2 || w < 64 || h < 64 ||
+                w > hgd::kMaxPictureSide || h > hgd::kMaxPictureSide)
+              return "must be WIDTHxHEIGHT, each from 64 to " + std::to_string(hgd::kMaxPictureSide) +
+                     " (got '" + text + "')";
             a.width = w;
             a.height = h;
             return {};
