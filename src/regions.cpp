@@ -125,7 +125,8 @@ std::vector<int> select(const Region& region, const Geometry& geometry, const Sh
 
 Handles resolve(const Scenario& scenario, const Geometry& geometry, const Shape* shape) {
   Handles h;
-  const std::string& name = scenario.path;
+  // A scenario built in memory has no file: "scenario: /fixed/0: ...", never ": /fixed/0: ...".
+  const std::string name = scenario.path.empty() ? "scenario" : scenario.path;
   h.manipulated = select(scenario.manipulated, geometry, shape, name);
   std::vector<char> role(geometry.size(), 0);  // 1 manipulated, 2 fixed
   for (int i : h.manipulated) role[static_cast<std::size_t>(i)] = 1;

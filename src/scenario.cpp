@@ -365,7 +365,10 @@ struct Parser {
         // Zero, or so small or large that its length under- or overflows: no direction.
         const double sq = m.frame.axis.squaredNorm();
         if (!(sq >= DBL_MIN && std::isfinite(sq)))
-          fail(q + "/axis", sq == 0 ? "must not be the zero vector" : "must be a vector of moderate length");
+          fail(q + "/axis", m.frame.axis.isZero(0)
+                                ? "must not be the zero vector"
+                                : "must be a vector of moderate length (its length " +
+                                      std::string(sq < 1 ? "underflows" : "overflows") + ")");
         m.frame.degrees = number(member(r, q, "degrees"), q + "/degrees");
         if (std::abs(m.frame.degrees) > kMaxDegrees) fail(q + "/degrees", "must be between -1e6 and 1e6");
         if (r.contains("center")) m.frame.centre = coordinates(r["center"], q + "/center");
@@ -380,7 +383,9 @@ struct Parser {
 
 }  // namespace
 
-Scenario parseScenario(const std::string& json_text, const std::string& name) {
+Scenario parseScenario(const std::string& json_text, const std::string& file_name) {
+  // Text with no file behind it is named "scenario" in messages, never "": /clusters: ...".
+  const std::string name = file_name.empty() ? "scenario" : file_name;
   Parser p{name};
   json j;
   try {
@@ -393,7 +398,7 @@ Scenario parseScenario(const std::string& json_text, const std::string& name) {
   p.object(j, "");
   p.onlyKeys(j, "", {"format", "fixed", "manipulated", "joints", "clusters", "blend", "resolution", "move"});
   Scenario s;
-  s.path = name;
+  s.path = file_name;
   if (j.contains("format") && (!j["format"].is_string() || j["format"].get<std::string>() != kFormat))
     p.fail("/format", std::string("must be \"") + kFormat + "\"");
   const json& fixed = p.member(j, "", "fixed");
@@ -409,9 +414,11 @@ Scenario parseScenario(const std::string& json_text, const std::string& name) {
   }
   if (j.contains("clusters")) {
     const json& c = j["clusters"];
-    if (!c.is_number_integer() || c.get<long long>() < 1 || c.get<long long>() > 1000)
+    // A whole number however spelt: 12, 12.0 and 1.2e1 alike.
+    const double v = c.is_number() ? c.get<double>() : 0;
+    if (!c.is_number() || !(v >= 1 && v <= 1000) || v != std::floor(v))
       p.fail("/clusters", "must be an integer from 1 to 1000");
-    s.clusters = c.get<int>();
+    s.clusters = static_cast<int>(v);
   }
   if (j.contains("blend")) {
     const json& b = j["blend"];

@@ -1,12 +1,16 @@
 // End-to-end tests of the `hgdeform` command-line tool: the real executable (HGD_TOOL) is run
 // on files written into fresh temporary directories, and its outputs are read back with the
 // library.
+#include <fcntl.h>
 #include <gtest/gtest.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <Eigen/Geometry>
+#include <chrono>
 #include <cmath>
+#include <csignal>
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
@@ -18,6 +22,7 @@
 #include <set>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "hgdeform/deformer.h"
@@ -231,6 +236,45 @@ TEST_P(CliField, WritesHarmonicFieldAndKeepsFields) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Cli, CliField, ::testing::Values("ply", "pcd"));
+
+// Issue 28: `field` replaced a 'harmonic' field the input already had, and with --color its
+// colours, without a word. Both are said (stderr), and done.
+TEST(CliFieldReplaces, ExistingFieldAndColoursAreSaid) {
+  TempDir dir;
+  const std::string input = dir.file("bar.ply"), scenario = dir.file("s.json");
+  hgd::writeShape(input, hgd::shapes::bar());
+  writeText(scenario, kBarScenario);
+  auto field = [&](const std::string& in, const std::string& out, const std::string& extra) {
+    const Result r = cli("field " + quote(in) + " -s " + quote(scenario) + " -q -o " + quote(out) + extra);
+    EXPECT_EQ(r.code, 0) << r.err;
+    return r.err;
+  };
+  // A fresh input: nothing replaced, nothing said.
+  const std::string once = dir.file("once.ply"), coloured = dir.file("coloured.ply");
+  EXPECT_FALSE(contains(field(input, once, ""), "replaced"));
+  // Its output again: the field is replaced.
+  std::string err = field(once, dir.file("twice.ply"), "");
+  EXPECT_TRUE(contains(
+      err, "hgdeform: warning: " + once + ": its field 'harmonic' is replaced in " + dir.file("twice.ply")))
+      << err;
+  EXPECT_FALSE(contains(err, "colours")) << err;
+  // With --color on a shape without colours: the field only.
+  err = field(once, coloured, " --color");
+  EXPECT_TRUE(contains(err, "its field 'harmonic' is replaced")) << err;
+  EXPECT_FALSE(contains(err, "colours")) << err;
+  // With --color on a coloured shape: the colours too.
+  ASSERT_GE(hgd::findField(hgd::readShape(coloured).cloud, "red"), 0);
+  err = field(coloured, dir.file("recoloured.ply"), " --color");
+  EXPECT_TRUE(contains(err, coloured + ": its colours (red/green/blue) are replaced in ")) << err;
+  // PCD: the packed rgb.
+  const std::string plain_pcd = dir.file("bar.pcd"), pcd = dir.file("coloured.pcd");
+  hgd::writeShape(plain_pcd, hgd::shapes::bar());
+  EXPECT_FALSE(contains(field(plain_pcd, pcd, " --color"), "replaced"));
+  ASSERT_GE(hgd::findField(hgd::readShape(pcd).cloud, "rgb"), 0);
+  err = field(pcd, dir.file("recoloured.pcd"), " --color");
+  EXPECT_TRUE(contains(err, pcd + ": its colours (field 'rgb') are replaced in ")) << err;
+  EXPECT_TRUE(contains(err, pcd + ": its field 'harmonic' is replaced in ")) << err;
+}
 
 // The parallel passes (kNN, graph, multigrid sums, clustering) give the same result whatever
 // the thread count: a 60k-point sphere (multilevel solve, parallel paths) deformed with one
@@ -537,6 +581,81 @@ TEST(CliDeform, OrganizedPcdKeepsLayoutAndNaNs) {
   EXPECT_GT(moved, 0.02) << "nothing moved";
 }
 
+// --- interrupted runs ------------------------------------------------------------------------
+
+/// Starts `hgdeform ARGS` with stdout on `out_fd` (closed here) and stderr into `log`, the
+/// signals of the tests at their default action whatever this test was started under.
+pid_t startTool(const std::vector<std::string>& args, int out_fd, const std::string& log) {
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    ::dup2(out_fd, 1);
+    ::dup2(fd, 2);
+    for (const int s : {SIGINT, SIGTERM, SIGHUP, SIGPIPE}) ::signal(s, SIG_DFL);
+    std::vector<char*> argv = {const_cast<char*>(HGD_TOOL)};
+    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    ::execv(HGD_TOOL, argv.data());
+    ::_exit(127);
+  }
+  if (out_fd > 2) ::close(out_fd);
+  return pid;
+}
+
+// A plane of about two million points and a scenario that bends it: `deform` spends a good
+// part of a second writing it as text, time to be interrupted while it writes.
+struct LargePlane {
+  TempDir dir;
+  std::string input = dir.file("plane.ply"), scenario = dir.file("s.json");
+  LargePlane() {
+    hgd::writeShape(input, hgd::shapes::bumpyPlane(4, 0.06f, 1.0f / 1400));
+    writeText(scenario, R"({
+  "fixed": [ { "box": { "min": [-1, -1, -1], "max": [0.05, 2, 1] } } ],
+  "manipulated": { "box": { "min": [0.95, -1, -1], "max": [2, 2, 1] } },
+  "move": { "frame": { "translate": [0, 0, 0.15] } }
+})");
+  }
+};
+
+// Issue 28: SIGINT, SIGTERM (timeout, Slurm), SIGHUP or SIGPIPE while `deform` wrote a large
+// output left its temporary file (.o.ply.tmp-PID-HEX) behind. The temporary file goes, and the
+// run ends by the signal itself (a shell shows 128 + its number).
+class CliInterrupt : public ::testing::TestWithParam<int> {};
+
+TEST_P(CliInterrupt, WhileWritingLeavesNoTemporaryFile) {
+  const int sig = GetParam();
+  static LargePlane plane;  // made once for the four signals
+  TempDir out;
+  const std::string output = out.file("o.ply"), log = plane.dir.file("log.txt");
+  const int null = ::open("/dev/null", O_WRONLY);
+  const pid_t pid =
+      startTool({"deform", plane.input, "-s", plane.scenario, "-o", output, "--ascii", "-q"}, null, log);
+  ASSERT_GT(pid, 0);
+  // Wait for the temporary file, then the signal.
+  bool writing = false;
+  int status = 0;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (!writing && std::chrono::steady_clock::now() < deadline) {
+    for (const std::string& name : out.list()) writing = writing || contains(name, ".o.ply.tmp-");
+    if (!writing) std::this_thread::sleep_for(std::chrono::microseconds(200));
+  }
+  ASSERT_TRUE(writing) << slurp(log);
+  ::kill(pid, sig);
+  ASSERT_EQ(::waitpid(pid, &status, 0), pid);
+  ASSERT_TRUE(WIFSIGNALED(status)) << "finished before the signal, or exited " << WEXITSTATUS(status) << ": "
+                                   << slurp(log);
+  EXPECT_EQ(WTERMSIG(status), sig);
+  EXPECT_EQ(out.list(), std::vector<std::string>{}) << "left behind";
+}
+
+INSTANTIATE_TEST_SUITE_P(Signals, CliInterrupt, ::testing::Values(SIGINT, SIGTERM, SIGHUP, SIGPIPE),
+                         [](const ::testing::TestParamInfo<int>& p) {
+                           return std::string(p.param == SIGINT    ? "SIGINT"
+                                              : p.param == SIGTERM ? "SIGTERM"
+                                              : p.param == SIGHUP  ? "SIGHUP"
+                                                                   : "SIGPIPE");
+                         });
+
 // --- errors ----------------------------------------------------------------------------------
 
 class CliErrors : public ::testing::Test {
@@ -733,6 +852,27 @@ TEST_F(CliErrors, ReportToStdoutLinksAndFifos) {
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_GT(nlohmann::json::parse(r.out).at("points").get<int>(), 0);
   EXPECT_TRUE(fs::is_symlink(out_.file("stdout.json")));
+}
+
+// `--report -` into a pipe whose reader went away: SIGPIPE ended the run after the shape was
+// written, so the output of a failed run stayed. The run fails with a message and takes the
+// shape back, as for any report that cannot be written.
+TEST_F(CliErrors, ReportToAClosedPipeFailsAndLeavesNoOutput) {
+  int fds[2];
+  ASSERT_EQ(::pipe(fds), 0);
+  ::close(fds[0]);  // no reader
+  const std::string log = in_.file("log.txt");
+  const pid_t pid =
+      startTool({"deform", bar_, "-s", scenario_, "-o", out_.file("o.ply"), "--report", "-"}, fds[1], log);
+  ASSERT_GT(pid, 0);
+  int status = 0;
+  ASSERT_EQ(::waitpid(pid, &status, 0), pid);
+  ASSERT_TRUE(WIFEXITED(status)) << "killed by signal " << WTERMSIG(status) << ": " << slurp(log);
+  EXPECT_EQ(WEXITSTATUS(status), 1) << slurp(log);
+  EXPECT_TRUE(
+      contains(slurp(log), "hgdeform deform: -: cannot write the report to standard output: Broken pipe"))
+      << slurp(log);
+  EXPECT_TRUE(listing(out_).empty()) << "left " << *listing(out_).begin();
 }
 
 // A full disk (/dev/full: every write fails with ENOSPC). The report cannot be written: exit 1

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -372,6 +373,26 @@ TEST(Stl, AsciiWeldsCornersAndKeepsFaces) {
   EXPECT_EQ(s.format, hgd::FileFormat::Stl);
   EXPECT_EQ(s.size(), 16u);  // 4 corners per tetrahedron, each shared by 3 triangles
   expectTriangles(s, tris);
+}
+
+// The issue: an ASCII STL in upper case (SOLID, FACET NORMAL, VERTEX, ... as some exporters
+// write it) was taken for a binary STL "declaring 1919252000 triangles". Read by its content, at
+// .stl and at another extension alike.
+TEST(Stl, UpperCaseAsciiIsAscii) {
+  TempDir dir;
+  std::mt19937 rng(11);
+  const std::vector<Tri> tris = tetrahedra(rng, 2);
+  std::string text = asciiStl(tris);
+  for (char& c : text) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));  // 1E-05 reads too
+  for (const std::string name : {"m.stl", "m.dat"}) {
+    SCOPED_TRACE(name);
+    const std::string p = dir.file(name);
+    hgdtest::writeText(p, text);
+    const Shape s = hgd::readShape(p);
+    EXPECT_EQ(s.format, hgd::FileFormat::Stl);
+    EXPECT_EQ(s.size(), 8u);
+    expectTriangles(s, tris);
+  }
 }
 
 TEST(Stl, BinaryWeldsAndWarnsAboutAttributes) {

@@ -652,6 +652,10 @@ Corpus scenarioCorpus() {
         "must not be the zero vector");
   c.add("axis-underflows", withMove(R"({"frame": {"rotate": {"axis": [1e-160, 0, 0], "degrees": 10}}})"),
         "moderate length");
+  // The issue: an axis whose squared length underflows to 0 was said to be the zero vector.
+  c.add("axis-underflows-to-zero",
+        withMove(R"({"frame": {"rotate": {"axis": [0, 0, 1e-300], "degrees": 10}}})"),
+        "moderate length (its length underflows)");
   c.add("axis-overflows", withMove(R"({"frame": {"rotate": {"axis": [1e200, 1e200, 0], "degrees": 10}}})"),
         "moderate length");
   c.add("degrees-string", withMove(R"({"frame": {"rotate": {"axis": [0, 0, 1], "degrees": "10"}}})"),
@@ -1607,6 +1611,58 @@ TEST(RobustMemory, AddressSpaceLimitsAroundBlasNeitherHangNorKill) {
     EXPECT_EQ(listing(dir.path()).size(), 2u) << "files left behind";
   }
 #endif
+}
+
+// --- messages of issue 28 ----------------------------------------------------------------------
+
+// "clusters": 12.0 was refused as not an integer; a whole number is one however spelt.
+TEST(RobustScenario, WholeNumberOfClustersInAnySpelling) {
+  for (const char* spelt : {"12", "12.0", "1.2e1", "12.000"}) {
+    const hgd::Scenario s =
+        hgd::parseScenario("{" + kBarHandles + R"(, "clusters": )" + spelt + "}", "c.json");
+    ASSERT_TRUE(s.clusters.has_value()) << spelt;
+    EXPECT_EQ(*s.clusters, 12) << spelt;
+  }
+  for (const char* spelt : {"12.5", "0.0", "1000.5", "1e4", "-3.0"}) {
+    try {
+      hgd::parseScenario("{" + kBarHandles + R"(, "clusters": )" + spelt + "}", "c.json");
+      ADD_FAILURE() << spelt << " accepted";
+    } catch (const hgd::ScenarioError& e) {
+      EXPECT_TRUE(contains(e.what(), "c.json: /clusters: must be an integer from 1 to 1000")) << e.what();
+    }
+  }
+}
+
+// Messages about a scenario with no file behind it (parsed from text, or built in memory) began
+// with an empty name: ": /fixed/0: selects no point of the shape". They name it "scenario".
+TEST(RobustScenario, ScenarioWithoutAFileIsNamedInMessages) {
+  auto message = [](const std::function<void()>& f) -> std::string {
+    try {
+      f();
+    } catch (const std::exception& e) {
+      return e.what();
+    }
+    return "(no error)";
+  };
+  const std::string parsed =
+      message([] { hgd::parseScenario("{" + kBarHandles + R"(, "clusters": 0})", ""); });
+  EXPECT_EQ(parsed.rfind("scenario: /clusters: ", 0), 0u) << parsed;
+  const std::string duplicate = message([] { hgd::parseScenario(R"({"clusters": 3, "clusters": 4})", ""); });
+  EXPECT_EQ(duplicate.rfind("scenario: /clusters: duplicate key", 0), 0u) << duplicate;
+  const std::string syntax = message([] { hgd::parseScenario("{", ""); });
+  EXPECT_EQ(syntax.rfind("scenario: invalid JSON", 0), 0u) << syntax;
+
+  const hgd::Shape bar = hgd::shapes::bar();
+  const hgd::Geometry g = hgd::extractGeometry(bar);
+  hgd::Scenario built;  // in memory: no path
+  built.fixed.push_back(hgd::Region::sphere(Eigen::Vector3d(-5, -5, -5), 0.1));
+  built.manipulated = hgd::Region::sphere(Eigen::Vector3d(1, 0, 0), 0.1);
+  const std::string selects = message([&] { hgd::resolveHandles(built, g, bar); });
+  EXPECT_EQ(selects.rfind("scenario: ", 0), 0u) << selects;
+  EXPECT_TRUE(contains(selects, "selects no point")) << selects;
+  // A parsed scenario keeps its file's name.
+  const hgd::Scenario named = hgd::parseScenario("{" + kBarHandles + "}", "bar.json");
+  EXPECT_EQ(named.path, "bar.json");
 }
 
 // --- regressions found by the fuzzers (fuzz/, scripts/fuzz.sh) ---------------------------------

@@ -499,6 +499,32 @@ TEST(Viewer, VersionAndUsageErrors) {
   EXPECT_EQ(hgdtest::run(std::string(HGD_RENDER) + " x.ply -o x.png --view 0,0,0", out), 2) << out;
 }
 
+// Issue 28: `hgdeform-render --size 100000x100000` ended in a raw X BadValue, and 20000x20000
+// under `ulimit -v 4G` crashed in the OpenGL driver. A side beyond what OpenGL draws is a usage
+// error (the viewer's window too); a picture whose buffers cannot be allocated is refused naming
+// the output and the size, before any display is needed, and nothing is written.
+TEST(Viewer, PictureSizesThatCannotBeRenderedAreRefused) {
+  hgdtest::TempDir dir;
+  const std::string bar = dir.file("bar.ply"), png = dir.file("p.png");
+  hgd::writeShape(bar, hgd::shapes::bar(1.0f, 0.1f, 0.05f));
+  const std::string render =
+      std::string(HGD_RENDER) + " " + hgdtest::quote(bar) + " -o " + hgdtest::quote(png);
+  std::string out;
+  EXPECT_EQ(hgdtest::run(render + " --size 100000x100000", out), 2) << out;
+  EXPECT_NE(out.find("must be WIDTHxHEIGHT, each from 16 to 16384 (got '100000x100000')"), std::string::npos)
+      << out;
+  EXPECT_EQ(hgdtest::run(render + " --size 16385x100", out), 2) << out;
+  EXPECT_EQ(hgdtest::run(std::string(HGD_VIEW) + " " + hgdtest::quote(bar) + " --size 20000x20000", out), 2)
+      << out;
+  EXPECT_NE(out.find("each from 64 to 16384"), std::string::npos) << out;
+  // 16384 x 16384 at about 32 bytes a pixel is 8.6 GB: not under a 3 GB address-space limit.
+  EXPECT_EQ(hgdtest::run("ulimit -v 3000000 && " + render + " --size 16384x16384", out), 1) << out;
+  EXPECT_NE(out.find(png + ": cannot render a 16384x16384 picture: its buffers need about 8.6 GB of memory"),
+            std::string::npos)
+      << out;
+  EXPECT_FALSE(hgdtest::exists(png));
+}
+
 TEST(Viewer, AbsentXServerIsAClearError) {
   hgdtest::TempDir dir;
   hgd::writeShape(dir.file("bar.ply"), hgd::shapes::bar(1.0f, 0.1f, 0.05f));

@@ -51,9 +51,10 @@ const char* kBatchDescription =
 
 const char* kBatchFooter =
     "On a terminal a progress bar shows files done, the current file, the rate and the ETA;\n"
-    "otherwise one line per scan is printed. SIGINT and SIGTERM stop the batch without leaving\n"
-    "a partial file (exit status 130 / 143). Exit status: 0 when every scan was deformed or up\n"
-    "to date, 1 when any failed, 2 on usage errors.\n"
+    "otherwise one line per scan is printed. SIGINT, SIGTERM, SIGHUP and SIGPIPE stop the batch\n"
+    "without leaving a partial file (it ends by that signal: 130 / 143 / 129 / 141 in a shell).\n"
+    "Exit status: 0 when every scan was deformed or up to date, 1 when any failed, 2 on usage\n"
+    "errors.\n"
     "\n"
     "MPI: when built with MPI and started by mpirun (or srun), the ranks share the scans\n"
     "dynamically, largest first, one scan at a time per rank; rank 0 prints the summary and\n"

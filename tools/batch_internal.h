@@ -128,7 +128,8 @@ class Progress {
   bool drawn_ = false;
 };
 
-/// SIGINT and SIGTERM remove this process's temporary files and exit (130 / 143).
+/// SIGINT, SIGTERM, SIGHUP and SIGPIPE remove this process's temporary files, then end it by
+/// the same signal (hgd::removeTemporaryFilesOnSignals).
 void installSignalHandlers();
 
 /// Removes temporary files left by a killed run (".<name>.tmp-<pid>-<hex>", as hgd::writeShape

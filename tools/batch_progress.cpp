@@ -1,6 +1,6 @@
 // hgdeform batch: what the user sees (a line per scan, or a progress bar on a terminal), and
-// stopping cleanly: SIGINT and SIGTERM remove this run's temporaries, a new run those of a
-// killed one.
+// stopping cleanly: SIGINT, SIGTERM, SIGHUP and SIGPIPE remove this run's temporaries, a new
+// run those of a killed one.
 #include <sys/ioctl.h>
 #include <unistd.h>
 
@@ -16,6 +16,7 @@
 #include <system_error>
 
 #include "batch_internal.h"
+#include "hgdeform/cleanup.h"
 #include "hgdeform/io.h"
 
 namespace hgdcli {
@@ -25,13 +26,13 @@ namespace {
 
 volatile std::sig_atomic_t g_bar_on_screen = 0;
 
-void onTerminatingSignal(int sig) {
-  hgd::removeTemporaryFiles();  // async-signal-safe
-  if (g_bar_on_screen) {
+/// After the temporary files are gone, before the signal ends the process: the shell's prompt
+/// goes below the progress bar. Async-signal-safe.
+void endBarLine(int sig) {
+  if (g_bar_on_screen && sig != SIGPIPE) {
     const ssize_t ignored = ::write(STDOUT_FILENO, "\n", 1);
     (void)ignored;
   }
-  ::_exit(sig == SIGINT ? 130 : 143);
 }
 
 }  // namespace
@@ -156,14 +157,7 @@ void Progress::draw() {
 // --- signals and temporaries -----------------------------------------------------------------
 
 void installSignalHandlers() {
-  struct sigaction sa {};
-  sa.sa_handler = onTerminatingSignal;
-  sigemptyset(&sa.sa_mask);
-  sigaddset(&sa.sa_mask, SIGINT);
-  sigaddset(&sa.sa_mask, SIGTERM);
-  sa.sa_flags = 0;
-  ::sigaction(SIGINT, &sa, nullptr);
-  ::sigaction(SIGTERM, &sa, nullptr);
+  hgd::removeTemporaryFilesOnSignals(endBarLine);
 }
 
 void removeStaleTemporaries(const fs::path& dir) {

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cerrno>
 #include <exception>
 #include <map>
 #include <stdexcept>
@@ -28,6 +29,34 @@ bool isScanFile(const fs::path& p) {
 bool hidden(const fs::path& p) {
   const std::string name = p.filename().string();
   return !name.empty() && name[0] == '.';
+}
+
+/// Why `p`, a scan's own scenario, is there but cannot be read as a file ("" when it is a
+/// regular file, links followed, or nothing is there).
+std::string unreadableScenario(const fs::path& p) {
+  std::error_code e1, e2;
+  const fs::file_status own = fs::symlink_status(p, e1);
+  if (own.type() == fs::file_type::not_found) return {};  // (e1 says so too)
+  if (e1) return e1.message();                            // e.g. a folder on the way that cannot be searched
+  const fs::file_status target = fs::status(p, e2);       // links followed
+  if (fs::is_symlink(own)) {
+    std::error_code e3;
+    const fs::path to = fs::read_symlink(p, e3);
+    if (e2 && e2.value() == ELOOP) return "a loop of symbolic links (" + e2.message() + ")";
+    if (e2 || !fs::exists(target))
+      return "a dangling symbolic link (" + to.string() + ": " +
+             (e2 ? e2.message() : std::string("No such file or directory")) + ")";
+  } else if (e2) {
+    return e2.message();
+  }
+  if (fs::is_regular_file(target)) return {};
+  const std::string via = fs::is_symlink(own) ? " (through a symbolic link)" : "";
+  if (fs::is_directory(target)) return "a directory" + via + ", not a file";
+  const std::string what = fs::is_fifo(target)                                          ? "a FIFO"
+                           : fs::is_socket(target)                                      ? "a socket"
+                           : fs::is_block_file(target) || fs::is_character_file(target) ? "a device"
+                                                                                        : "a special file";
+  return what + via + ", not a regular file";
 }
 
 }  // namespace
@@ -69,6 +98,15 @@ std::vector<Scan> listScans(const Config& c, std::vector<batch::SkippedEntry>& s
     const fs::file_status target = e.status(e2);  // links followed
     const bool link = !e1 && fs::is_symlink(own);
     const std::string rel = e.path().lexically_relative(c.input_dir).generic_string();
+    if (e1 || (e2 && !link)) {  // not even its kind can be known: say why (e.g. too long a path)
+      const std::error_code& why = e1 ? e1 : e2;
+      if (isScanFile(e.path()))
+        skipped.push_back({rel, why.value() == ENAMETOOLONG ? "its path is longer than the system allows (" +
+                                                                  std::to_string(e.path().native().size()) +
+                                                                  " bytes; " + why.message() + ")"
+                                                            : "cannot be examined: " + why.message()});
+      return;
+    }
     if (link && !fs::exists(target)) {  // dangling, or a loop of links
       std::error_code e3;
       const fs::path to = fs::read_symlink(e.path(), e3);
@@ -132,6 +170,11 @@ std::vector<Scan> listScans(const Config& c, std::vector<batch::SkippedEntry>& s
       s.scenario = own;
       s.own_scenario = true;
       inputs.add(own);
+    } else if (const std::string why = unreadableScenario(own); !why.empty()) {
+      // There but not a file to read: the scan fails rather than take the default in silence.
+      s.scenario = own;
+      s.own_scenario = true;
+      s.error = own.string() + ": cannot read the scan's own scenario: " + why;
     } else {
       s.scenario = c.scenario_path;
     }

@@ -1,5 +1,7 @@
 // hgdeform: command-line front end. Thin: every stage lives in the library.
+#include <cerrno>
 #include <chrono>
+#include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -11,6 +13,7 @@
 
 #include "blas_guard.h"
 #include "cli_common.h"
+#include "hgdeform/cleanup.h"
 #include "hgdeform/deformer.h"
 #include "hgdeform/fields.h"
 #include "hgdeform/geometry.h"
@@ -150,6 +153,23 @@ hgd::FieldSolver fieldSolver(const std::string& name) {
 
 // --- the work ----------------------------------------------------------------------------------
 
+/// What hgd::storeField(shape, ..., "harmonic", colour) writes over: the fields of `shape` it
+/// replaces, as phrases for a warning ("field 'harmonic' is").
+std::vector<std::string> replacedFields(const hgd::Shape& shape, bool colour) {
+  std::vector<std::string> out;
+  if (hgd::findField(shape.cloud, "harmonic") >= 0) out.push_back("field 'harmonic' is");
+  if (!colour) return out;
+  if (shape.format == hgd::FileFormat::Pcd || hgd::findField(shape.cloud, "rgb") >= 0) {
+    if (hgd::findField(shape.cloud, "rgb") >= 0) out.push_back("colours (field 'rgb') are");
+    return out;
+  }
+  std::string names;
+  for (const char* name : {"red", "green", "blue"})
+    if (hgd::findField(shape.cloud, name) >= 0) names += std::string(names.empty() ? "" : "/") + name;
+  if (!names.empty()) out.push_back("colours (" + names + ") are");
+  return out;
+}
+
 int runField(const FieldArgs& a) {
   const std::string& input = a.input;
   const std::string& scenario_path = a.scenario;
@@ -182,6 +202,10 @@ int runField(const FieldArgs& a) {
   std::vector<float> phi;
   field.compute(phi);
 
+  // What the new field replaces is said, never done in silence.
+  for (const std::string& replaced : replacedFields(shape, a.colour))
+    std::fprintf(stderr, "hgdeform: warning: %s: its %s replaced in %s\n", input.c_str(), replaced.c_str(),
+                 output.c_str());
   hgd::storeField(shape, geometry, phi, "harmonic", a.colour);
   if (const std::string lost = hgd::extrasLost(shape, hgd::formatFromPath(output)); !lost.empty())
     std::fprintf(stderr, "hgdeform: warning: %s: %s\n", output.c_str(), lost.c_str());
@@ -252,8 +276,22 @@ int runDeform(const DeformArgs& a) {
     report = run.report();
     if (report_path == "-") {
       const std::string json = hgd::reportJson(report);
-      if (std::fwrite(json.data(), 1, json.size(), stdout) != json.size() || std::fflush(stdout) != 0)
-        throw hgd::IoError("-: cannot write the report to standard output");
+      // A reader that went away (a closed pipe) is a write error here, not SIGPIPE: the run
+      // failed, so the output goes and the status says why.
+      struct sigaction ignore {};
+      struct sigaction before {};
+      ignore.sa_handler = SIG_IGN;
+      sigemptyset(&ignore.sa_mask);
+      ::sigaction(SIGPIPE, &ignore, &before);
+      errno = 0;
+      const bool ok =
+          std::fwrite(json.data(), 1, json.size(), stdout) == json.size() && std::fflush(stdout) == 0;
+      const int e = errno;
+      // Kept ignored after a failure: what is left in stdout's buffer is flushed at exit.
+      if (ok) ::sigaction(SIGPIPE, &before, nullptr);
+      if (!ok)
+        throw hgd::IoError("-: cannot write the report to standard output" +
+                           (e ? ": " + std::string(std::strerror(e)) : std::string()));
     } else if (!report_path.empty()) {
       hgd::writeReportJson(report_path, report);
     }
@@ -273,6 +311,9 @@ int runDeform(const DeformArgs& a) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // An interrupted run (Ctrl-C, timeout, Slurm, a closed terminal or pipe) leaves no
+  // temporary file behind.
+  hgd::removeTemporaryFilesOnSignals();
   if (const std::string problem = hgdcli::reserveBlasBuffer(argv); !problem.empty()) {
     std::cerr << "hgdeform" << (argc > 1 ? std::string(" ") + argv[1] : std::string()) << ": " << problem
               << "\n";

@@ -36,6 +36,7 @@
 #include "bench_references.h"
 #include "blas_guard.h"
 #include "cli_common.h"
+#include "hgdeform/cleanup.h"
 #include "hgdeform/deformer.h"
 #include "hgdeform/io.h"
 #include "hgdeform/report.h"
@@ -379,7 +380,8 @@ int parseArgs(int argc, char** argv, BenchArgs& a) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  hgdcli::singleThreadBlas();  // as hgdeform does (blas_guard.h)
+  hgd::removeTemporaryFilesOnSignals();  // no partial --json left by an interrupted run
+  hgdcli::singleThreadBlas();            // as hgdeform does (blas_guard.h)
   BenchArgs args;
   if (const int status = parseArgs(argc, argv, args); status >= 0) return status;
   const std::vector<long>& sizes = args.sizes;

@@ -9,15 +9,18 @@
 // under xvfb-run on a headless machine).
 #include <cstdio>
 #include <iostream>
+#include <new>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "cli_common.h"
+#include "hgdeform/cleanup.h"
 #include "hgdeform/io.h"
 #include "hgdeform/render.h"
 
 int main(int argc, char** argv) {
+  hgd::removeTemporaryFilesOnSignals();  // no partial picture left by an interrupted run
   std::vector<std::string> inputs;
   std::string output;
   hgd::RenderOptions opt;
@@ -34,12 +37,17 @@ int main(int argc, char** argv) {
   app.add_option("-o,--output", output, "the PNG to write; never an input")->required()->type_name("OUT.png");
   app.add_option("--field", opt.field, "colour by this per-point scalar (e.g. harmonic)")->type_name("NAME");
   std::string size, view;
-  app.add_option("--size", size, "picture size, at least 16x16 (default 1200x600)")
+  app.add_option("--size", size, "picture size, 16x16 to 16384x16384 (default 1200x600)")
       ->check(CLI::Validator(
           [&opt](std::string& s) -> std::string {
-            if (std::sscanf(s.c_str(), "%dx%d", &opt.width, &opt.height) != 2 || opt.width < 16 ||
-                opt.height < 16)
-              return "must be WIDTHxHEIGHT (got '" + s + "')";
+            int w = 0, h = 0;
+            char rest = 0;
+            if (std::sscanf(s.c_str(), "%6dx%6d%c", &w, &h, &rest) != 2 || w < 16 || h < 16 ||
+                w > hgd::kMaxPictureSide || h > hgd::kMaxPictureSide)
+              return "must be WIDTHxHEIGHT, each from 16 to " + std::to_string(hgd::kMaxPictureSide) +
+                     " (got '" + s + "')";
+            opt.width = w;
+            opt.height = h;
             return {};
           },
           "", "size"))
@@ -77,6 +85,9 @@ int main(int argc, char** argv) {
   if (const int status = hgdcli::parse(app, argc, argv); status >= 0) return status;
   try {
     hgd::refuseInputs(output, inputs);
+    // Before the display: a picture too large is refused the same with or without one.
+    if (const std::string problem = hgd::pictureSizeProblem(opt.width, opt.height); !problem.empty())
+      throw std::runtime_error(output + ": " + problem);
     if (const std::string problem = hgd::displayProblem(); !problem.empty())
       throw std::runtime_error(problem);
     std::vector<hgd::Shape> shapes;
@@ -90,6 +101,10 @@ int main(int argc, char** argv) {
     hgd::renderPng(ptrs, output, opt);
     std::cout << "wrote " << output << "\n";
     return 0;
+  } catch (const std::bad_alloc&) {  // what pictureSizeProblem could not foresee
+    std::cerr << "hgdeform-render: " << output << ": out of memory drawing a " << opt.width << "x"
+              << opt.height << " picture\n";
+    return 1;
   } catch (const std::exception& e) {
     std::cerr << "hgdeform-render: " << e.what() << "\n";
     return 1;

@@ -9,10 +9,12 @@
 #include <string>
 
 #include "cli_common.h"
+#include "hgdeform/cleanup.h"
 #include "hgdeform/io.h"
 #include "support/shapes.h"
 
 int main(int argc, char** argv) {
+  hgd::removeTemporaryFilesOnSignals();  // no partial scan left by an interrupted run
   std::filesystem::path dir;
   long count = 0, points = 0;
   {

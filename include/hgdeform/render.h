@@ -37,6 +37,17 @@ struct RenderOptions {
 /// visual, so every front end asks first.
 std::string displayProblem();
 
+/// The largest side of a picture: what OpenGL drivers render (Mesa's llvmpipe among them; an
+/// X window cannot be larger than 32767 either).
+constexpr int kMaxPictureSide = 16384;
+
+/// Empty when a `width` x `height` picture can be rendered; else why not: a side outside 1 to
+/// kMaxPictureSide (X ended such a render with a raw BadValue), or buffers (colour, depth, the
+/// window's buffers, the grab and the PNG: about 32 bytes a pixel) that this process cannot allocate, as
+/// under `ulimit -v` (the OpenGL driver's own allocation then failed unchecked and crashed). Asks for no
+/// display; renderPng asks it first, front ends before they open a display.
+std::string pictureSizeProblem(int width, int height);
+
 /// The unit vector `up` names for these shapes (see RenderOptions::up). Throws
 /// std::invalid_argument naming the accepted values for anything else.
 Eigen::Vector3f upAxis(const std::string& up, const std::vector<const Shape*>& shapes);

@@ -7,9 +7,11 @@
 
 #include <atomic>
 #include <cerrno>
+#include <csignal>
 #include <filesystem>
 #include <random>
 
+#include "hgdeform/cleanup.h"
 #include "internal.h"
 
 namespace hgd {
@@ -136,14 +138,18 @@ AtomicWriter::AtomicWriter(const std::string& target) : target_(target) {
     char suffix[64];
     std::snprintf(suffix, sizeof suffix, ".tmp-%ld-%08x%08x", static_cast<long>(::getpid()), rd(), rd());
     const fs::path tmp = dir / ("." + t.filename().string() + suffix);
+    // Registered before it is created: a signal never finds it there and not yet registered
+    // (removing a name not created yet does nothing).
+    const int slot = registerTemp(tmp.string());
     const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
     if (fd < 0) {
-      if (errno == EEXIST) continue;
-      fail(target_,
-           "cannot write: cannot create a temporary file in " + dir.string() + ": " + errnoText(errno));
+      const int e = errno;
+      unregisterTemp(slot);
+      if (e == EEXIST) continue;
+      fail(target_, "cannot write: cannot create a temporary file in " + dir.string() + ": " + errnoText(e));
     }
     tmp_ = tmp.string();
-    slot_ = registerTemp(tmp_);
+    slot_ = slot;
     file_ = ::fdopen(fd, "wb");
     if (!file_) {
       const int e = errno;
@@ -220,6 +226,41 @@ void removeOutput(const std::string& path) noexcept {
 void removeTemporaryFiles() noexcept {
   for (auto& slot : g_temp_slots)
     if (slot.state.load() == 2) ::unlink(slot.path);
+}
+
+namespace {
+
+std::atomic<void (*)(int)> g_also_on_signal{nullptr};
+
+void onTerminatingSignal(int sig) {
+  const int saved = errno;
+  removeTemporaryFiles();
+  if (void (*also)(int) = g_also_on_signal.load()) also(sig);
+  // The default action, then the signal again: it is blocked while this handler runs, so it
+  // ends the process (as killed by it) as soon as the handler returns.
+  struct sigaction dfl {};
+  dfl.sa_handler = SIG_DFL;
+  sigemptyset(&dfl.sa_mask);
+  ::sigaction(sig, &dfl, nullptr);
+  ::raise(sig);
+  errno = saved;
+}
+
+}  // namespace
+
+void removeTemporaryFilesOnSignals(void (*also)(int)) noexcept {
+  g_also_on_signal.store(also);
+  const int signals[] = {SIGINT, SIGTERM, SIGHUP, SIGPIPE};
+  struct sigaction sa {};
+  sa.sa_handler = onTerminatingSignal;
+  sigemptyset(&sa.sa_mask);
+  for (const int s : signals) sigaddset(&sa.sa_mask, s);  // one handler at a time
+  sa.sa_flags = 0;
+  for (const int s : signals) {
+    struct sigaction old {};
+    if (::sigaction(s, nullptr, &old) == 0 && old.sa_handler == SIG_IGN) continue;  // nohup, ...
+    ::sigaction(s, &sa, nullptr);
+  }
 }
 
 void writeFileAtomically(const std::string& path, std::string_view bytes) {

@@ -90,7 +90,7 @@ std::optional<FileFormat> sniff(std::string_view head, std::uint64_t size, bool 
       const std::string up = lower(w);
       if (up == "version" || up == "fields") return FileFormat::Pcd;
       if (isOffKeyword(w)) return FileFormat::Off;
-      if (w == "solid") return FileFormat::Stl;
+      if (up == "solid") return FileFormat::Stl;  // SOLID too
       if (w == "v" || w == "vn" || w == "vt" || w == "f" || w == "o" || w == "g" || w == "mtllib" ||
           w == "usemtl")
         return FileFormat::Obj;

@@ -65,7 +65,8 @@ Shape readAsciiStl(const std::string& path, std::string_view text) {
     fail(path, "malformed data: line " + num(lex.line()) + ": " + why + " (" + excerpt(lex.lineText()) + ")");
   };
   while (lex.nextLine()) {
-    const std::string_view kw = lex.token();
+    // Keywords in any case: some exporters write SOLID, FACET NORMAL, VERTEX, ...
+    const std::string kw = lower(lex.token());
     if (kw == "solid") {
       if (in_solid) bad("'solid' inside a solid");
       in_solid = true;
@@ -119,7 +120,7 @@ Shape readStl(const std::string& path) {
   if (!binary) {
     std::size_t b = 0;
     while (b < body.size() && (isSpace(body[b]) || body[b] == '\n')) ++b;
-    if (body.substr(b, 5) == "solid" && body.find('\0') == std::string_view::npos)
+    if (lower(body.substr(b, 5)) == "solid" && body.find('\0') == std::string_view::npos)
       return readAsciiStl(path, body);
     if (size < 84)
       fail(path, "truncated data: a binary STL needs at least 84 bytes, the file holds " + num(size));

@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <stdexcept>
 #include <string_view>
 
@@ -83,9 +84,29 @@ Eigen::Vector3f upAxis(const std::string& up, const std::vector<const Shape*>& s
   return minus ? Eigen::Vector3f(-v) : v;
 }
 
+std::string pictureSizeProblem(int width, int height) {
+  const std::string size = std::to_string(width) + "x" + std::to_string(height);
+  if (width < 1 || height < 1 || width > kMaxPictureSide || height > kMaxPictureSide)
+    return "cannot render a " + size + " picture: each side must be from 1 to " +
+           std::to_string(kMaxPictureSide) + " pixels (what OpenGL draws)";
+  const std::size_t bytes =
+      std::size_t{32} * static_cast<std::size_t>(width) * static_cast<std::size_t>(height);
+  void* probe = std::malloc(bytes);  // given back at once: only whether the memory is there
+  if (!probe) {
+    char need[32];
+    std::snprintf(need, sizeof need, "%.1f GB", static_cast<double>(bytes) / 1e9);
+    return "cannot render a " + size + " picture: its buffers need about " + need +
+           " of memory, more than this process can allocate (ulimit -v?)";
+  }
+  std::free(probe);
+  return {};
+}
+
 void renderPng(const std::vector<const Shape*>& shapes, const std::string& png_path,
                const RenderOptions& options) {
   if (shapes.empty()) throw std::runtime_error(png_path + ": nothing to render");
+  if (const std::string problem = pictureSizeProblem(options.width, options.height); !problem.empty())
+    throw std::runtime_error(png_path + ": " + problem);
   const Eigen::Vector3f up = upAxis(options.up, shapes);
   const Eigen::Vector3d view = options.view ? Eigen::Vector3d(options.view->cast<double>())
                                             : Eigen::Vector3d(turnYOnto(up) * Eigen::Vector3d(1.0, 0.6, 1.4));

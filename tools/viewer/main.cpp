@@ -33,6 +33,7 @@
 
 #include "blas_guard.h"
 #include "cli_common.h"
+#include "hgdeform/cleanup.h"
 #include "hgdeform/io.h"
 #include "hgdeform/render.h"
 #include "replay.h"
@@ -74,8 +75,10 @@ int parseArgs(int argc, char** argv, ViewArgs& a) {
           [&a](std::string& text) -> std::string {
             int w = 0, h = 0;
             char rest = 0;
-            if (std::sscanf(text.c_str(), "%dx%d%c", &w, &h, &rest) != 2 || w < 64 || h < 64)
-              return "must be WIDTHxHEIGHT, each at least 64 (got '" + text + "')";
+            if (std::sscanf(text.c_str(), "%6dx%6d%c", &w, &h, &rest) != 2 || w < 64 || h < 64 ||
+                w > hgd::kMaxPictureSide || h > hgd::kMaxPictureSide)
+              return "must be WIDTHxHEIGHT, each from 64 to " + std::to_string(hgd::kMaxPictureSide) +
+                     " (got '" + text + "')";
             a.width = w;
             a.height = h;
             return {};
@@ -95,7 +98,8 @@ int parseArgs(int argc, char** argv, ViewArgs& a) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  hgdcli::singleThreadBlas();  // as hgdeform does (blas_guard.h)
+  hgd::removeTemporaryFilesOnSignals();  // no partial save or screenshot left by an interrupted run
+  hgdcli::singleThreadBlas();            // as hgdeform does (blas_guard.h)
   ViewArgs args;
   if (const int status = parseArgs(argc, argv, args); status >= 0) return status;
   const std::string &input = args.input, &scenario = args.scenario, &replay = args.replay, &shot = args.shot;
