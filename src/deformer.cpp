@@ -1,5 +1,7 @@
 #include "hgdeform/deformer.h"
 
+#include <omp.h>
+
 #include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
@@ -33,7 +35,9 @@ Deformer::Deformer(std::shared_ptr<const Geometry> geometry, const Handles& hand
               !(options_.field.mesh_ring && !geometry_->faces.empty());
   if (!multires_) fieldOnEveryPoint();  // else rebuild() gives the field the handles' coarse level
   field_.setOptions(options_.field);
-  const Eigen::AlignedBox3f box = boundingBox(*geometry_->points);
+  // The body's box: a far stray does not coarsen tolerances and steps (nor the normalised frame).
+  const Eigen::AlignedBox3f box =
+      geometry_->body.isEmpty() ? boundingBox(*geometry_->points) : geometry_->body;
   const Eigen::Vector3d lo = box.min().cast<double>(), hi = box.max().cast<double>();
   centre_ = 0.5 * (lo + hi);
   const double diag = (hi - lo).norm();
@@ -617,63 +621,72 @@ std::vector<std::string> Deformer::writeDeformed(Shape& shape) const {
   pcl::PCLPointCloud2& c = shape.cloud;
   XyzFields f = findXyzFields(c);
   const Geometry& g = *geometry_;
-  if (!f.hasXyz() || g.raw_index.size() != table_.size() ||
-      g.finite_index.size() != static_cast<std::size_t>(c.width) * c.height)
+  const std::size_t n = static_cast<std::size_t>(c.width) * c.height;
+  if (!f.hasXyz() || g.raw_index.size() != table_.size() || g.finite_index.size() != n)
     throw std::logic_error("Deformer::writeDeformed: the shape is not the one the deformer was built on");
+  // Nothing moves: every point as the file had it, to the bit (nothing read, nothing written).
+  if (std::all_of(exact_.begin(), exact_.end(), [](const ExactTransform& e) { return e.identity; }))
+    return warnings;
   const ExactInterpolation exact = exactInterpolation();
-  const long long n = static_cast<long long>(g.size());
+  const long long nn = static_cast<long long>(n);
+  // In the file's order: the cloud's records are read and written in sequence.
+  auto forEachPoint = [&](auto&& body) {
+#pragma omp parallel for schedule(static) if (nn > kParallelMin)
+    for (long long ii = 0; ii < nn; ++ii) {
+      const auto i = static_cast<std::size_t>(ii);
+      const int k = g.finite_index[i];
+      if (k >= 0) body(i, static_cast<std::size_t>(k));
+    }
+  };
   // The shape must hold the rest positions (a second call on the same shape would move it twice):
   // its values give the table's float rest positions exactly, as extractGeometry made them.
   {
-    bool rest = true;
+    std::vector<char> bad(static_cast<std::size_t>(omp_get_max_threads()), 0);
     const pcl::PCLPointField &fx = c.fields[f.x], &fy = c.fields[f.y], &fz = c.fields[f.z];
-#pragma omp parallel for schedule(static) reduction(&& : rest) if (n > kParallelMin)
-    for (long long k = 0; k < n; ++k) {
-      const auto i = static_cast<std::size_t>(g.raw_index[static_cast<std::size_t>(k)]);
+    forEachPoint([&](std::size_t i, std::size_t k) {
       const Eigen::Vector3f p =
           (Eigen::Vector3d(readValue(c, i, fx), readValue(c, i, fy), readValue(c, i, fz)) - g.origin)
               .cast<float>();
-      const float* r = table_.points[static_cast<std::size_t>(k)].p;
-      rest = rest && p.x() == r[0] && p.y() == r[1] && p.z() == r[2];
-    }
-    if (!rest)
+      const float* r = table_.points[k].p;
+      if (!(p.x() == r[0] && p.y() == r[1] && p.z() == r[2]))
+        bad[static_cast<std::size_t>(omp_get_thread_num())] = 1;
+    });
+    if (std::find(bad.begin(), bad.end(), 1) != bad.end())
       throw std::logic_error(
           "Deformer::writeDeformed: the shape does not hold the rest positions (written to already?)");
   }
-  bool any_moves = false;
-  for (long long k = 0; k < n && !any_moves; ++k) any_moves = exact.moves(static_cast<std::size_t>(k));
-  if (!any_moves) return warnings;  // every point as the file had it, to the bit
-  // Integer coordinates cannot hold a deformed position: widened, said, never rounded or clipped.
+  // Integer coordinates cannot hold a deformed position: each is widened (8 and 16 bits to float,
+  // 32 to double), said, never rounded or clipped.
   {
-    const std::uint8_t type = c.fields[f.x].datatype;
-    const bool integer = type != pcl::PCLPointField::FLOAT32 && type != pcl::PCLPointField::FLOAT64;
-    const bool wide = c.fields[f.y].datatype == pcl::PCLPointField::FLOAT64 ||
-                      c.fields[f.z].datatype == pcl::PCLPointField::FLOAT64 ||
-                      type == pcl::PCLPointField::INT32 || type == pcl::PCLPointField::UINT32;
-    if (integer || c.fields[f.y].datatype != type || c.fields[f.z].datatype != type) {
-      const bool any_integer = integer ||
-                               (c.fields[f.y].datatype != pcl::PCLPointField::FLOAT32 &&
-                                c.fields[f.y].datatype != pcl::PCLPointField::FLOAT64) ||
-                               (c.fields[f.z].datatype != pcl::PCLPointField::FLOAT32 &&
-                                c.fields[f.z].datatype != pcl::PCLPointField::FLOAT64);
-      if (any_integer) {
-        const std::uint8_t to = wide ? pcl::PCLPointField::FLOAT64 : pcl::PCLPointField::FLOAT32;
-        retypeFields(c, {f.x, f.y, f.z}, to);
-        f = findXyzFields(c);
-        warnings.push_back((shape.path.empty() ? std::string("the shape") : shape.path) +
-                           ": x/y/z are stored as integers, which cannot hold the deformed positions: "
-                           "written as " +
-                           (wide ? "double" : "float"));
-      }
+    std::vector<int> to_float, to_double;
+    for (const int idx : {f.x, f.y, f.z}) {
+      const std::uint8_t t = c.fields[static_cast<std::size_t>(idx)].datatype;
+      if (t == pcl::PCLPointField::FLOAT32 || t == pcl::PCLPointField::FLOAT64) continue;
+      (t == pcl::PCLPointField::INT32 || t == pcl::PCLPointField::UINT32 ? to_double : to_float)
+          .push_back(idx);
+    }
+    if (!to_float.empty()) retypeFields(c, to_float, pcl::PCLPointField::FLOAT32);
+    if (!to_double.empty()) retypeFields(c, to_double, pcl::PCLPointField::FLOAT64);
+    if (!to_float.empty() || !to_double.empty()) {
+      f = findXyzFields(c);
+      warnings.push_back(
+          (shape.path.empty() ? std::string("the shape") : shape.path) +
+          ": x/y/z are stored as integers, which cannot hold the deformed positions: written as " +
+          (to_double.empty()  ? "float"
+           : to_float.empty() ? "double"
+                              : "float and double"));
     }
   }
-  const bool write_normals = f.hasNormals() && table_.has_normals;
+  // Normals are turned where the file's own were used (all finite and non-zero): else they are
+  // left as the file had them, and that is said.
+  const bool write_normals = f.hasNormals() && g.hasFileNormals() && table_.has_normals;
+  if (f.hasNormals() && !write_normals)
+    warnings.push_back((shape.path.empty() ? std::string("the shape") : shape.path) +
+                       ": its normals were not usable (some are zero or not finite): they are written back "
+                       "as they were, not turned with the shape");
   const pcl::PCLPointField &fx = c.fields[f.x], &fy = c.fields[f.y], &fz = c.fields[f.z];
-#pragma omp parallel for schedule(static) if (n > kParallelMin)
-  for (long long kk = 0; kk < n; ++kk) {
-    const auto k = static_cast<std::size_t>(kk);
-    if (!exact.moves(k)) continue;  // left as the file had it
-    const auto i = static_cast<std::size_t>(g.raw_index[k]);
+  forEachPoint([&](std::size_t i, std::size_t k) {
+    if (!exact.moves(k)) return;  // left as the file had it
     const Eigen::Vector3d rest(readValue(c, i, fx), readValue(c, i, fy), readValue(c, i, fz));
     const Eigen::Vector3d p = exact.apply(k, rest - g.origin) + g.origin;
     writeValue(c, i, fx, p.x());
@@ -685,7 +698,7 @@ std::vector<std::string> Deformer::writeDeformed(Shape& shape) const {
       writeValue(c, i, c.fields[f.ny], nv.y());
       writeValue(c, i, c.fields[f.nz], nv.z());
     }
-  }
+  });
   // An OBJ's own normals ('vn', indexed apart from the vertices) turn as the normal of the
   // vertex a face pairs them with turns.
   FileExtras& x = shape.extras;

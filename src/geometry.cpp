@@ -19,7 +19,7 @@ constexpr double kMaxExtent = 1e11;  // a shape larger than this is refused
 
 struct RobustFrame {
   Eigen::Vector3d centre;  ///< the per-axis median
-  double extent = 0;       ///< the largest per-axis spread of the middle 98% of the points
+  double extent = 0;       ///< the shape's size: twice the largest per-axis interquartile range
 };
 
 // The median and spread of a sample of at most 65,536 points taken evenly (in file order): far
@@ -39,8 +39,10 @@ RobustFrame robustFrame(const std::vector<Eigen::Vector3d>& world) {
       return v[r];
     };
     f.centre[a] = at(s / 2);
-    const double p1 = at(s / 100), p99 = at(s - 1 - s / 100);
-    f.extent = std::max(f.extent, p99 - p1);
+    // Twice the interquartile range: the shape's size along the axis for an even sampling,
+    // whatever a quarter of the points do (strays, a scanner's zero returns).
+    const double q1 = at(s / 4), q3 = at(s - 1 - s / 4);
+    f.extent = std::max(f.extent, 2 * (q3 - q1));
   }
   return f;
 }
@@ -70,23 +72,27 @@ Geometry extractGeometry(const Shape& shape) {
   if (world.empty())
     throw IoError(shape.path + ": no finite points (all " + std::to_string(n) + " are NaN/inf)");
 
-  // The local frame: its origin is the shape's median, not its bounding box's centre, so that
-  // one far point (a bad return at 1e10) neither moves the frame nor spends the float's bits on
-  // empty space. Points absurdly far from the shape (over a million times its size, or beyond
-  // 1e12 units: a corrupt block decoded to 1e22) cannot be deformed with it in any precision that
-  // means something (and their squared distances would overflow): they are set apart like NaN
-  // points, written back untouched, with a warning.
+  // The local frame: its origin is the centre of the shape's body, not of the bounding box of
+  // every point, so that one far point (a bad return at 1e5 or 1e10) neither moves the frame nor
+  // spends the float's bits on empty space. Points absurdly far from the shape (over a million times its
+  // size, or beyond 1e12 units: a corrupt block decoded to 1e22) cannot be deformed with it in any precision
+  // that means something (and their squared distances would overflow): they are set apart like NaN points,
+  // written back untouched, with a warning.
   const RobustFrame frame = robustFrame(world);
   if (frame.extent > kMaxExtent) {
     char buf[200];
-    std::snprintf(buf, sizeof buf,
-                  ": the points span %.3g units (the middle 98%% of them): more than hgdeform can deform "
-                  "(%.0e); are the coordinates corrupt?",
-                  frame.extent, kMaxExtent);
+    std::snprintf(
+        buf, sizeof buf,
+        ": the points span %.3g units (the middle half of them, doubled): more than hgdeform can deform "
+        "(%.0e); are the coordinates corrupt?",
+        frame.extent, kMaxExtent);
     throw IoError(shape.path + buf);
   }
   const double far = frame.extent > 0 ? std::min(kFarFactor * frame.extent, kMaxOffset) : kMaxOffset;
-  Eigen::Vector3d lo = Eigen::Vector3d::Constant(INFINITY), hi = -lo;
+  // The frame's origin: the centre of the bounding box of the shape's body, the points within
+  // four times its size of the median (every point of a shape without strays), rounded.
+  const double body = frame.extent > 0 ? 4 * frame.extent : INFINITY;
+  Eigen::Vector3d body_lo = Eigen::Vector3d::Constant(INFINITY), body_hi = -body_lo;
   {
     std::size_t kept = 0, far_count = 0;
     double farthest = 0;
@@ -101,8 +107,10 @@ Geometry extractGeometry(const Shape& shape) {
       g.finite_index[static_cast<std::size_t>(g.raw_index[k])] = static_cast<int>(kept);
       g.raw_index[kept] = g.raw_index[k];
       world[kept++] = world[k];
-      lo = lo.cwiseMin(world[k]);
-      hi = hi.cwiseMax(world[k]);
+      if (d <= body) {
+        body_lo = body_lo.cwiseMin(world[k]);
+        body_hi = body_hi.cwiseMax(world[k]);
+      }
     }
     world.resize(kept);
     g.raw_index.resize(kept);
@@ -126,7 +134,9 @@ Geometry extractGeometry(const Shape& shape) {
   std::vector<std::uint32_t> perm(world.size());  // geometry point -> position in `world`
   {
     const std::size_t m = world.size();
-    const double extent = (hi - lo).maxCoeff();
+    // Over the shape's body (strays beyond it take the edge cells): a far stray would leave the
+    // body a single cell.
+    const double extent = (body_hi - body_lo).maxCoeff();
     const double scale = extent > 0 ? 1023.0 / extent : 0.0;
     auto spread = [](std::uint32_t v) {  // 10 bits -> every third of 30
       std::uint32_t x = v & 0x3ffu;
@@ -138,7 +148,7 @@ Geometry extractGeometry(const Shape& shape) {
     };
     std::vector<std::uint32_t> key(m);
     for (std::size_t k = 0; k < m; ++k) {
-      const Eigen::Vector3d q = (world[k] - lo) * scale;
+      const Eigen::Vector3d q = ((world[k] - body_lo) * scale).cwiseMax(0.0).cwiseMin(1023.0);
       key[k] = spread(static_cast<std::uint32_t>(q.x())) | (spread(static_cast<std::uint32_t>(q.y())) << 1) |
                (spread(static_cast<std::uint32_t>(q.z())) << 2);
       perm[k] = static_cast<std::uint32_t>(k);
@@ -152,7 +162,10 @@ Geometry extractGeometry(const Shape& shape) {
     g.raw_index.swap(raw);
   }
 
-  g.origin = frame.centre;
+  // Rounded so that the local coordinates of a regular sampling stay exact offsets (equal
+  // distances stay equal, whatever the shape's position).
+  g.origin = (0.5 * (body_lo + body_hi)).array().round().matrix();
+  g.body = Eigen::AlignedBox3f((body_lo - g.origin).cast<float>(), (body_hi - g.origin).cast<float>());
   g.points->resize(world.size());
   for (std::size_t i = 0; i < world.size(); ++i)
     (*g.points)[i].getVector3fMap() = (world[perm[i]] - g.origin).cast<float>();
@@ -223,7 +236,7 @@ Eigen::AlignedBox3f boundingBox(const pcl::PointCloud<pcl::PointXYZ>& points) {
 
 double boundingBoxDiagonal(const Geometry& geometry) {
   if (geometry.points->empty()) return 0;
-  const Eigen::AlignedBox3f box = boundingBox(*geometry.points);
+  const Eigen::AlignedBox3f box = geometry.body.isEmpty() ? boundingBox(*geometry.points) : geometry.body;
   return static_cast<double>((box.max() - box.min()).norm());
 }
 

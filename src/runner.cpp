@@ -337,7 +337,12 @@ DeformReport deformShape(Shape& shape, const Scenario& scenario, const DeformOpt
     shape = run.release(false);  // the caller's shape, unchanged
     throw;
   }
-  shape = run.release(true);
+  try {
+    shape = run.release(true);
+  } catch (...) {
+    shape = run.release(false);  // the caller's shape, unchanged
+    throw;
+  }
   return run.report();  // with what writing the shape said
 }
 

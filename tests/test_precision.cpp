@@ -145,6 +145,7 @@ Eigen::Vector3d referenceBlend(const hgd::Deformer& d, const std::vector<Eigen::
 
 struct Compared {
   double max_moved_error = 0;  ///< largest |written - reference| over moved points
+  double max_float_path = 0;   ///< largest |written - the float positions| over the body's points
   double max_float_ulps = 0;   ///< float input: the same in units of the written value's ulp
   std::size_t moved = 0, unmoved = 0, unmoved_changed = 0, fixed_changed = 0;
 };
@@ -152,9 +153,13 @@ struct Compared {
 // Deforms `path` with `scenario` through the library, writes `out`, and compares every written
 // coordinate with the input's (unmoved points) or the reference (moved points).
 Compared deformAndCompare(const std::string& path, const std::string& scenario, const std::string& out,
-                          hgd::Blend blend = hgd::Blend::Rotation) {
+                          hgd::Blend blend = hgd::Blend::Rotation, bool multires = false) {
   hgd::RunOptions ro;
   ro.blend = blend;
+  if (multires) {  // the coarse level and its prolongation, on a small shape
+    ro.deform.multires_above = 400;
+    ro.deform.coarse_points = 300;
+  }
   hgd::ScenarioRunner run = hgd::ScenarioRunner::read(path, ro);
   run.setScenario(hgd::parseScenario(scenario, "test.json"));
   run.applyMoves();
@@ -179,6 +184,10 @@ Compared deformAndCompare(const std::string& path, const std::string& scenario, 
     }
     const auto ku = static_cast<std::size_t>(k);
     const Eigen::Vector3d ref = referenceBlend(d, T, ku, a, blend);
+    // The float positions the viewer shows and the stretch is measured on (a wrong transform or
+    // identity flag in the double path would part the two).
+    if (g.body.contains((*g.points)[ku].getVector3fMap()))
+      c.max_float_path = std::max(c.max_float_path, (b - d.deformedWorld(ku)).cwiseAbs().maxCoeff());
     if (fixed[ku]) c.fixed_changed += !identical;
     if (ref == a) {  // the reference does not move it either
       ++c.unmoved;
@@ -194,8 +203,8 @@ Compared deformAndCompare(const std::string& path, const std::string& scenario, 
         c.max_float_ulps = std::max(c.max_float_ulps, std::abs(b[ax] - ref[ax]) / ulp);
       }
   }
-  std::printf("  %zu moved (largest error %.3g, %.3g float ulps), %zu unmoved\n", c.moved, c.max_moved_error,
-              c.max_float_ulps, c.unmoved);
+  std::printf("  %zu moved (largest error %.3g, %.3g float ulps; %.3g from the float path), %zu unmoved\n",
+              c.moved, c.max_moved_error, c.max_float_ulps, c.max_float_path, c.unmoved);
   return c;
 }
 
@@ -250,69 +259,76 @@ TEST(Precision, StraysDoNotCostTheOtherPointsTheirPrecision) {
       SCOPED_TRACE("stray at " + shortest(far, false) + (as_double ? ", double" : ", float"));
       const auto pts = grid({{0, far, 0}});
       writePly(dir.file("in.ply"), pts, as_double);
-      for (const hgd::Blend blend : {hgd::Blend::Rotation, hgd::Blend::Linear}) {
-        const Compared c = deformAndCompare(dir.file("in.ply"), kGridScenario, dir.file("out.ply"), blend);
-        EXPECT_GT(c.moved, 400u);
-        EXPECT_GT(c.unmoved, 50u);
-        EXPECT_EQ(c.fixed_changed, 0u);
-        EXPECT_EQ(c.unmoved_changed, 0u);
-        if (as_double)
-          EXPECT_LE(c.max_moved_error, 1e-9 * size) << c.max_moved_error;
-        else
-          EXPECT_LE(c.max_float_ulps, 1.0) << c.max_float_ulps;
-      }
+      for (const bool multires : {false, true})
+        for (const hgd::Blend blend : {hgd::Blend::Rotation, hgd::Blend::Linear}) {
+          SCOPED_TRACE(multires ? "multi-resolution" : "full resolution");
+          const Compared c =
+              deformAndCompare(dir.file("in.ply"), kGridScenario, dir.file("out.ply"), blend, multires);
+          EXPECT_GT(c.moved, 400u);
+          EXPECT_GT(c.unmoved, 50u);
+          EXPECT_EQ(c.fixed_changed, 0u);
+          EXPECT_EQ(c.unmoved_changed, 0u);
+          // The issue asks for 1e-9 of the size; measured 1.3e-15 on the grid, 1.5e-11 on the
+          // stray at 1e5: double rounding.
+          if (as_double)
+            EXPECT_LE(c.max_moved_error, 1e-10 * size) << c.max_moved_error;
+          else  // measured 0.5 on the grid, 1 on the stray at 1e5 (multi-resolution)
+            EXPECT_LE(c.max_float_ulps, 1.0 + 1e-9) << c.max_float_ulps;
+          EXPECT_LE(c.max_float_path, 1e-5 * size) << c.max_float_path;  // float rounding
+        }
     }
   }
 }
 
 // A survey patch: 20 m x 20 m at (5e5, 5e6, 120), 1 mm bumps, 0.25 m spacing, with a scanner's
 // no-return point at (0, 0, 0). Before, the frame's centre sat half-way to the origin and a float
-// there has a quarter-metre step: the bumps were gone. Now they keep their millimetres.
+// there has a quarter-metre step: the bumps were gone. Now the patch deforms as the same patch
+// placed near the origin does (its no-return point as far off), to well under a millimetre, and
+// what is written agrees with the double reference.
 TEST(Precision, GeoreferencedPatchKeepsMillimetresThroughADrag) {
   TempDir dir;
-  std::vector<Eigen::Vector3d> pts;
+  std::vector<Eigen::Vector3d> rel;  // relative to (5e5, 5e6, 0)
   std::mt19937 rng(3);
   std::uniform_real_distribution<double> bump(-0.001, 0.001);
   for (int i = 0; i <= 80; ++i)
-    for (int j = 0; j <= 80; ++j) pts.emplace_back(5e5 + 0.25 * i, 5e6 + 0.25 * j, 120 + bump(rng));
-  std::shuffle(pts.begin(), pts.end(), rng);
-  pts.emplace_back(0, 0, 0);
-  writePly(dir.file("survey.ply"), pts, true);
-  const std::string scenario = R"({
-    "format": "hgdeform-scenario/1",
-    "fixed": [ {"box": {"min": [499990, 4999990, 100], "max": [500004, 5000030, 140]}} ],
-    "manipulated": {"box": {"min": [500017, 4999990, 100], "max": [500030, 5000030, 140]}},
-    "clusters": 8,
-    "move": {"drag": {"from": [500020, 5000010, 120], "to": [500021, 5000010, 122]}}
-  })";
-  const Compared c = deformAndCompare(dir.file("survey.ply"), scenario, dir.file("out.ply"));
+    for (int j = 0; j <= 80; ++j) rel.emplace_back(0.25 * i, 0.25 * j, 120 + bump(rng));
+  std::shuffle(rel.begin(), rel.end(), rng);
+  rel.emplace_back(-5e5, -5e6, 0);  // the no-return point
+  const Eigen::Vector3d geo(5e5, 5e6, 0);
+  std::vector<Eigen::Vector3d> far = rel;
+  for (auto& p : far) p += geo;
+  writePly(dir.file("survey.ply"), far, true);
+  writePly(dir.file("local.ply"), rel, true);
+  auto scenarioAt = [](const Eigen::Vector3d& o) {
+    auto v = [&](double x, double y, double z) {
+      return "[" + shortest(o.x() + x, false) + ", " + shortest(o.y() + y, false) + ", " +
+             shortest(z, false) + "]";
+    };
+    return std::string(R"({"format": "hgdeform-scenario/1", "clusters": 8,)") +
+           R"("fixed": [ {"box": {"min": )" + v(-10, -10, 100) + R"(, "max": )" + v(4, 30, 140) +
+           R"(}} ], "manipulated": {"box": {"min": )" + v(17, -10, 100) + R"(, "max": )" + v(30, 30, 140) +
+           R"(}}, "move": {"drag": {"from": )" + v(20, 10, 120) + R"(, "to": )" + v(21, 10, 122) + "}}}";
+  };
+  const Compared c = deformAndCompare(dir.file("survey.ply"), scenarioAt(geo), dir.file("out.ply"));
   EXPECT_GT(c.moved, 2000u);
   EXPECT_EQ(c.fixed_changed, 0u);
   EXPECT_EQ(c.unmoved_changed, 0u);
-  EXPECT_LE(c.max_moved_error, 1e-9 * 28.3) << c.max_moved_error;
+  EXPECT_LE(c.max_moved_error, 1e-9 * 28.3) << c.max_moved_error;  // measured 1.9e-9 m (6.6e-11)
+  EXPECT_LE(c.max_float_path, 1e-5 * 28.3) << c.max_float_path;
+  deformAndCompare(dir.file("local.ply"), scenarioAt(Eigen::Vector3d::Zero()), dir.file("local_out.ply"));
 
-  // The millimetre bumps of the handle, which moves rigidly, are still there: each handle point's
-  // height above its neighbours' mean changes by far less than a millimetre.
-  const hgd::Shape in = hgd::readShape(dir.file("survey.ply")), out = hgd::readShape(dir.file("out.ply"));
-  std::map<std::pair<long, long>, std::size_t> at;  // grid cell -> point
-  for (std::size_t i = 0; i < in.size(); ++i) {
-    const Eigen::Vector3d a = valueOf(in, i);
-    at[{std::lround((a.x() - 5e5) * 4), std::lround((a.y() - 5e6) * 4)}] = i;
+  const hgd::Shape a = hgd::readShape(dir.file("survey.ply")), b = hgd::readShape(dir.file("out.ply"));
+  const hgd::Shape la = hgd::readShape(dir.file("local.ply")), lb = hgd::readShape(dir.file("local_out.ply"));
+  double worst = 0, moved = 0;
+  for (std::size_t i = 0; i + 1 < a.size(); ++i) {  // the no-return point aside
+    const Eigen::Vector3d d_far = valueOf(b, i) - valueOf(a, i), d_local = valueOf(lb, i) - valueOf(la, i);
+    worst = std::max(worst, (d_far - d_local).cwiseAbs().maxCoeff());
+    moved = std::max(moved, d_local.norm());
   }
-  double worst = 0;
-  std::size_t pairs = 0;
-  for (const auto& [cell, i] : at) {
-    const auto next = at.find({cell.first + 1, cell.second});
-    if (cell.first < 74 || cell.second < 4 || cell.second > 76 || next == at.end()) continue;  // the handle
-    const std::size_t j = next->second;
-    const double rest = (valueOf(in, j) - valueOf(in, i)).norm(),
-                 now = (valueOf(out, j) - valueOf(out, i)).norm();
-    worst = std::max(worst, std::abs(now - rest));
-    ++pairs;
-  }
-  EXPECT_GT(pairs, 300u);
-  std::printf("  handle neighbour distances changed by at most %.3g m\n", worst);
-  EXPECT_LT(worst, 5e-5) << "neighbour distances on the rigid handle changed by " << worst << " m";
+  std::printf("  georeferenced vs near the origin: displacements differ by at most %.3g m (largest %.3g m)\n",
+              worst, moved);
+  EXPECT_GT(moved, 1.0);
+  EXPECT_LT(worst, 1e-8);  // measured 4.7e-10 m (double rounding at 5e6)
 }
 
 // A frame move far out (translate 1e12, inside the allowed range) on a double file: the handle
@@ -361,11 +377,21 @@ TEST(Precision, PointsNear1e22NeverCrash) {
     EXPECT_TRUE(said);
     for (const auto& p : r.deformer().deformedPoints()) ASSERT_TRUE(p.allFinite());
   }
+  // A small cloud (7 x 7 and one 1e22 point): the point is set apart, the cloud not refused.
+  {
+    std::vector<Eigen::Vector3f> small;
+    for (int i = 0; i < 7; ++i)
+      for (int j = 0; j < 7; ++j) small.emplace_back(0.1f * i, 0.1f * j, 0.0f);
+    small.emplace_back(1e22f, 0.0f, 0.0f);
+    const hgd::Geometry g = hgd::extractGeometry(hgd::shapes::cloudShape(small, {}));
+    EXPECT_EQ(g.far_points, 1u);
+    EXPECT_EQ(g.size(), 49u);
+  }
   // Most of the cloud garbage: refused, naming the file.
   std::vector<Eigen::Vector3d> bad;
   std::mt19937 rng(5);
   std::uniform_real_distribution<double> u(-1, 1);
-  for (int k = 0; k < 400; ++k) bad.emplace_back(u(rng) * 1e22, u(rng) * 1e22, u(rng));
+  for (int k = 0; k < 2000; ++k) bad.emplace_back(u(rng) * 1e22, u(rng) * 1e22, u(rng));
   writePly(dir.file("bad.ply"), grid(bad), false);
   try {
     hgd::ScenarioRunner::read(dir.file("bad.ply"));
@@ -414,4 +440,94 @@ TEST(Precision, IntegerCoordinatesAreWidenedNotClipped) {
   }
   EXPECT_GT(max_y, 300.0);  // 232 + 70 on the handle
   EXPECT_LT(min_x, -50.0);  // 0 - 60 on the handle
+
+  // 32-bit integers (y = 20,000,000 + 8 j: more digits than a float holds) beside float x and
+  // short z: each integer field is widened on its own, y to double, and the fixed points' values
+  // come back exactly.
+  std::string t =
+      "ply\nformat ascii 1.0\nelement vertex 900\nproperty float x\nproperty int y\nproperty short z\n"
+      "end_header\n";
+  for (int i = 0; i < 30; ++i)
+    for (int j = 0; j < 30; ++j)
+      t += std::to_string(8 * i) + " " + std::to_string(20000000 + 8 * j) + " " +
+           std::to_string(100 + (i * 7 + j * 3) % 5) + "\n";
+  writeText(dir.file("in32.ply"), t);
+  writeText(dir.file("s32.json"), R"({
+    "format": "hgdeform-scenario/1",
+    "fixed": [ {"box": {"min": [-1, 19999999, 0], "max": [255, 20000020, 255]}} ],
+    "manipulated": {"box": {"min": [-1, 20000210, 0], "max": [255, 20000240, 255]}},
+    "move": {"frame": {"translate": [-60, 70, 0.5]}}
+  })");
+  const CommandResult r32 = shell(quote(HGD_TOOL) + " deform " + quote(dir.file("in32.ply")) + " -s " +
+                                  quote(dir.file("s32.json")) + " -o " + quote(dir.file("out32.ply")));
+  ASSERT_EQ(r32.code, 0) << r32.err;
+  const hgd::Shape a32 = hgd::readShape(dir.file("in32.ply")), b32 = hgd::readShape(dir.file("out32.ply"));
+  const hgd::XyzFields f32 = hgd::findXyzFields(b32.cloud);
+  EXPECT_EQ(b32.cloud.fields[static_cast<std::size_t>(f32.x)].datatype, pcl::PCLPointField::FLOAT32);
+  EXPECT_EQ(b32.cloud.fields[static_cast<std::size_t>(f32.y)].datatype, pcl::PCLPointField::FLOAT64);
+  EXPECT_EQ(b32.cloud.fields[static_cast<std::size_t>(f32.z)].datatype, pcl::PCLPointField::FLOAT32);
+  std::size_t fixed_changed = 0, handle_off = 0;
+  for (std::size_t i = 0; i < a32.size(); ++i) {
+    const Eigen::Vector3d u = valueOf(a32, i), v = valueOf(b32, i);
+    if (u.y() <= 20000016) fixed_changed += u != v;
+    if (u.y() >= 20000216)
+      handle_off += std::abs(v.y() - u.y() - 70) > 1e-6 || std::abs(v.z() - u.z() - 0.5) > 1e-4;
+  }
+  EXPECT_EQ(fixed_changed, 0u);
+  EXPECT_EQ(handle_off, 0u);
+}
+
+// Text files come back as the same text where nothing moved: a column written with six decimals
+// ("1.500000") keeps them, one written as "1.0" keeps its ".0", in XYZ, OBJ, ascii PLY and PCD.
+// Before, values were printed in their shortest spelling ("1.5", "1").
+TEST(Precision, UnmovedTextComesBackAsSpelt) {
+  TempDir dir;
+  const auto pts = grid({});
+  auto fixed6 = [](double v) {
+    char b[64];
+    std::snprintf(b, sizeof b, "%.6f", v);
+    return std::string(b);
+  };
+  auto pyRepr = [](double v) {  // Python's repr: shortest, with ".0" on whole numbers
+    std::string s = shortest(v, false);
+    if (s.find_first_of(".e") == std::string::npos) s += ".0";
+    return s;
+  };
+  std::string xyz, obj, ply, pcd;
+  ply = "ply\nformat ascii 1.0\nelement vertex " + std::to_string(pts.size()) +
+        "\nproperty double x\nproperty double y\nproperty double z\nend_header\n";
+  pcd =
+      "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS x y z\nSIZE 8 8 8\nTYPE F F F\n"
+      "COUNT 1 1 1\nWIDTH " +
+      std::to_string(pts.size()) + "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " +
+      std::to_string(pts.size()) + "\nDATA ascii\n";
+  for (const auto& p : pts) {
+    xyz += fixed6(p.x()) + " " + fixed6(p.y()) + " " + fixed6(p.z()) + "\n";
+    obj += "v " + fixed6(p.x()) + " " + fixed6(p.y()) + " " + fixed6(p.z()) + "\n";
+    ply += pyRepr(p.x()) + " " + pyRepr(p.y()) + " " + pyRepr(p.z()) + "\n";
+    pcd += fixed6(p.x()) + " " + pyRepr(p.y()) + " " + fixed6(p.z()) + "\n";
+  }
+  writeText(dir.file("in.xyz"), xyz);
+  writeText(dir.file("in.obj"), obj);
+  writeText(dir.file("in.ply"), ply);
+  writeText(dir.file("in.pcd"), pcd);
+  writeText(dir.file("s.json"), kGridScenarioNoMove);
+  for (const std::string ext : {".xyz", ".obj", ".ply", ".pcd"}) {
+    SCOPED_TRACE(ext);
+    const CommandResult r =
+        shell(quote(HGD_TOOL) + " deform " + quote(dir.file("in" + ext)) + " -s " +
+              quote(dir.file("s.json")) + " -o " + quote(dir.file("out" + ext)) + " --ascii");
+    ASSERT_EQ(r.code, 0) << r.err;
+    const std::string a = slurp(dir.file("in" + ext)), b = slurp(dir.file("out" + ext));
+    // Every data line of the input is in the output, the same text.
+    std::istringstream in(a), out(b);
+    std::vector<std::string> la, lb;
+    for (std::string l; std::getline(in, l);) la.push_back(l);
+    for (std::string l; std::getline(out, l);) lb.push_back(l);
+    ASSERT_GE(lb.size(), pts.size());
+    std::size_t differ = 0;
+    for (std::size_t k = 0; k < pts.size(); ++k)
+      differ += la[la.size() - pts.size() + k] != lb[lb.size() - pts.size() + k];
+    EXPECT_EQ(differ, 0u) << "first output line: " << lb[lb.size() - pts.size()];
+  }
 }

@@ -33,6 +33,11 @@ struct Geometry {
   /// Points set apart because they lie more than a million times the shape's size (or 1e12
   /// units) from its median: they are not deformed and are written back untouched.
   std::size_t far_points = 0;
+  /// The bounding box (local frame) of the shape's body: its points within four times its size of
+  /// its median, which is every point of a shape without strays. The deformer's scale (drag
+  /// tolerances and steps) and the viewer's are taken from it, so a far stray does not make
+  /// them coarse.
+  Eigen::AlignedBox3f body;
   /// What extraction noticed that a front end should print (far points set apart).
   std::vector<std::string> warnings;
 
@@ -67,7 +72,8 @@ Eigen::Matrix<Scalar, 3, 3> nearestRotation(const Eigen::Matrix<Scalar, 3, 3>& a
   return u * v.transpose();
 }
 
-/// Axis-aligned bounding-box diagonal of the finite points (0 for a single point).
+/// Diagonal of the shape's body (Geometry::body; of every finite point when it is not set), 0
+/// for a single point.
 double boundingBoxDiagonal(const Geometry& geometry);
 
 }  // namespace hgd

@@ -110,7 +110,8 @@ struct ExactTransform {
 /// The blend of interpolatePositions() evaluated in double, point by point, on rest positions
 /// given in double (the file's own values, not the table's float copies): what is written back
 /// keeps the input's precision, and a point whose clusters do not move is reported as unmoved, so
-/// that its value is left as the file had it, to the bit.
+/// that its value is left as the file had it, to the bit. It refers to the table it was made
+/// from (Deformer::exactInterpolation(): valid until the deformer's handles change).
 class ExactInterpolation {
  public:
   /// `barycentres`: each cluster's rest barycentre (local frame), for the rotation-aware blend's

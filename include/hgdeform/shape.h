@@ -60,6 +60,17 @@ struct FileExtras {
   std::vector<std::string> xyz_names;
   std::string xyz_header;
   std::string xyz_separator = " ";
+  /// Text formats: how a field's values were spelt, for each field whose values written in fixed
+  /// notation all had decimals: the fewest any had ("1.500000" everywhere: 6), and whether some
+  /// were written with an exponent. Written back the same way (padded with zeros to as many
+  /// decimals; in fixed notation unless the file used exponents), so a value that did not change
+  /// comes back as the same text.
+  struct TextColumn {
+    std::string field;
+    int decimals = 0;
+    bool exponents = false;
+  };
+  std::vector<TextColumn> text_decimals;
   bool empty() const { return ply_elements.empty() && obj_lines.empty() && !pcd_compressed; }
 };
 

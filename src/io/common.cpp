@@ -474,19 +474,22 @@ void appendFaceLines(AtomicWriter& w, std::string& buf, const std::vector<pcl::V
 }
 
 void writeAsciiPoints(AtomicWriter& w, const pcl::PCLPointCloud2& c, std::size_t n,
-                      const std::vector<const Field*>& fields, bool colour_bits) {
+                      const std::vector<const Field*>& fields, bool colour_bits,
+                      const std::vector<FileExtras::TextColumn>& decimals) {
   std::string buf;
   buf.reserve(kFlushBytes + 1024);
   for (std::size_t i = 0; i < n; ++i) {
     const std::uint8_t* pt = c.data.data() + i * c.point_step;
     bool first = true;
-    for (const Field* f : fields) {
+    for (std::size_t fi = 0; fi < fields.size(); ++fi) {
+      const Field* f = fields[fi];
       const std::size_t sz = datatypeSize(f->datatype);
       const std::uint8_t type = colour_bits && packedColour(*f) ? std::uint8_t{Field::UINT32} : f->datatype;
+      const FileExtras::TextColumn d = fi < decimals.size() ? decimals[fi] : FileExtras::TextColumn{};
       for (std::size_t k = 0; k < fieldCount(*f); ++k) {
         if (!first) buf += ' ';
         first = false;
-        appendValue(buf, pt + f->offset + k * sz, type);
+        appendValue(buf, pt + f->offset + k * sz, type, d.decimals, d.exponents);
       }
     }
     buf += '\n';
@@ -494,4 +497,32 @@ void writeAsciiPoints(AtomicWriter& w, const pcl::PCLPointCloud2& c, std::size_t
   }
   w.write(buf);
 }
+int fixedDecimals(std::string_view token) {
+  if (token.find_first_of("eE") != std::string_view::npos &&
+      token.find_first_of("nNiIxX") == std::string_view::npos)
+    return -1;
+  const std::size_t dot = token.find('.');
+  if (dot == std::string_view::npos || token.find_first_of("nNiIxX") != std::string_view::npos) return 0;
+  std::size_t k = dot + 1;
+  while (k < token.size() && token[k] >= '0' && token[k] <= '9') ++k;
+  return k == token.size() ? static_cast<int>(k - dot - 1) : 0;
+}
+
+void DecimalsSeen::store(FileExtras& extras, const std::vector<std::string>& names) const {
+  extras.text_decimals.clear();
+  for (std::size_t k = 0; k < least.size() && k < names.size(); ++k)
+    if (least[k] > 0 && least[k] != std::numeric_limits<int>::max())
+      extras.text_decimals.push_back({names[k], least[k], exponents[k] != 0});
+}
+
+std::vector<FileExtras::TextColumn> decimalsOf(const FileExtras& extras,
+                                               const std::vector<const pcl::PCLPointField*>& fields) {
+  std::vector<FileExtras::TextColumn> out(fields.size());
+  if (extras.text_decimals.empty()) return out;
+  for (std::size_t k = 0; k < fields.size(); ++k)
+    for (const auto& col : extras.text_decimals)
+      if (fields[k] && fields[k]->name == col.field) out[k] = col;
+  return out;
+}
+
 }  // namespace hgd::io_internal

@@ -142,7 +142,7 @@ Parse parseValue(std::string_view tok, std::uint8_t type, std::uint8_t* dst) {
   }
 }
 
-void appendValue(std::string& out, const std::uint8_t* p, std::uint8_t type) {
+void appendValue(std::string& out, const std::uint8_t* p, std::uint8_t type, int decimals, bool exponents) {
   switch (type) {
     case Field::INT8: appendInt(out, static_cast<int>(loadAs<std::int8_t>(p))); break;
     case Field::UINT8: appendInt(out, static_cast<unsigned>(loadAs<std::uint8_t>(p))); break;
@@ -150,8 +150,8 @@ void appendValue(std::string& out, const std::uint8_t* p, std::uint8_t type) {
     case Field::UINT16: appendInt(out, loadAs<std::uint16_t>(p)); break;
     case Field::INT32: appendInt(out, loadAs<std::int32_t>(p)); break;
     case Field::UINT32: appendInt(out, loadAs<std::uint32_t>(p)); break;
-    case Field::FLOAT32: appendFloat(out, loadAs<float>(p)); break;
-    case Field::FLOAT64: appendFloat(out, loadAs<double>(p)); break;
+    case Field::FLOAT32: appendFloat(out, loadAs<float>(p), decimals, exponents); break;
+    case Field::FLOAT64: appendFloat(out, loadAs<double>(p), decimals, exponents); break;
     default: break;
   }
 }

@@ -35,8 +35,11 @@ void encodeValue(std::uint8_t* p, std::uint8_t type, double v);
 /// out of the type's range are Parse::Range, non-numbers Parse::Bad.
 Parse parseValue(std::string_view tok, std::uint8_t type, std::uint8_t* dst);
 
-/// Appends the value of datatype `type` at `p` as text (shortest round-trip spelling).
-void appendValue(std::string& out, const std::uint8_t* p, std::uint8_t type);
+/// Appends the value of datatype `type` at `p` as text (shortest round-trip spelling; floating
+/// values padded with zeros to at least `decimals` digits after the point, in fixed notation
+/// unless `exponents`).
+void appendValue(std::string& out, const std::uint8_t* p, std::uint8_t type, int decimals = 0,
+                 bool exponents = true);
 
 /// Appends `v` as a value of `type`: binary (host order) to `bin`, or text to `txt`.
 void putValue(double v, std::uint8_t type, std::vector<std::uint8_t>* bin, std::string* txt);

@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <limits>
 #include <memory>
 #include <string>
 #include <string_view>
@@ -86,18 +87,60 @@ void appendInt(std::string& out, T v) {
   out.append(buf, r.ptr);
 }
 
+/// `v` in the shortest spelling that reads back to the same value, padded with zeros to at
+/// least `decimals` digits after the point when it is written without an exponent (so that a
+/// file whose column was written with six decimals keeps them: "1.500000", not "1.5").
 template <typename T>
-void appendFloat(std::string& out, T v) {
+void appendFloat(std::string& out, T v, int decimals = 0, bool exponents = true) {
   if (std::isnan(v)) {
     out += "nan";
   } else if (std::isinf(v)) {
     out += v > 0 ? "inf" : "-inf";
   } else {
-    char buf[64];
-    const auto r = std::to_chars(buf, buf + sizeof buf, v);  // shortest representation that round-trips
+    char buf[512];
+    // The shortest spelling that reads back to the same value; in fixed notation when the
+    // column never used exponents (and the value is not huge).
+    const bool fixed = decimals > 0 && !exponents && std::abs(v) < T(1e16);
+    const auto r = fixed ? std::to_chars(buf, buf + sizeof buf, v, std::chars_format::fixed)
+                         : std::to_chars(buf, buf + sizeof buf, v);
     out.append(buf, r.ptr);
+    if (decimals > 0 && std::find(buf, r.ptr, 'e') == r.ptr) {
+      const char* dot = std::find(buf, r.ptr, '.');
+      const long have = dot == r.ptr ? -1 : static_cast<long>(r.ptr - dot - 1);
+      if (have < 0) out += '.';
+      for (long k = std::max(have, 0L); k < decimals; ++k) out += '0';
+    }
   }
 }
+
+/// The number of digits after the decimal point of a number written in fixed notation ("1.500"
+/// has 3); 0 for one without a point or not a number; -1 for one with an exponent.
+int fixedDecimals(std::string_view token);
+
+/// The fewest decimals seen in each text column (fixedDecimals of every value), and whether it
+/// had exponents, for writing the column back as it was spelt (FileExtras::text_decimals).
+struct DecimalsSeen {
+  std::vector<int> least;
+  std::vector<char> exponents;
+  void see(std::size_t column, std::string_view token) {
+    if (column >= least.size()) {
+      least.resize(column + 1, std::numeric_limits<int>::max());
+      exponents.resize(column + 1, 0);
+    }
+    if (least[column] <= 0) return;
+    const int d = fixedDecimals(token);
+    if (d < 0)
+      exponents[column] = 1;
+    else
+      least[column] = std::min(least[column], d);
+  }
+  /// Stores column k's spelling under `names[k]` (columns that always had decimals only).
+  void store(FileExtras& extras, const std::vector<std::string>& names) const;
+};
+
+/// How each of `fields` is to be spelt when written as text (decimals 0: shortest).
+std::vector<FileExtras::TextColumn> decimalsOf(const FileExtras& extras,
+                                               const std::vector<const pcl::PCLPointField*>& fields);
 
 /// A cloud of `n` points (height 1) with scalar fields of these names and types, packed in
 /// order, filled from `values` (point by point, field by field) converted to each type.
@@ -289,8 +332,10 @@ void writePackedBinary(AtomicWriter& w, const pcl::PCLPointCloud2& c, std::size_
 /// Writes the points' values of `fields` as text, one point per line. With `colour_bits`, a
 /// packed colour declared float (see packedColour) is written as its bits, an unsigned integer,
 /// as PCL's ascii PCD writer does: fully opaque colours are NaNs as floats, and "nan" loses them.
+/// `decimals`: per field, the decimals to pad floating values to (decimalsOf), or empty.
 void writeAsciiPoints(AtomicWriter& w, const pcl::PCLPointCloud2& c, std::size_t n,
-                      const std::vector<const Field*>& fields, bool colour_bits = false);
+                      const std::vector<const Field*>& fields, bool colour_bits = false,
+                      const std::vector<FileExtras::TextColumn>& decimals = {});
 
 /// A FLOAT32 field called rgb or rgba: a colour packed into a float's bytes, which PCL's ascii
 /// PCD writer stores as an unsigned integer (the bits), not as a float.

@@ -25,6 +25,7 @@ Shape readObj(const std::string& path) {
   PendingIndex worst{0, 0};             // the largest positive index, checked once all vertices are known
   std::vector<std::string_view> lines;  // every line, kept when the file has more than v and f
   bool extras = false;
+  DecimalsSeen decimals;  // of x, y, z, for writing the values back as spelt
   std::vector<Eigen::Vector3f> normals;
   std::vector<int> normal_vertex;
   while (lex.nextLine()) {
@@ -41,6 +42,7 @@ Shape readObj(const std::string& path) {
         double v = 0;
         if (!parseFloating(tok, &v))
           fail(path, "non-numeric value " + excerpt(tok) + " at line " + num(lex.line()));
+        if (n < 3) decimals.see(n, tok);
         if (n < 7) vals[n] = v;
         ++n;
       }
@@ -154,6 +156,7 @@ Shape readObj(const std::string& path) {
     }
   }
   cloud.is_dense = computeDense(cloud);
+  decimals.store(shape.extras, {"x", "y", "z"});
   if (extras) {
     shape.extras.obj_lines.assign(lines.begin(), lines.end());
     shape.extras.obj_normals = std::move(normals);
@@ -165,11 +168,19 @@ Shape readObj(const std::string& path) {
 namespace {
 
 /// " x y z" of the point at `pt`, each at its declared type (an OBJ vertex's coordinates).
-void appendXyz(std::string& buf, const pcl::PCLPointCloud2& c, const std::uint8_t* pt, const XyzFields& xyz) {
-  for (const int idx : {xyz.x, xyz.y, xyz.z}) {
+void appendXyz(std::string& buf, const pcl::PCLPointCloud2& c, const std::uint8_t* pt, const XyzFields& xyz,
+               const std::vector<FileExtras::TextColumn>& decimals) {
+  const int idx[3] = {xyz.x, xyz.y, xyz.z};
+  for (int a = 0; a < 3; ++a) {
     buf += ' ';
-    appendValue(buf, pt + c.fields[idx].offset, c.fields[idx].datatype);
+    appendValue(buf, pt + c.fields[idx[a]].offset, c.fields[idx[a]].datatype, decimals[a].decimals,
+                decimals[a].exponents);
   }
+}
+
+std::vector<FileExtras::TextColumn> xyzDecimals(const Shape& shape, const XyzFields& xyz) {
+  const auto& f = shape.cloud.fields;
+  return decimalsOf(shape.extras, {&f[xyz.x], &f[xyz.y], &f[xyz.z]});
 }
 
 /// An OBJ written line by line as it was read: 'v' lines with the cloud's x/y/z (the rest of
@@ -188,11 +199,12 @@ bool writeObjLines(const std::string& path, const Shape& shape, const XyzFields&
   AtomicWriter w(path);
   std::string buf;
   std::size_t i = 0, j = 0;
+  const std::vector<FileExtras::TextColumn> decimals = xyzDecimals(shape, xyz);
   for (const auto& line : x.obj_lines) {
     const std::vector<std::string_view> words = splitWords(line);
     if (!words.empty() && words[0] == "v") {
       buf += 'v';
-      appendXyz(buf, c, c.data.data() + i++ * c.point_step, xyz);
+      appendXyz(buf, c, c.data.data() + i++ * c.point_step, xyz, decimals);
       for (std::size_t k = 4; k < words.size(); ++k) {
         buf += ' ';
         buf += words[k];
@@ -229,10 +241,11 @@ void writeObj(const std::string& path, const Shape& shape) {
 
   AtomicWriter w(path);
   std::string buf = "# written by hgdeform\n";
+  const std::vector<FileExtras::TextColumn> decimals = xyzDecimals(shape, xyz);
   for (std::size_t i = 0; i < n; ++i) {
     const std::uint8_t* pt = c.data.data() + i * c.point_step;
     buf += 'v';
-    appendXyz(buf, c, pt, xyz);
+    appendXyz(buf, c, pt, xyz, decimals);
     if (colour) {
       for (const int idx : {r, g, b}) {
         const Field& f = c.fields[idx];

@@ -57,6 +57,7 @@ Shape readOff(const std::string& path) {
   std::size_t ncolour = 0;
   std::vector<double> values;
   bool colour_bytes = false, colour_integral = true;
+  DecimalsSeen decimals;  // per column, for writing the values back as spelt
   for (std::uint64_t i = 0; i < nv; ++i) {
     if (!nextWords(lex, &w))
       fail(path, "truncated data: the header declares " + num(nv) + " vertices, the file holds " + num(i));
@@ -72,6 +73,7 @@ Shape readOff(const std::string& path) {
       double d = 0;
       if (!parseFloating(w[k], &d))
         fail(path, "non-numeric value " + excerpt(w[k]) + " at line " + num(lex.line()));
+      decimals.see(k, w[k]);
       if (k >= base) {
         colour_integral = colour_integral && d == std::floor(d) && d >= 0 && d <= 255;
         colour_bytes = colour_bytes || d > 1;
@@ -112,6 +114,9 @@ Shape readOff(const std::string& path) {
   const char* cnames[] = {"red", "green", "blue", "alpha"};
   for (std::size_t k = 0; k < ncolour; ++k) fields.emplace_back(cnames[k], ctype);
   shape.cloud = makeCloud(static_cast<std::size_t>(nv), fields, values);
+  std::vector<std::string> names;
+  for (const auto& f : fields) names.push_back(f.first);
+  decimals.store(shape.extras, names);
   if (face_colours) shape.warnings.push_back(path + ": the OFF's face colours were dropped");
   return shape;
 }
@@ -132,12 +137,15 @@ void writeOff(const std::string& path, const Shape& shape) {
   std::string buf = std::string(has_colour ? "C" : "") + (xyz.hasNormals() ? "N" : "") + "OFF\n" + num(n) +
                     " " + num(shape.polygons.size()) + " 0\n";
   AtomicWriter w(path);
+  std::vector<const Field*> col_fields;
+  for (const int k : cols) col_fields.push_back(&c.fields[static_cast<std::size_t>(k)]);
+  const std::vector<FileExtras::TextColumn> decimals = decimalsOf(shape.extras, col_fields);
   for (std::size_t i = 0; i < n; ++i) {
     const std::uint8_t* pt = c.data.data() + i * c.point_step;
     for (std::size_t k = 0; k < cols.size(); ++k) {
       if (k) buf += ' ';
       const Field& f = c.fields[static_cast<std::size_t>(cols[k])];
-      appendValue(buf, pt + f.offset, f.datatype);
+      appendValue(buf, pt + f.offset, f.datatype, decimals[k].decimals, decimals[k].exponents);
     }
     buf += '\n';
     flushIfFull(w, buf);

@@ -233,12 +233,14 @@ Shape readPcd(const std::string& path) {
     cloud.data.assign(need, 0);
     Lexer lex(in.rest(), in.linesRead());
     const bool has_pad = ascii_values_pad != ascii_values;
+    DecimalsSeen decimals;  // per field, for writing the values back as spelt
     for (std::uint64_t i = 0; i < points; ++i) {
       if (!lex.nextLine()) fail(path, "truncated data: expected " + num(points) + " points, found " + num(i));
       // PCL's writers omit padding values in ascii, some of its readers expect them: accept both.
       const bool pad_tokens = has_pad && lex.countTokens() == ascii_values_pad;
       std::uint8_t* pt = cloud.data.data() + i * step;
-      for (const auto& f : cloud.fields) {
+      for (std::size_t fi = 0; fi < cloud.fields.size(); ++fi) {
+        const auto& f = cloud.fields[fi];
         const bool pad = f.name == "_";
         if (pad && !pad_tokens) continue;
         const std::size_t sz = datatypeSize(f.datatype);
@@ -253,6 +255,7 @@ Shape readPcd(const std::string& path) {
           const std::uint8_t type =
               packedColour(f) && plainUnsigned(tok) ? std::uint8_t{Field::UINT32} : f.datatype;
           const Parse st = parseValue(tok, type, pt + f.offset + k * sz);
+          decimals.see(fi, tok);
           if (st == Parse::Bad)
             fail(path, "non-numeric value " + excerpt(tok) + " at line " + num(lex.line()) + " (point " +
                            num(i) + ", field '" + f.name + "')");
@@ -268,6 +271,9 @@ Shape readPcd(const std::string& path) {
     if (lex.nextLine())
       fail(path, "malformed data: line " + num(lex.line()) + ": more data than the header declares (" +
                      num(points) + " points)");
+    std::vector<std::string> field_names;
+    for (const auto& f : cloud.fields) field_names.push_back(f.name);
+    decimals.store(shape.extras, field_names);
   }
   cloud.is_dense = computeDense(cloud);
   return shape;
@@ -312,7 +318,7 @@ void writePcd(const std::string& path, const Shape& shape, bool ascii) {
   AtomicWriter w(path);
   w.write(h);
   if (ascii) {
-    writeAsciiPoints(w, c, n, fields, /*colour_bits=*/true);
+    writeAsciiPoints(w, c, n, fields, /*colour_bits=*/true, decimalsOf(shape.extras, fields));
   } else if (compressed) {
     std::vector<std::uint8_t> soa;
     for (const Field* f : fields) {

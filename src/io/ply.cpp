@@ -278,10 +278,18 @@ Shape readPly(const std::string& path) {
                      " vertices)");
   } else {
     Lexer lex(in.rest(), in.linesRead());
+    std::vector<std::string> vertex_names;
+    DecimalsSeen decimals;  // per vertex property, for writing the values back as spelt
     for (std::size_t e = 0; e < elements.size(); ++e) {
       const PlyElement& el = elements[e];
       if (el.props.empty()) continue;
       const bool is_vertex = static_cast<int>(e) == vertex_el;
+      if (is_vertex) {
+        std::vector<std::string> names;
+        for (const auto& p : el.props) names.push_back(p.name);
+        // Stored once the values are read (below), under the properties' names.
+        vertex_names = std::move(names);
+      }
       for (std::uint64_t r = 0; r < el.count; ++r) {
         if (!lex.nextLine())
           fail(path,
@@ -304,6 +312,7 @@ Shape readPly(const std::string& path) {
           if (!p.list) {
             const std::string_view tok = next(p);
             const Parse st = parseValue(tok, p.type, out ? out + offsets[k] : scratch);
+            if (out) decimals.see(k, tok);
             if (st == Parse::Bad) nonNumeric(tok, p);
             if (st == Parse::Range)
               fail(path, "value out of range " + excerpt(tok) + " at line " + num(lex.line()) +
@@ -352,6 +361,7 @@ Shape readPly(const std::string& path) {
     if (lex.nextLine())
       fail(path, "malformed data: line " + num(lex.line()) + ": more data than the header declares (" +
                      num(vel.count) + " vertices)");
+    decimals.store(shape.extras, vertex_names);
   }
 
   cloud.is_dense = computeDense(cloud);
@@ -397,6 +407,7 @@ void writePlyWithExtras(const std::string& path, const Shape& shape, bool ascii,
     bool indices = false;          // the face's vertex list
     bool kept = false;             // FileExtras values
     std::uint8_t count_type = 0;   // the face lists' length type (widened if a face needs it)
+    FileExtras::TextColumn text;   // how a cloud field's values are spelt in text
   };
   std::size_t max_face = 0;
   for (const auto& poly : shape.polygons) max_face = std::max(max_face, poly.vertices.size());
@@ -424,6 +435,7 @@ void writePlyWithExtras(const std::string& path, const Shape& shape, bool ascii,
             }
           }
         if (!so.field) continue;  // the field is gone from the cloud
+        so.text = decimalsOf(shape.extras, {so.field})[0];
       } else {
         so.indices = true;
         so.count_type = max_face > 127 ? static_cast<std::uint8_t>(Field::UINT32) : p.count_type;
@@ -442,6 +454,7 @@ void writePlyWithExtras(const std::string& path, const Shape& shape, bool ascii,
         if (used[f]) continue;
         Source so;
         so.field = fields[f];
+        so.text = decimalsOf(shape.extras, {so.field})[0];
         src.push_back(so);
         const std::size_t cnt = fieldCount(*fields[f]);
         for (std::size_t k = 0; k < cnt; ++k)
@@ -488,7 +501,7 @@ void writePlyWithExtras(const std::string& path, const Shape& shape, bool ascii,
           for (std::size_t k = 0; k < fieldCount(*so.field); ++k) {
             sep();
             if (t)
-              appendValue(*t, pt + k * sz, so.field->datatype);
+              appendValue(*t, pt + k * sz, so.field->datatype, so.text.decimals, so.text.exponents);
             else
               b->insert(b->end(), pt + k * sz, pt + (k + 1) * sz);
           }
@@ -562,7 +575,7 @@ void writePly(const std::string& path, const Shape& shape, bool ascii) {
   AtomicWriter w(path);
   w.write(h);
   if (ascii) {
-    writeAsciiPoints(w, c, n, fields);
+    writeAsciiPoints(w, c, n, fields, false, decimalsOf(shape.extras, fields));
     std::string buf;
     appendFaceLines(w, buf, shape.polygons);
     w.write(buf);

@@ -56,6 +56,7 @@ Shape readXyz(const std::string& path) {
   Lexer lex(in.rest(), 0);
   std::vector<std::string> names;
   std::vector<double> values;
+  DecimalsSeen decimals;  // per column, for writing the values back as spelt
   std::size_t cols = 0, first_row = 0;
   std::string separator = " ", header;
   while (lex.nextLine()) {
@@ -120,10 +121,11 @@ Shape readXyz(const std::string& path) {
       fail(path, "non-numeric value " + excerpt(w) + " at line " + num(lex.line()) + " (column " +
                      num(bad + 1) + (hex ? "; hexadecimal numbers are not read" : "") + ")");
     }
-    for (const auto w : words) {
+    for (std::size_t k = 0; k < words.size(); ++k) {
       double d = 0;
-      parseFloating(w, &d);
+      parseFloating(words[k], &d);
       values.push_back(d);
+      decimals.see(k, words[k]);
     }
   }
   if (values.empty()) fail(path, "no points: the file has no rows of numbers");
@@ -154,6 +156,7 @@ Shape readXyz(const std::string& path) {
   Shape shape;
   shape.cloud = makeCloud(n, fields, values);
   for (const auto& f : fields) shape.extras.xyz_names.push_back(f.first);
+  decimals.store(shape.extras, shape.extras.xyz_names);
   shape.extras.xyz_header = std::move(header);
   shape.extras.xyz_separator = separator;
   return shape;
@@ -190,15 +193,17 @@ void writeXyz(const std::string& path, const Shape& shape) {
   }
   AtomicWriter w(path);
   const std::size_t n = shape.size();
+  const std::vector<FileExtras::TextColumn> decimals = decimalsOf(shape.extras, fields);
   for (std::size_t i = 0; i < n; ++i) {
     const std::uint8_t* pt = c.data.data() + i * c.point_step;
     bool first = true;
-    for (const Field* f : fields) {
+    for (std::size_t fi = 0; fi < fields.size(); ++fi) {
+      const Field* f = fields[fi];
       const std::size_t sz = datatypeSize(f->datatype);
       for (std::size_t k = 0; k < fieldCount(*f); ++k) {
         if (!first) buf += sep;
         first = false;
-        appendValue(buf, pt + f->offset + k * sz, f->datatype);
+        appendValue(buf, pt + f->offset + k * sz, f->datatype, decimals[fi].decimals, decimals[fi].exponents);
       }
     }
     buf += '\n';
