@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <stdexcept>
 
 #include "hgdeform/fields.h"
@@ -604,6 +605,62 @@ ExactInterpolation Deformer::exactInterpolation() const {
   return ExactInterpolation(table_, exact_, barycentres, options_.blend);
 }
 
+namespace {
+// A shape's x/y/z read and written as doubles: straight from the record when the three share a
+// floating type (a file's usual case), else through readValue/writeValue.
+class XyzAccess {
+ public:
+  XyzAccess(pcl::PCLPointCloud2& c, const XyzFields& f)
+      : c_(c),
+        fx_(c.fields[static_cast<std::size_t>(f.x)]),
+        fy_(c.fields[static_cast<std::size_t>(f.y)]),
+        fz_(c.fields[static_cast<std::size_t>(f.z)]) {
+    const std::uint8_t t = fx_.datatype;
+    const bool floating = t == pcl::PCLPointField::FLOAT32 || t == pcl::PCLPointField::FLOAT64;
+    type_ = floating && fy_.datatype == t && fz_.datatype == t ? t : 0;
+  }
+  Eigen::Vector3d get(std::size_t i) const {
+    const std::uint8_t* r = c_.data.data() + i * c_.point_step;
+    if (type_ == pcl::PCLPointField::FLOAT32)
+      return {load<float>(r + fx_.offset), load<float>(r + fy_.offset), load<float>(r + fz_.offset)};
+    if (type_ == pcl::PCLPointField::FLOAT64)
+      return {load<double>(r + fx_.offset), load<double>(r + fy_.offset), load<double>(r + fz_.offset)};
+    return {readValue(c_, i, fx_), readValue(c_, i, fy_), readValue(c_, i, fz_)};
+  }
+  void set(std::size_t i, const Eigen::Vector3d& p) {
+    std::uint8_t* r = c_.data.data() + i * c_.point_step;
+    if (type_ == pcl::PCLPointField::FLOAT32) {
+      store(r + fx_.offset, static_cast<float>(p.x()));
+      store(r + fy_.offset, static_cast<float>(p.y()));
+      store(r + fz_.offset, static_cast<float>(p.z()));
+    } else if (type_ == pcl::PCLPointField::FLOAT64) {
+      store(r + fx_.offset, p.x());
+      store(r + fy_.offset, p.y());
+      store(r + fz_.offset, p.z());
+    } else {
+      writeValue(c_, i, fx_, p.x());
+      writeValue(c_, i, fy_, p.y());
+      writeValue(c_, i, fz_, p.z());
+    }
+  }
+
+ private:
+  template <typename T>
+  static double load(const std::uint8_t* p) {
+    T v;
+    std::memcpy(&v, p, sizeof v);
+    return static_cast<double>(v);
+  }
+  template <typename T>
+  static void store(std::uint8_t* p, T v) {
+    std::memcpy(p, &v, sizeof v);
+  }
+  pcl::PCLPointCloud2& c_;
+  const pcl::PCLPointField &fx_, &fy_, &fz_;
+  std::uint8_t type_ = 0;
+};
+}  // namespace
+
 std::vector<Eigen::Affine3d> Deformer::worldTransforms() const {
   std::vector<Eigen::Affine3d> out;
   const Eigen::Vector3d o = geometry_->origin;
@@ -642,11 +699,9 @@ std::vector<std::string> Deformer::writeDeformed(Shape& shape) const {
   // its values give the table's float rest positions exactly, as extractGeometry made them.
   {
     std::vector<char> bad(static_cast<std::size_t>(omp_get_max_threads()), 0);
-    const pcl::PCLPointField &fx = c.fields[f.x], &fy = c.fields[f.y], &fz = c.fields[f.z];
+    const XyzAccess xyz(c, f);
     forEachPoint([&](std::size_t i, std::size_t k) {
-      const Eigen::Vector3f p =
-          (Eigen::Vector3d(readValue(c, i, fx), readValue(c, i, fy), readValue(c, i, fz)) - g.origin)
-              .cast<float>();
+      const Eigen::Vector3f p = (xyz.get(i) - g.origin).cast<float>();
       const float* r = table_.points[k].p;
       if (!(p.x() == r[0] && p.y() == r[1] && p.z() == r[2]))
         bad[static_cast<std::size_t>(omp_get_thread_num())] = 1;
@@ -684,14 +739,10 @@ std::vector<std::string> Deformer::writeDeformed(Shape& shape) const {
     warnings.push_back((shape.path.empty() ? std::string("the shape") : shape.path) +
                        ": its normals were not usable (some are zero or not finite): they are written back "
                        "as they were, not turned with the shape");
-  const pcl::PCLPointField &fx = c.fields[f.x], &fy = c.fields[f.y], &fz = c.fields[f.z];
+  XyzAccess xyz(c, f);
   forEachPoint([&](std::size_t i, std::size_t k) {
     if (!exact.moves(k)) return;  // left as the file had it
-    const Eigen::Vector3d rest(readValue(c, i, fx), readValue(c, i, fy), readValue(c, i, fz));
-    const Eigen::Vector3d p = exact.apply(k, rest - g.origin) + g.origin;
-    writeValue(c, i, fx, p.x());
-    writeValue(c, i, fy, p.y());
-    writeValue(c, i, fz, p.z());
+    xyz.set(i, exact.apply(k, xyz.get(i) - g.origin) + g.origin);
     if (write_normals) {
       const Eigen::Vector3d nv = exact.applyNormal(k, table_.restNormal(k).cast<double>());
       writeValue(c, i, c.fields[f.nx], nv.x());

@@ -72,14 +72,15 @@ void LocalTransform::set(const Eigen::Matrix3f& a, const Eigen::Vector3f& transl
 namespace {
 // A^-T n up to scale: the cofactor matrix, which keeps the normal's side even where the
 // blended matrix is nearly singular.
-Eigen::Vector3f transformNormal(const Eigen::Matrix3f& m, const Eigen::Vector3f& n) {
-  Eigen::Matrix3f cof;
+template <typename S>
+Eigen::Matrix<S, 3, 1> transformNormal(const Eigen::Matrix<S, 3, 3>& m, const Eigen::Matrix<S, 3, 1>& n) {
+  Eigen::Matrix<S, 3, 3> cof;
   cof.col(0) = m.col(1).cross(m.col(2));
   cof.col(1) = m.col(2).cross(m.col(0));
   cof.col(2) = m.col(0).cross(m.col(1));
-  const Eigen::Vector3f out = cof * n;
-  const float len = out.norm();
-  return len > 0 ? Eigen::Vector3f(out / len) : n;
+  const Eigen::Matrix<S, 3, 1> out = cof * n;
+  const S len = out.norm();
+  return len > 0 ? Eigen::Matrix<S, 3, 1>(out / len) : n;
 }
 }  // namespace
 
@@ -176,7 +177,7 @@ void turnNormals(const InterpolationTable& table, const std::vector<LocalTransfo
       table, transforms, blend,
       [out, rest](long long i, const Point& r, const LocalTransform& a, const LocalTransform& b) {
         const float w = r.alpha;
-        out[i] = transformNormal((1.0f - w) * a.A + w * b.A, rest(i));
+        out[i] = transformNormal<float>((1.0f - w) * a.A + w * b.A, rest(i));
       },
       [out, rest](long long i, const Point& r, const PairFrame& f) {
         // A rotation: R^-T = R.
@@ -273,15 +274,7 @@ Eigen::Vector3d ExactInterpolation::applyNormal(std::size_t i, const Eigen::Vect
   const double w = rec.alpha;
   const ExactTransform& a = transforms_[static_cast<std::size_t>(p.lower)];
   const ExactTransform& b = transforms_[static_cast<std::size_t>(p.upper)];
-  auto cofactor = [&](const Eigen::Matrix3d& m) {  // A^-T n up to scale, as transformNormal
-    Eigen::Matrix3d cof;
-    cof.col(0) = m.col(1).cross(m.col(2));
-    cof.col(1) = m.col(2).cross(m.col(0));
-    cof.col(2) = m.col(0).cross(m.col(1));
-    const Eigen::Vector3d out = cof * n;
-    const double len = out.norm();
-    return len > 0 ? Eigen::Vector3d(out / len) : n;
-  };
+  auto cofactor = [&](const Eigen::Matrix3d& m) { return transformNormal(m, n); };
   if (p.lower == p.upper) return a.identity ? n : cofactor(a.A);
   if (blend_ == Blend::Linear) return cofactor((1.0 - w) * a.A + w * b.A);
   return blendedRotateExact(p.qa, p.qb, w, n);
