@@ -46,14 +46,6 @@
 #include "support/shapes.h"
 #include "test_util.h"
 
-#if defined(__SANITIZE_ADDRESS__)
-#define HGD_TEST_ASAN 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define HGD_TEST_ASAN 1
-#endif
-#endif
-
 namespace {
 
 namespace fs = std::filesystem;

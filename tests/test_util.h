@@ -19,6 +19,16 @@
 #include "hgdeform/regions.h"
 #include "hgdeform/shape.h"
 
+// Built with AddressSanitizer: `ulimit -v` cannot apply (its shadow memory needs terabytes of
+// address space), so tests that set one skip that part.
+#if defined(__SANITIZE_ADDRESS__)
+#define HGD_TEST_ASAN 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define HGD_TEST_ASAN 1
+#endif
+#endif
+
 namespace hgdtest {
 
 /// A fresh directory under the system temp dir, removed when the object dies.
