@@ -37,8 +37,7 @@ Deformer::Deformer(std::shared_ptr<const Geometry> geometry, const Handles& hand
   if (!multires_) fieldOnEveryPoint();  // else rebuild() gives the field the handles' coarse level
   field_.setOptions(options_.field);
   // The body's box: a far stray does not coarsen tolerances and steps (nor the normalised frame).
-  const Eigen::AlignedBox3f box =
-      geometry_->body.isEmpty() ? boundingBox(*geometry_->points) : geometry_->body;
+  const Eigen::AlignedBox3f box = bodyBox(*geometry_);
   const Eigen::Vector3d lo = box.min().cast<double>(), hi = box.max().cast<double>();
   centre_ = 0.5 * (lo + hi);
   const double diag = (hi - lo).norm();

@@ -234,9 +234,13 @@ Eigen::AlignedBox3f boundingBox(const pcl::PointCloud<pcl::PointXYZ>& points) {
   return box;
 }
 
+Eigen::AlignedBox3f bodyBox(const Geometry& geometry) {
+  return geometry.body.isEmpty() ? boundingBox(*geometry.points) : geometry.body;
+}
+
 double boundingBoxDiagonal(const Geometry& geometry) {
   if (geometry.points->empty()) return 0;
-  const Eigen::AlignedBox3f box = geometry.body.isEmpty() ? boundingBox(*geometry.points) : geometry.body;
+  const Eigen::AlignedBox3f box = bodyBox(geometry);
   return static_cast<double>((box.max() - box.min()).norm());
 }
 

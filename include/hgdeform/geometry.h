@@ -72,6 +72,9 @@ Eigen::Matrix<Scalar, 3, 3> nearestRotation(const Eigen::Matrix<Scalar, 3, 3>& a
   return u * v.transpose();
 }
 
+/// The box of the shape's body (Geometry::body), or of every finite point when it is not set.
+Eigen::AlignedBox3f bodyBox(const Geometry& geometry);
+
 /// Diagonal of the shape's body (Geometry::body; of every finite point when it is not set), 0
 /// for a single point.
 double boundingBoxDiagonal(const Geometry& geometry);
