@@ -5,8 +5,9 @@
 //
 // Each input gets its own viewport, side by side, all seen from the same direction. A mesh is
 // drawn as a surface, a cloud as points; colours come from the scalar field named by --field
-// (blue to red), else from the file's colours, else a neutral grey. Needs an X display (run
-// under xvfb-run on a headless machine).
+// (blue to red), else from the file's colours, else a neutral grey. A cloud is shaded: lit
+// through its normals when it has them, else with eye-dome lighting (hgd::shadeCloud, as in the
+// viewer). Needs an X display (run under xvfb-run on a headless machine).
 #include <cstdio>
 #include <iostream>
 #include <new>
@@ -28,7 +29,8 @@ int main(int argc, char** argv) {
       "Off-screen pictures of shapes. Each input gets its own viewport, side by side, all seen from\n"
       "the same direction. A mesh is drawn as a surface, a cloud as points; colours come from the\n"
       "scalar field named by --field (blue to red), else from the file's colours, else a neutral\n"
-      "grey. Needs an X display (run under xvfb-run on a headless machine).");
+      "grey. A cloud is shaded: lit through its normals when it has them, else with eye-dome\n"
+      "lighting. Needs an X display (run under xvfb-run on a headless machine).");
   hgdcli::configureApp(app, "hgdeform-render");
   app.add_option("IN", inputs, "shapes to draw (PLY, PCD, OBJ, XYZ/TXT, OFF or STL), one viewport each")
       ->required()

@@ -9,9 +9,17 @@
 #include <string>
 #include <vector>
 
+#include "hgdeform/geometry.h"
 #include "hgdeform/shape.h"
 
+namespace pcl {
+namespace visualization {
+class PCLVisualizer;
+}
+}  // namespace pcl
+class vtkActor;
 class vtkRenderWindow;
+class vtkRenderer;
 
 namespace hgd {
 
@@ -30,6 +38,38 @@ struct RenderOptions {
   std::vector<std::string> titles;  ///< one per viewport, optional
   int point_size = 3;
 };
+
+/// How a point cloud's points are shaded (shadeCloud).
+enum class CloudShading {
+  None,     ///< drawn as it is: the file's own colours
+  Normals,  ///< lit by the renderer's headlight through the points' normals, like a surface
+  EyeDome,  ///< eye-dome lighting on the whole renderer (no normals needed)
+};
+
+/// Shades a point cloud so that its shape reads instead of a flat silhouette: the one rule of
+/// hgdeform-render, the batch thumbnails and the viewer. `actor` draws the cloud's points (its
+/// mapper's input is a vtkPolyData of `normals->size()` points) in `renderer`.
+/// - With `normals` (one per point, in the poly data's order: the file's normals), they become
+///   the poly data's point normals and the points are lit by the headlight (ambient 0.3,
+///   diffuse 0.7), on both sides: a normal facing away from the eye is turned towards it, so
+///   unoriented scan normals light as well as oriented ones. Calling it again replaces them (the
+///   viewer passes the deformed normals).
+/// - Without (nullptr, or a count that does not fit), the renderer draws with eye-dome lighting
+///   (VTK's vtkEDLShading render pass, as CloudCompare and Potree do): each pixel darkened by how
+///   far its neighbours lie in front of it, which outlines the shape and its folds from depth
+///   alone. The pass covers all that renderer draws (meshes and text too); set once.
+CloudShading shadeCloud(vtkRenderer* renderer, vtkActor* actor, const std::vector<Eigen::Vector3f>* normals);
+
+/// shadeCloud for the point cloud `id` of a PCLVisualizer, drawn in `viewport` (0 for a window of
+/// one renderer), the points of `geometry` in its order: by its file normals when it has them
+/// (or by `normals` instead, e.g. the deformed ones, when given and the file has normals), else
+/// with eye-dome lighting. A cloud drawn in its file's colours (`file_colours`: a scan's colours
+/// are a photograph of the surface, shaded already) is left as it is (CloudShading::None); grey
+/// and computed colours (a field, the displacement, handle roles) are shaded. What
+/// hgdeform-render and the viewer both call.
+CloudShading shadeCloud(pcl::visualization::PCLVisualizer& visualizer, const std::string& id,
+                        const Geometry& geometry, bool file_colours,
+                        const std::vector<Eigen::Vector3f>* normals = nullptr, int viewport = 0);
 
 /// Empty when an X display can be opened and has the GLX extension (OpenGL); else what is
 /// wrong ("DISPLAY is not set", "cannot open the X display ':99'", "the X display ':97' has no

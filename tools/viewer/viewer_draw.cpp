@@ -41,6 +41,8 @@ void Viewer::open() {
     // Big points cost fill rate under software GL: dense clouds need no more than one pixel.
     const double size = run_.geometry().size() > 200000 ? 1 : run_.geometry().size() > 50000 ? 2 : 3;
     vis_->setPointCloudRenderingProperties(pcl::visualization::PCL_VISUALIZER_POINT_SIZE, size, "shape");
+    // Lit by its normals, else eye-dome lighting; file colours as they are.
+    hgd::shadeCloud(*vis_, "shape", run_.geometry(), hgd::findColourFields(run_.shape().cloud).any());
   } else {
     pcl::PolygonMesh mesh;
     pcl::toPCLPointCloud2(*display_, mesh.cloud);
@@ -126,6 +128,9 @@ void Viewer::refresh() {
     // With an explicit colour handler: PCL's plain update paints the cloud white.
     const pcl::visualization::PointCloudColorHandlerRGBField<pcl::PointXYZRGB> rgb(display_);
     vis_->updatePointCloud<pcl::PointXYZRGB>(display_, rgb, "shape");
+    if (run_.ready() && run_.geometry().hasFileNormals())  // lit by the deformed normals
+      hgd::shadeCloud(*vis_, "shape", run_.geometry(), hgd::findColourFields(run_.shape().cloud).any(),
+                      &run_.deformer().deformedNormals());
   } else {
     // PCL's updatePolygonMesh drops the colours (the mesh turns black): add it afresh.
     pcl::PolygonMesh mesh;
