@@ -181,6 +181,13 @@ void Viewer::showLod(bool on) {
   for (const int i : lod_) lod_display_->push_back((*display_)[static_cast<std::size_t>(i)]);
   const pcl::visualization::PointCloudColorHandlerRGBField<pcl::PointXYZRGB> rgb(lod_display_);
   vis_->addPointCloud<pcl::PointXYZRGB>(lod_display_, rgb, "lod");
+  if (run_.ready() && run_.geometry().hasFileNormals()) {  // lit as the whole cloud is
+    const std::vector<Eigen::Vector3f>& deformed = run_.deformer().deformedNormals();
+    std::vector<Eigen::Vector3f> normals;
+    normals.reserve(lod_.size());
+    for (const int i : lod_) normals.push_back(deformed[static_cast<std::size_t>(i)]);
+    hgd::shadeCloud(*vis_, "lod", run_.geometry(), hgd::findColourFields(run_.shape().cloud).any(), &normals);
+  }
   // As many pixels as the whole cloud fills: each drawn point stands for `stride`.
   vis_->setPointCloudRenderingProperties(pcl::visualization::PCL_VISUALIZER_POINT_SIZE, 2, "lod");
   if (shape != clouds->end() && shape->second.actor) shape->second.actor->SetVisibility(false);
