@@ -25,19 +25,32 @@ namespace hgd {
 
 struct RenderOptions {
   int width = 1200, height = 600;
-  /// Direction from the target to the eye. Unset: (1, 0.6, 1.4) turned from +y up to the `up`
-  /// axis, so that every up axis sees the shape from the same side (for -y: from the sensor's
-  /// side, +x to the right, as the camera saw it).
+  /// Direction from the target to the eye. Unset: chosen from the shapes (see chooseView): a
+  /// three-quarter view (1, 0.6, 1.4) in a frame whose "forward" axis is the shape's thinnest
+  /// side axis, or, with a displacement, the side from which the motion shows best.
   std::optional<Eigen::Vector3f> view;
-  /// Which axis points up in the picture: "x", "y", "z", "-x", "-y", "-z", or "auto": -y when
-  /// the first shape is in a camera's frame (PCL's convention: +z forward, +y down), i.e. it
-  /// is organized (height > 1) or a PCD with a sensor pose (VIEWPOINT other than the
-  /// default); else +y.
+  /// Which axis points up in the picture: "x", "y", "z", "-x", "-y", "-z", or "auto" (upAxis):
+  /// -y for a shape in a camera's frame (PCL's convention: +z forward, +y down), i.e. organized
+  /// (height > 1) or a PCD with a sensor pose; +z for a shape whose y extent is clearly its
+  /// thinnest (a z-up model: a horse, a statue, a car); else +y.
   std::string up = "auto";
   std::string field;                ///< scalar field to colour by ("" = file colours or grey)
   std::vector<std::string> titles;  ///< one per viewport, optional
   int point_size = 3;
+  /// Colour by displacement: each point by its distance from the same point (file order) of
+  /// this rest shape, blue (0) to red (the largest over the inputs), with a colour bar; the view
+  /// then faces the side where the motion shows best. An input that is this very shape (the same
+  /// object) is drawn in its own colours. Every input must have the rest shape's point count.
+  const Shape* displacement_rest = nullptr;
+  /// Handles to mark (file point indices, the same in every input): larger points, the fixed
+  /// ones black, the manipulated ones magenta (colours the displacement scale does not use),
+  /// with a legend.
+  std::vector<int> fixed_points, manipulated_points;
 };
+
+/// Per file point of `shape`, its distance from the same point of `rest` (NaN where either is
+/// not finite). Throws std::runtime_error naming both files when their point counts differ.
+std::vector<double> displacementFrom(const Shape& rest, const Shape& shape);
 
 /// How a point cloud's points are shaded (shadeCloud).
 enum class CloudShading {
@@ -88,8 +101,9 @@ constexpr int kMaxPictureSide = 16384;
 /// display; renderPng asks it first, front ends before they open a display.
 std::string pictureSizeProblem(int width, int height);
 
-/// The unit vector `up` names for these shapes (see RenderOptions::up). Throws
-/// std::invalid_argument naming the accepted values for anything else.
+/// The unit vector `up` names for these shapes (see RenderOptions::up; "auto" looks at the first
+/// shape: its organization and sensor pose, then the spread of its points along x, y and z).
+/// Throws std::invalid_argument naming the accepted values for anything else.
 Eigen::Vector3f upAxis(const std::string& up, const std::vector<const Shape*>& shapes);
 
 /// Renders the shapes side by side (one viewport each, one shared camera framing them all) and
