@@ -60,7 +60,9 @@ int main(int argc, char** argv) {
           },
           "", "size"))
       ->type_name("WxH");
-  app.add_option("--view", view, "direction from the target to the eye (default 1,0.6,1.4, turned with --up)")
+  app.add_option("--view", view,
+                 "direction from the target to the eye (default: 1,0.6,1.4 turned with --up; with --up auto "
+                 "across the shape's broad side; with --displacement the side where the motion shows best)")
       ->check(CLI::Validator(
           [&opt](std::string& s) -> std::string {
             Eigen::Vector3f v;
@@ -74,7 +76,7 @@ int main(int argc, char** argv) {
   app.add_option("--up", opt.up,
                  "the axis that points up in the picture: x|y|z|-x|-y|-z|auto (default auto: -y when the "
                  "first input is a camera-frame scan, i.e. organized (height > 1) or a PCD with a sensor "
-                 "pose; else y)")
+                 "pose; z when its points spread clearly least along y (a z-up model); else y)")
       ->check(CLI::Validator(
           [](std::string& s) -> std::string {
             try {
