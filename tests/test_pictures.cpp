@@ -239,6 +239,8 @@ TEST(Pictures, DisplacementColoursTheMovedPartHot) {
   EXPECT_LT(blob(img, cold, 0, 500, 80).count, 50);
   // The bent bar (right; below the scale at the top): seen from +z with +y up, x to the right.
   const Blob h = blob(img, hot, 500, 1000, 80), c = blob(img, cold, 500, 1000, 80);
+  std::printf("hot: %d pixels at x %.0f, y %.0f; cold: %d pixels at x %.0f, y %.0f\n", h.count, h.x, h.y,
+              c.count, c.x, c.y);
   EXPECT_GT(h.count, 300);
   EXPECT_GT(c.count, 300);
   EXPECT_GT(h.x, c.x + 150) << "the far end (x = 1) moved, the near end (x = 0) did not";
@@ -310,6 +312,8 @@ TEST(Pictures, ZUpShapeIsSeenFromTheSide) {
   const Blob body = blob(img, [](const unsigned char* p) {
     return p[0] > 100 && p[0] < 200 && std::abs(p[0] - p[1]) < 15 && std::abs(p[1] - p[2]) < 15;
   });
+  std::printf("legs: %d pixels, mean row %.0f; body: %d pixels, mean row %.0f\n", legs.count, legs.y,
+              body.count, body.y);
   EXPECT_GT(legs.count, 3000) << "the legs are hidden";
   EXPECT_GT(body.count, 5000);
   EXPECT_GT(legs.y, body.y + 60) << "the legs are not below the body";
@@ -337,6 +341,8 @@ TEST(Pictures, BatchThumbnailShowsDisplacementAndHandles) {
   EXPECT_LT(blob(img, hot, 0, half, top).count, 20) << "the before side is coloured by displacement";
   const Blob h = blob(img, hot, half, 640, top), c = blob(img, cold, half, 640, top);
   const Blob moved = blob(img, magenta, half, 640, top), fixed = blob(img, black, half, 640, top);
+  std::printf("after: hot %d, cold %d, magenta %d, black %d pixels\n", h.count, c.count, moved.count,
+              fixed.count);
   EXPECT_GT(h.count, 100);
   EXPECT_GT(c.count, 100);
   EXPECT_GT(moved.count, 30) << "the manipulated handle is not marked";
