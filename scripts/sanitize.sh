@@ -22,7 +22,7 @@ status=0
 # Everything but the two tests that need third-party allowances (below), and the static-package
 # test: it builds an uninstrumented static library of its own (minutes, no sanitizer in it);
 # scripts/test.sh runs it.
-ASAN_OPTIONS="$asan" run -j 2 -E '^(BatchMpi\..*|batch_thumbnails_xvfb|install_consumer_static|Viewer\..*|Render\..*)$' ||
+ASAN_OPTIONS="$asan" run -j 2 -E '^(BatchMpi\..*|batch_thumbnails_xvfb|install_consumer_static|Viewer\..*|Render\..*|Pictures\..*)$' ||
   status=1
 
 # `hgdeform batch` under mpirun: OpenMPI never frees what MPI_Init allocates, much of it inside
@@ -39,13 +39,14 @@ ASAN_OPTIONS="$asan:fast_unwind_on_malloc=0" run -R '^BatchMpi\.' || status=1
 ASAN_OPTIONS="detect_leaks=0:alloc_dealloc_mismatch=0:abort_on_error=1" run -R '^batch_thumbnails_xvfb$' ||
   status=1
 
-# The viewer and the renderer (hgdeform-view, hgdeform-render: tests Viewer.* and Render.*) link
+# The viewer and the renderer (hgdeform-view, hgdeform-render: tests Viewer.*, Render.* and
+# Pictures.*, the last with batch thumbnails too) link
 # the uninstrumented libpcl_visualization (with VTK and Qt). Only inside those two programs, a
 # library point cloud allocated with operator new is released through a shared_ptr deleter
 # that reaches free() (as far as we could tell, a copy of PointCloud's Eigen-aligned delete from
 # PCL's own C++14 build winning symbol resolution; harmless with glibc, where both are malloc),
 # and VTK's interaction widgets leak 240 bytes per render. The same allowances as the thumbnails; every other check stays on, and the
 # library code these programs run is checked without them by every other test.
-ASAN_OPTIONS="detect_leaks=0:alloc_dealloc_mismatch=0:abort_on_error=1" run -j 2 -R '^(Viewer|Render)\.' ||
+ASAN_OPTIONS="detect_leaks=0:alloc_dealloc_mismatch=0:abort_on_error=1" run -j 2 -R '^(Viewer|Render|Pictures)\.' ||
   status=1
 exit $status

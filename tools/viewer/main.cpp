@@ -7,7 +7,7 @@
 //   x          area selection (rubber band) on/off; shift+click selects a point and its radius
 //   + / -      selection radius up / down;  c  clear the selection
 //   f / m / j  the selection becomes a fixed handle / the manipulated handle / a joint
-//   C          clear all handles
+//   C          clear all handles;  < / >  point size smaller / larger (clouds)
 //   d          drag mode on/off: left-drag on the manipulated handle moves it (else the camera)
 //   t          frame mode on/off: arrows move the handle in the view plane, [ ] turn it about
 //              the view direction, , . about the view's vertical

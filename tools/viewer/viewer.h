@@ -37,7 +37,7 @@ inline double msSince(Clock::time_point t) {
 
 inline const char* const kHelp =
     "x  area select on/off   shift+click  select around a point   +/-  radius   c  clear selection\n"
-    "f  fixed handle   m  manipulated handle   j  joint   C  clear all handles\n"
+    "f  fixed handle   m  manipulated handle   j  joint   C  clear all handles   < >  point size\n"
     "d  drag mode (left-drag the manipulated handle)   l  drags keep its orientation\n"
     "t  frame mode (arrows, [ ], , .)   v  view: colours / field / clusters   o  rest overlay\n"
     "z/y  undo/redo   n  rest shape   s  save shape   S  save scenario   k  screenshot   h  help   q  quit";

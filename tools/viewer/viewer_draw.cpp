@@ -41,6 +41,8 @@ void Viewer::open() {
     // Big points cost fill rate under software GL: dense clouds need no more than one pixel.
     const double size = run_.geometry().size() > 200000 ? 1 : run_.geometry().size() > 50000 ? 2 : 3;
     vis_->setPointCloudRenderingProperties(pcl::visualization::PCL_VISUALIZER_POINT_SIZE, size, "shape");
+    // Lit by its normals, else eye-dome lighting; file colours as they are.
+    hgd::shadeCloud(*vis_, "shape", run_.geometry(), hgd::findColourFields(run_.shape().cloud).any());
   } else {
     pcl::PolygonMesh mesh;
     pcl::toPCLPointCloud2(*display_, mesh.cloud);
@@ -126,6 +128,9 @@ void Viewer::refresh() {
     // With an explicit colour handler: PCL's plain update paints the cloud white.
     const pcl::visualization::PointCloudColorHandlerRGBField<pcl::PointXYZRGB> rgb(display_);
     vis_->updatePointCloud<pcl::PointXYZRGB>(display_, rgb, "shape");
+    if (run_.ready() && run_.geometry().hasFileNormals())  // lit by the deformed normals
+      hgd::shadeCloud(*vis_, "shape", run_.geometry(), hgd::findColourFields(run_.shape().cloud).any(),
+                      &run_.deformer().deformedNormals());
   } else {
     // PCL's updatePolygonMesh drops the colours (the mesh turns black): add it afresh.
     pcl::PolygonMesh mesh;
@@ -176,6 +181,13 @@ void Viewer::showLod(bool on) {
   for (const int i : lod_) lod_display_->push_back((*display_)[static_cast<std::size_t>(i)]);
   const pcl::visualization::PointCloudColorHandlerRGBField<pcl::PointXYZRGB> rgb(lod_display_);
   vis_->addPointCloud<pcl::PointXYZRGB>(lod_display_, rgb, "lod");
+  if (run_.ready() && run_.geometry().hasFileNormals()) {  // lit as the whole cloud is
+    const std::vector<Eigen::Vector3f>& deformed = run_.deformer().deformedNormals();
+    std::vector<Eigen::Vector3f> normals;
+    normals.reserve(lod_.size());
+    for (const int i : lod_) normals.push_back(deformed[static_cast<std::size_t>(i)]);
+    hgd::shadeCloud(*vis_, "lod", run_.geometry(), hgd::findColourFields(run_.shape().cloud).any(), &normals);
+  }
   // As many pixels as the whole cloud fills: each drawn point stands for `stride`.
   vis_->setPointCloudRenderingProperties(pcl::visualization::PCL_VISUALIZER_POINT_SIZE, 2, "lod");
   if (shape != clouds->end() && shape->second.actor) shape->second.actor->SetVisibility(false);

@@ -76,6 +76,16 @@ bool Viewer::key(const std::string& sym, char code) {
       radius_ /= 1.25;
       message("selection radius " + num(radius_));
       return true;
+    case '<':
+    case '>': {  // point size (+/- are the selection radius)
+      if (!run_.geometry().faces.empty()) return message("point size: a mesh is drawn as a surface"), true;
+      double size = 1;
+      vis_->getPointCloudRenderingProperties(pcl::visualization::PCL_VISUALIZER_POINT_SIZE, size, "shape");
+      size = std::clamp(size + (k == '>' ? 1.0 : -1.0), 1.0, 16.0);
+      vis_->setPointCloudRenderingProperties(pcl::visualization::PCL_VISUALIZER_POINT_SIZE, size, "shape");
+      message("point size " + num(size));
+      return true;
+    }
     case 'q': quit_ = true; return true;
     default: return false;
   }
@@ -170,7 +180,7 @@ void Style::OnKeyDown() {
 void Style::OnChar() {
   // Our keys were handled on key-down; keep VTK's own char bindings (w, s, f, e, ...) off them.
   const char k = Interactor->GetKeyCode();
-  if (std::string("fmjcCdtvozynsSkh+=-q[],.").find(k) != std::string::npos && k != 0) return;
+  if (std::string("fmjcCdtvozynsSkh+=-q[],.<>").find(k) != std::string::npos && k != 0) return;
   Superclass::OnChar();
 }
 
