@@ -55,22 +55,11 @@ Outcome deformAndMeasure(const hgd::Shape& shape, const std::vector<std::vector<
   out.distortion = hgd::quality::localDistortion(rest, deformed);
   if (!other.empty()) out.other = hgd::quality::meanDisplacement(rest, deformed, other) / move.norm();
   if (arap && hgdbench::haveCgalArap()) {
-    std::vector<std::array<int, 3>> triangles;
-    for (const auto& poly : g.faces)
-      for (std::size_t k = 1; k + 1 < poly.vertices.size(); ++k)
-        triangles.push_back({static_cast<int>(poly.vertices[0]), static_cast<int>(poly.vertices[k]),
-                             static_cast<int>(poly.vertices[k + 1])});
+    const std::vector<std::array<int, 3>> triangles = hgdbench::fanTriangles(g.faces);
     std::vector<int> all_fixed;
     for (const auto& f : h.fixed) all_fixed.insert(all_fixed.end(), f.begin(), f.end());
-    std::vector<double> history;
     const auto r = hgdbench::cgalArapConverged(rest, triangles, all_fixed, h.manipulated, move, 0, 800, 25,
-                                               [&](const std::vector<Eigen::Vector3d>& now, int) {
-                                                 history.push_back(hgd::quality::localDistortion(rest, now));
-                                                 const std::size_t k = history.size();
-                                                 return k >= 3 && std::abs(history[k - 3] - history[k - 1]) <=
-                                                                      0.005 * history[k - 1];
-                                               });
-    out.arap = history.back();
+                                               hgd::quality::distortionSettles(rest, 0.005, &out.arap));
     if (!other.empty())
       out.arap_other = hgd::quality::meanDisplacement(rest, r.positions, other) / move.norm();
     std::printf("ARAP: %d iterations%s\n", r.iterations, r.converged ? "" : " (not settled)");

@@ -306,11 +306,7 @@ nlohmann::json runArap(const std::string& armadillo, int repeat) {
   }
   std::vector<Eigen::Vector3d> points(g.size());
   for (std::size_t i = 0; i < g.size(); ++i) points[i] = g.world(i);
-  std::vector<std::array<int, 3>> triangles;
-  for (const auto& poly : g.faces)  // fans, indices of g's order: the Armadillo is all triangles
-    for (std::size_t k = 1; k + 1 < poly.vertices.size(); ++k)
-      triangles.push_back({static_cast<int>(poly.vertices[0]), static_cast<int>(poly.vertices[k]),
-                           static_cast<int>(poly.vertices[k + 1])});
+  const std::vector<std::array<int, 3>> triangles = hgdbench::fanTriangles(g.faces);
   const Eigen::AlignedBox3f box = hgd::boundingBox(*g.points);
   const Eigen::Vector3d move(0, 0, 0.1 * static_cast<double>((box.max() - box.min()).norm()));  // as the drag
   const hgdbench::ArapTimes arap =
@@ -356,23 +352,13 @@ nlohmann::json qualityCase(const std::string& name, const hgd::Shape& shape, con
   std::vector<Eigen::Vector3d> ours(g.size());
   for (std::size_t i = 0; i < g.size(); ++i) ours[i] = d.deformedWorld(i);
 
-  std::vector<std::array<int, 3>> triangles;
-  for (const auto& poly : g.faces)  // fans, indices of g's order
-    for (std::size_t k = 1; k + 1 < poly.vertices.size(); ++k)
-      triangles.push_back({static_cast<int>(poly.vertices[0]), static_cast<int>(poly.vertices[k]),
-                           static_cast<int>(poly.vertices[k + 1])});
+  const std::vector<std::array<int, 3>> triangles = hgdbench::fanTriangles(g.faces);
   std::vector<int> fixed;
   for (const auto& region : h.fixed) fixed.insert(fixed.end(), region.begin(), region.end());
   // Converged for the measure reported: the distortion changes less than 0.5% over the last 50
   // iterations (ARAP's energy creeps on for thousands; the measure settles long before).
-  std::vector<double> history;
   const hgdbench::ArapResult arap = hgdbench::cgalArapConverged(
-      rest, triangles, fixed, h.manipulated, move, 0, 800, 25,
-      [&](const std::vector<Eigen::Vector3d>& now, int) {
-        history.push_back(hgd::quality::localDistortion(rest, now));
-        const std::size_t k = history.size();
-        return k >= 3 && std::abs(history[k - 3] - history[k - 1]) <= 0.005 * history[k - 1];
-      });
+      rest, triangles, fixed, h.manipulated, move, 0, 800, 25, hgd::quality::distortionSettles(rest));
   const double ours_d = hgd::quality::localDistortion(rest, ours),
                arap_d = hgd::quality::localDistortion(rest, arap.positions);
   double reference = 0;

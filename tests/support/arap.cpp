@@ -15,7 +15,45 @@
 
 namespace hgdbench {
 
+std::vector<std::array<int, 3>> fanTriangles(const std::vector<pcl::Vertices>& polygons) {
+  std::vector<std::array<int, 3>> out;
+  for (const auto& poly : polygons)
+    for (std::size_t k = 1; k + 1 < poly.vertices.size(); ++k)
+      out.push_back({static_cast<int>(poly.vertices[0]), static_cast<int>(poly.vertices[k]),
+                     static_cast<int>(poly.vertices[k + 1])});
+  return out;
+}
+
 #ifdef HGD_HAVE_CGAL
+
+namespace {
+
+using Kernel = CGAL::Simple_cartesian<double>;
+using Point = Kernel::Point_3;
+using Mesh = CGAL::Surface_mesh<Point>;
+using Vertex = Mesh::Vertex_index;
+using Deformation = CGAL::Surface_mesh_deformation<Mesh>;
+
+/// CGAL's halfedge mesh of the points and triangles; `v` its vertices in the points' order.
+/// Counts the faces it took and those it refused (non-manifold).
+Mesh makeMesh(const std::vector<Eigen::Vector3d>& points, const std::vector<std::array<int, 3>>& triangles,
+              std::vector<Vertex>& v, std::size_t& faces, std::size_t& refused) {
+  Mesh mesh;
+  v.clear();
+  v.reserve(points.size());
+  for (const auto& p : points) v.push_back(mesh.add_vertex(Point(p.x(), p.y(), p.z())));
+  for (const auto& t : triangles) {
+    const auto f = mesh.add_face(v[static_cast<std::size_t>(t[0])], v[static_cast<std::size_t>(t[1])],
+                                 v[static_cast<std::size_t>(t[2])]);
+    if (f == Mesh::null_face())
+      ++refused;
+    else
+      ++faces;
+  }
+  return mesh;
+}
+
+}  // namespace
 
 bool haveCgalArap() {
   return true;
@@ -24,29 +62,14 @@ bool haveCgalArap() {
 ArapTimes cgalArap(const std::vector<Eigen::Vector3d>& points,
                    const std::vector<std::array<int, 3>>& triangles, const std::vector<int>& fixed,
                    const std::vector<int>& handle, const Eigen::Vector3d& move, int frames, int iterations) {
-  using Kernel = CGAL::Simple_cartesian<double>;
-  using Point = Kernel::Point_3;
-  using Mesh = CGAL::Surface_mesh<Point>;
-  using Vertex = Mesh::Vertex_index;
-  using Deformation = CGAL::Surface_mesh_deformation<Mesh>;
   using Clock = std::chrono::steady_clock;
   const auto ms = [](Clock::time_point t0) {
     return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
   };
 
   ArapTimes out;
-  Mesh mesh;
   std::vector<Vertex> v;
-  v.reserve(points.size());
-  for (const auto& p : points) v.push_back(mesh.add_vertex(Point(p.x(), p.y(), p.z())));
-  for (const auto& t : triangles) {
-    const auto f = mesh.add_face(v[static_cast<std::size_t>(t[0])], v[static_cast<std::size_t>(t[1])],
-                                 v[static_cast<std::size_t>(t[2])]);
-    if (f == Mesh::null_face())
-      ++out.faces_refused;
-    else
-      ++out.faces;
-  }
+  Mesh mesh = makeMesh(points, triangles, v, out.faces, out.faces_refused);
   out.vertices = mesh.number_of_vertices();
 
   const auto t0 = Clock::now();
@@ -76,26 +99,10 @@ ArapResult cgalArapConverged(const std::vector<Eigen::Vector3d>& points,
                              const std::vector<int>& handle, const Eigen::Vector3d& translation,
                              double tolerance, int max_iterations, int chunk,
                              const std::function<bool(const std::vector<Eigen::Vector3d>&, int)>& stop) {
-  using Kernel = CGAL::Simple_cartesian<double>;
-  using Point = Kernel::Point_3;
-  using Mesh = CGAL::Surface_mesh<Point>;
-  using Vertex = Mesh::Vertex_index;
-  using Deformation = CGAL::Surface_mesh_deformation<Mesh>;
   const auto t0 = std::chrono::steady_clock::now();
-
   ArapResult out;
-  Mesh mesh;
   std::vector<Vertex> v;
-  v.reserve(points.size());
-  for (const auto& p : points) v.push_back(mesh.add_vertex(Point(p.x(), p.y(), p.z())));
-  for (const auto& t : triangles) {
-    const auto f = mesh.add_face(v[static_cast<std::size_t>(t[0])], v[static_cast<std::size_t>(t[1])],
-                                 v[static_cast<std::size_t>(t[2])]);
-    if (f == Mesh::null_face())
-      ++out.faces_refused;
-    else
-      ++out.faces;
-  }
+  Mesh mesh = makeMesh(points, triangles, v, out.faces, out.faces_refused);
   Deformation deformation(mesh);
   deformation.insert_roi_vertices(mesh.vertices().begin(), mesh.vertices().end());
   const auto fail = [&] {

@@ -4,6 +4,8 @@
 // optional (built only when CMake finds CGAL; haveCgalArap() says whether this build has it).
 #pragma once
 
+#include <pcl/Vertices.h>
+
 #include <Eigen/Core>
 #include <array>
 #include <cstddef>
@@ -13,6 +15,9 @@
 namespace hgdbench {
 
 bool haveCgalArap();
+
+/// Polygons as triangles (fans), for the peer's mesh.
+std::vector<std::array<int, 3>> fanTriangles(const std::vector<pcl::Vertices>& polygons);
 
 struct ArapTimes {
   std::size_t vertices = 0, faces = 0;

@@ -4,6 +4,8 @@
 #include <pcl/point_types.h>
 
 #include <Eigen/SVD>
+#include <cmath>
+#include <memory>
 #include <stdexcept>
 
 namespace hgd {
@@ -62,6 +64,17 @@ std::vector<double> localDistortions(const std::vector<Eigen::Vector3d>& rest,
     out[i] = residual / length;
   }
   return out;
+}
+
+std::function<bool(const std::vector<Eigen::Vector3d>&, int)> distortionSettles(
+    const std::vector<Eigen::Vector3d>& rest, double relative, double* last) {
+  auto history = std::make_shared<std::vector<double>>();
+  return [&rest, relative, last, history](const std::vector<Eigen::Vector3d>& now, int) {
+    history->push_back(localDistortion(rest, now));
+    if (last) *last = history->back();
+    const std::size_t k = history->size();
+    return k >= 3 && std::abs((*history)[k - 3] - (*history)[k - 1]) <= relative * (*history)[k - 1];
+  };
 }
 
 double meanDisplacement(const std::vector<Eigen::Vector3d>& rest,

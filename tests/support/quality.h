@@ -3,6 +3,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <functional>
 #include <vector>
 
 namespace hgd {
@@ -17,6 +18,12 @@ double localDistortion(const std::vector<Eigen::Vector3d>& rest, const std::vect
 /// The same measure, point by point (the residual over the mean offset length of each point).
 std::vector<double> localDistortions(const std::vector<Eigen::Vector3d>& rest,
                                      const std::vector<Eigen::Vector3d>& deformed, int k = 10);
+
+/// A stop rule for an iterative peer (hgdbench::cgalArapConverged): true once the local
+/// distortion of the positions it is given changed less than `relative` over the last two calls
+/// (two chunks of iterations). `last`, when given, receives the latest distortion.
+std::function<bool(const std::vector<Eigen::Vector3d>&, int)> distortionSettles(
+    const std::vector<Eigen::Vector3d>& rest, double relative = 0.005, double* last = nullptr);
 
 /// The mean displacement of `points` between rest and deformed.
 double meanDisplacement(const std::vector<Eigen::Vector3d>& rest,
