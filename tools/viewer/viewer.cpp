@@ -144,7 +144,8 @@ void Viewer::clearHandles() {
 
 // What the deformation cannot do for this shape, on the status line and stderr: pieces that
 // no handle reaches (followed or left), a piece moved rigidly, a surface pulled apart.
-void Viewer::updateAlerts() {
+// `live`: a drag's live frame, which is the move it will commit (the stretch is measured on it).
+void Viewer::updateAlerts(bool live) {
   alert_.clear();
   if (!run_.ready()) return;
   const hgd::PieceReport& p = run_.deformer().pieces().report;
@@ -153,7 +154,7 @@ void Viewer::updateAlerts() {
   if (p.followed_points) s << " | " << p.followed_points << " points without a handle follow";
   if (p.stayed_points) s << " | " << p.stayed_points << " points without a handle stay";
   if (p.rigid_points) s << " | " << p.rigid_points << " points move rigidly with the handle";
-  if (!run_.moves().empty()) {
+  if (!run_.moves().empty() || live) {
     const hgd::SurfaceStretch st = run_.deformer().surfaceStretch();
     if (st.split_points) s << " | SURFACE PULLED APART at " << st.split_points << " points";
     if (const std::string w = hgd::stretchWarning(st); !w.empty()) full.push_back(w);

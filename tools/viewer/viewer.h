@@ -104,7 +104,7 @@ class Viewer {
   void syncRegions();
   void clearSelection(bool redraw = true);
   void clearHandles();
-  void updateAlerts();
+  void updateAlerts(bool live = false);
   void commit(const hgd::Move& m);
   void frameMove(const Eigen::Vector3d& translate, const Eigen::Vector3d& axis, double degrees);
   void undo();
@@ -170,7 +170,7 @@ class Viewer {
   vtkSmartPointer<vtkScalarBarActor> scale_bar_;
   int view_ = 0;
   bool overlay_ = false, overlay_shown_ = false, help_visible_ = false;
-  bool frame_mode_ = false, dragging_ = false, quit_ = false;
+  bool frame_mode_ = false, dragging_ = false, live_shown_ = false, quit_ = false;
   Eigen::Vector3d drag_from_, drag_last_;
   double drag_depth_ = 0;
   std::string message_;

@@ -130,32 +130,40 @@ bool Viewer::dragBegin(int x, int y) {
   return true;
 }
 
+// Every live frame is the drag's own result: the move from the press to the cursor, solved from
+// the state before the gesture exactly as the release commits it (and `hgdeform deform` replays
+// it). So the last frame shown while the button is held is, point for point, the shape kept.
 bool Viewer::dragMove(int x, int y) {
   if (!dragging_) return false;
   const Eigen::Vector3d to = fromDisplay(x, y, drag_depth_);
+  if (live_shown_ && to == drag_last_) return true;  // nothing new to show
+  hgd::Move m;
+  m.kind = hgd::Move::Kind::Drag;
+  m.drag.from = drag_from_;
+  m.drag.to = to;
+  m.drag.keep_orientation = keep_orientation_;
   const auto t0 = Clock::now();
-  run_.liveDrag(drag_last_, to, keep_orientation_, lod_.empty() ? nullptr : &lod_);
+  run_.previewMove(m, lod_.empty() ? nullptr : &lod_);
   const double total = msSince(t0);
   stats_.interpolate.push_back(run_.deformer().lastInterpolationMs());
   stats_.solve.push_back(total - run_.deformer().lastInterpolationMs());
   drag_last_ = to;
+  live_shown_ = true;
+  // The warnings of what is shown (a surface pulled apart), where the whole shape is drawn.
+  if (lod_.empty()) updateAlerts(/*live=*/true);
   updatePositions();
   return true;
 }
 
 bool Viewer::dragEnd(int x, int y) {
   if (!dragging_) return false;
-  dragMove(x, y);
+  dragMove(x, y);  // a release away from the last motion shows that place first
   dragging_ = false;
-  // Commit as `hgdeform deform` would replay it: from the state before the gesture (the
-  // runner drops the live frames), the picked point dragged from where it was to where the
-  // cursor let go.
-  hgd::Move m;
-  m.kind = hgd::Move::Kind::Drag;
-  m.drag.from = drag_from_;
-  m.drag.to = drag_last_;
-  m.drag.keep_orientation = keep_orientation_;
-  commit(m);
+  live_shown_ = false;
+  // Keep what was shown: the runner records the move of the last live frame without solving
+  // it again (the level of detail's other points are interpolated with the same transforms).
+  run_.commitLive();
+  updateAlerts();
   showLod(false);
   refresh();
   return true;
