@@ -82,8 +82,12 @@ bool haveXvfb() {
   return hgdtest::run("command -v xvfb-run", out) == 0;
 }
 
+// HGD_VIEW_UNDER_TEST names another hgdeform-view for the replay tests (an older build, to show
+// that a test fails without its fix).
 std::string viewer(const std::string& args) {
-  return "xvfb-run -a -s '-screen 0 1280x1024x24' " + std::string(HGD_VIEW) + " " + args;
+  const char* other = std::getenv("HGD_VIEW_UNDER_TEST");
+  return "xvfb-run -a -s '-screen 0 1280x1024x24' " + std::string(other && *other ? other : HGD_VIEW) + " " +
+         args;
 }
 
 double maxDistance(const std::string& a, const std::string& b, double& diag) {
@@ -850,6 +854,63 @@ TEST(Render, CameraFrameScanIsTheRightWayUp) {
           std::string(HGD_RENDER) + " " + dir.file("scan.pcd") + " -o " + dir.file("x.png") + " --up w", out),
       2);  // a usage error
   EXPECT_NE(out.find("the up axis must be x, y, z, -x, -y, -z or auto, not 'w'"), std::string::npos) << out;
+}
+
+}  // namespace
+
+namespace {
+
+// Issue 29, item 9: the viewer opens a camera-frame scan (organized, -y up in PCL's camera
+// convention) the right way up and not mirrored, by hgdeform-render's rule (hgd::upAxis): its
+// top rows (red) at the top, its right columns (green) on the right. The same points
+// unorganized keep +y up (red at the bottom).
+TEST(Viewer, CameraFrameScanOpensTheRightWayUp) {
+  if (!haveXvfb()) GTEST_SKIP() << "xvfb-run not installed";
+  hgdtest::TempDir dir;
+  const pcl::PointCloud<pcl::PointXYZRGB> cloud = cameraScan();
+  hgd::Shape organized;
+  pcl::toPCLPointCloud2(cloud, organized.cloud);
+  organized.format = hgd::FileFormat::Pcd;
+  hgd::writeShape(dir.file("scan.pcd"), organized);
+  hgd::Shape flat = organized;
+  flat.cloud.width = flat.cloud.width * flat.cloud.height;
+  flat.cloud.height = 1;
+  flat.cloud.row_step = flat.cloud.point_step * flat.cloud.width;
+  hgd::writeShape(dir.file("flat.pcd"), flat);
+  for (const std::string name : {"scan", "flat"}) {
+    SCOPED_TRACE(name);
+    std::string out;
+    ASSERT_EQ(hgdtest::run(viewer(dir.file(name + ".pcd") + " --screenshot " + dir.file(name + ".png") +
+                                  " --size 600x500 --quiet"),
+                           out),
+              0)
+        << out;
+    const Image img = readPng(dir.file(name + ".png"));
+    ASSERT_EQ(img.height, 500);
+    const Blob red = blob(img, 255, 0, 0), green = blob(img, 0, 255, 0);
+    ASSERT_GT(red.count, 200);
+    ASSERT_GT(green.count, 200);
+    EXPECT_EQ(red.y < 250, name == "scan") << "red rows at " << red.y;
+    EXPECT_GT(green.x, 300) << "the picture is mirrored";
+  }
+}
+
+// Item 12: --stats counts the render time of frame-mode keys (it said "render 0.00 ms").
+TEST(Viewer, StatsCountTheRenderTimeOfFrameKeys) {
+  if (!haveXvfb()) GTEST_SKIP() << "xvfb-run not installed";
+  hgdtest::TempDir dir;
+  hgd::writeShape(dir.file("bar.pcd"), hgd::shapes::bar(1.0f, 0.1f, 0.02f));
+  hgdtest::writeText(dir.file("events.json"), R"({"events": [
+    {"area": {"from": [-0.01, -0.06, -0.06], "to": [0.03, 0.06, 0.06]}}, {"key": "f"},
+    {"pick": {"world": [1, 0, 0.05], "radius": 0.07}}, {"key": "m"},
+    {"key": "t"}, {"key": "Up"}, {"key": "Up"}, {"key": "Right"}]})");
+  const hgdtest::CommandResult r = hgdtest::shell(
+      viewer(dir.file("bar.pcd") + " --replay " + dir.file("events.json") + " --stats --quiet"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  const std::size_t at = r.out.find("render ");
+  ASSERT_NE(at, std::string::npos) << r.out;
+  EXPECT_TRUE(hgdtest::contains(r.out, "frames 3: ")) << r.out;
+  EXPECT_GT(std::atof(r.out.c_str() + at + 7), 0.0) << r.out;
 }
 
 }  // namespace

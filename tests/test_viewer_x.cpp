@@ -205,7 +205,28 @@ class ViewerWindow {
     const std::size_t end = text.find_first_of(" \n", from);
     return text.substr(from, end - from);
   }
-  bool alive() const { return pid_ > 0 && ::waitpid(pid_, nullptr, WNOHANG) == 0; }
+  /// Whether the viewer still runs (waits up to `seconds` for it to end).
+  bool alive(double seconds = 0) const {
+    const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+    do {
+      if (pid_ <= 0) return false;
+      if (::waitpid(pid_, nullptr, WNOHANG) == pid_) {
+        pid_ = -1;
+        return false;
+      }
+      std::this_thread::sleep_for(20ms);
+    } while (std::chrono::steady_clock::now() < end);
+    return true;
+  }
+  /// Takes a screenshot with `k` and copies it to `to`; false if none came.
+  bool shot(const std::string& to) const {
+    const std::size_t n = occurrences(log(), "screenshot /") + 1;
+    key("k");
+    if (!waitFor("screenshot /", n)) return false;
+    std::filesystem::copy_file(named("screenshot ", n), to,
+                               std::filesystem::copy_options::overwrite_existing);
+    return true;
+  }
 
   static std::size_t occurrences(const std::string& text, const std::string& part) {
     std::size_t n = 0;
@@ -216,7 +237,7 @@ class ViewerWindow {
  private:
   const Xvfb& x_;
   std::string log_;
-  pid_t pid_ = -1;
+  mutable pid_t pid_ = -1;
   std::string window_;
   int width_ = 0, height_ = 0;
 };
@@ -322,6 +343,251 @@ TEST(ViewerX, ReleaseKeepsWhatTheLastLiveFrameShowed) {
   const int changed = countDifferent(held, released, 0, held.height - 40);
   std::printf("pixels that changed on release (above the status line): %d\n", changed);
   EXPECT_EQ(changed, 0);
+}
+
+}  // namespace
+
+namespace {
+
+// Item 2: capital keys from a keyboard. Shift+S saves the session as a scenario (not the shape),
+// Shift+C clears the handles (not the selection), and Caps Lock makes `s` and `c` the same.
+TEST(ViewerX, ShiftAndCapsLockGiveTheCapitalKeys) {
+  REQUIRE_X();
+  hgdtest::TempDir dir;
+  writeBar(dir);
+  const ViewerWindow v(x, hgdtest::quote(dir.file("bar.ply")) + " -s " + hgdtest::quote(dir.file("s.json")),
+                       dir.file("log.txt"));
+  ASSERT_TRUE(v.ok()) << v.log();
+  v.key("shift+s");
+  ASSERT_TRUE(v.waitFor("saved ")) << v.log();
+  EXPECT_TRUE(hgdtest::contains(v.named("saved "), "scenario.json")) << v.log();
+  EXPECT_FALSE(hgdtest::exists(dir.file("bar-deformed.ply")));
+  v.key("Caps_Lock s Caps_Lock");
+  ASSERT_TRUE(v.waitFor("saved ", 2)) << v.log();
+  EXPECT_TRUE(hgdtest::contains(v.named("saved ", 2), "scenario")) << v.log();
+  EXPECT_FALSE(hgdtest::exists(dir.file("bar-deformed.ply")));
+  v.key("shift+c");
+  EXPECT_TRUE(v.waitFor("handles cleared", 1, 5)) << v.log();
+  v.key("s");  // Caps Lock is off again: the shape
+  ASSERT_TRUE(v.waitFor("saved ", 3)) << v.log();
+  EXPECT_TRUE(hgdtest::contains(v.named("saved ", 3), "deformed")) << v.log();
+}
+
+}  // namespace
+
+namespace {
+
+/// Dark pixels (text: the overlays are drawn near-black; the shapes here are grey and coloured)
+/// in the rectangle [x0, x1) x [y0, y1), rows counted from the top.
+int darkPixels(const Image& img, int x0, int y0, int x1, int y1) {
+  int n = 0;
+  for (int y = std::max(0, y0); y < std::min(img.height, y1); ++y)
+    for (int x = std::max(0, x0); x < std::min(img.width, x1); ++x) {
+      const unsigned char* p = img.at(x, y);
+      n += p[0] < 90 && p[1] < 90 && p[2] < 90;
+    }
+  return n;
+}
+
+/// Pixels that differ in the rectangle [x0, x1) x [y0, y1) (rows from the top).
+int changedIn(const Image& a, const Image& b, int x0, int y0, int x1, int y1) {
+  if (a.width != b.width || a.height != b.height || a.rgb.empty()) return -1;
+  int n = 0;
+  for (int y = std::max(0, y0); y < std::min(a.height, y1); ++y)
+    for (int x = std::max(0, x0); x < std::min(a.width, x1); ++x) n += differ(a, b, x, y);
+  return n;
+}
+
+// Item 5: the mode is shown at all times (the bottom-left corner of the status line changes
+// with it and only with it), and shift+click picks in any mode: after an area selection made
+// into a fixed handle, a shift+click in area mode (and in drag mode) selects points.
+TEST(ViewerX, ModeIsShownAndShiftClickPicksInAnyMode) {
+  REQUIRE_X();
+  hgdtest::TempDir dir;
+  writeBar(dir);
+  const ViewerWindow v(x, hgdtest::quote(dir.file("bar.ply")) + " --size 800x600", dir.file("log.txt"));
+  ASSERT_TRUE(v.ok()) << v.log();
+  const OpeningView view = openingView(dir.file("bar.ply"));
+  auto at = [&](double wx, double wy) { return view.at({wx, wy, 0.05}, v.width(), v.height()); };
+  ASSERT_TRUE(v.shot(dir.file("pick.png")));
+  v.key("x");
+  ASSERT_TRUE(v.shot(dir.file("area.png")));
+  // An area selection around the bar's left end, made with the mouse, becomes the fixed handle.
+  const Eigen::Vector2d a = at(-0.05, 0.1), b = at(0.08, -0.1);
+  v.move(a.x(), a.y());
+  v.xdo("mousedown 1");
+  v.move(0.5 * (a.x() + b.x()), 0.5 * (a.y() + b.y()));
+  v.move(b.x(), b.y());
+  v.xdo("mouseup 1");
+  ASSERT_TRUE(v.waitFor("selected ")) << v.log();
+  EXPECT_FALSE(hgdtest::contains(v.log(), "selected 0 points")) << v.log();
+  v.key("f");
+  ASSERT_TRUE(v.waitFor("still needed")) << v.log();
+  // Still in area mode: shift+click selects around the point under the cursor.
+  const Eigen::Vector2d end = at(1.0, 0.0);
+  v.move(end.x(), end.y());
+  v.xdo("keydown shift click 1 keyup shift");
+  ASSERT_TRUE(v.waitFor("points around point")) << v.log();
+  EXPECT_FALSE(hgdtest::contains(v.log(), "selected 0 points around")) << v.log();
+  v.key("m");
+  ASSERT_TRUE(v.waitFor("handles: 1 fixed")) << v.log();
+  v.key("d");
+  ASSERT_TRUE(v.shot(dir.file("drag.png")));
+  v.move(end.x(), end.y() + 5);  // drag mode: shift+click still picks (no drag begins)
+  v.xdo("keydown shift click 1 keyup shift");
+  ASSERT_TRUE(v.waitFor("points around point", 2)) << v.log();
+  v.key("t");
+  ASSERT_TRUE(v.shot(dir.file("frame.png")));
+  v.key("t");
+  ASSERT_TRUE(v.shot(dir.file("pick2.png")));
+  keep(dir.file("area.png"), "mode-area.png");
+  keep(dir.file("drag.png"), "mode-drag.png");
+  const Image pick = readPng(dir.file("pick.png")), area = readPng(dir.file("area.png")),
+              drag = readPng(dir.file("drag.png")), frame = readPng(dir.file("frame.png")),
+              pick2 = readPng(dir.file("pick2.png"));
+  ASSERT_FALSE(pick.rgb.empty());
+  // The mode's label: the status line's first 70 pixels, its bottom 30 rows.
+  auto label = [&](const Image& p, const Image& q) {
+    return changedIn(p, q, 0, p.height - 30, 70, p.height);
+  };
+  EXPECT_GT(label(pick, area), 20);
+  EXPECT_GT(label(area, drag), 20);
+  EXPECT_GT(label(drag, frame), 20);
+  EXPECT_GT(label(frame, pick2), 20);
+  EXPECT_EQ(label(pick, pick2), 0);
+}
+
+// Item 3: `s` never replaces an earlier result: INPUT-deformed.ply, INPUT-deformed-2.ply, ...,
+// each named in the status line (and on stderr); the same for `S` and `k`.
+TEST(ViewerX, SavesAreNumberedNotReplaced) {
+  REQUIRE_X();
+  hgdtest::TempDir dir;
+  writeBar(dir);
+  const ViewerWindow v(x, hgdtest::quote(dir.file("bar.ply")) + " -s " + hgdtest::quote(dir.file("s.json")),
+                       dir.file("log.txt"));
+  ASSERT_TRUE(v.ok()) << v.log();
+  v.key("s s s shift+s shift+s k k");
+  ASSERT_TRUE(v.waitFor("screenshot /", 2)) << v.log();
+  EXPECT_EQ(v.named("saved ", 1), dir.file("bar-deformed.ply")) << v.log();
+  EXPECT_EQ(v.named("saved ", 2), dir.file("bar-deformed-2.ply")) << v.log();
+  EXPECT_EQ(v.named("saved ", 3), dir.file("bar-deformed-3.ply")) << v.log();
+  EXPECT_EQ(v.named("saved ", 4), dir.file("bar-scenario.json")) << v.log();
+  EXPECT_EQ(v.named("saved ", 5), dir.file("bar-scenario-2.json")) << v.log();
+  EXPECT_EQ(v.named("screenshot ", 2), dir.file("bar-screenshot-2.png")) << v.log();
+  for (const char* f : {"bar-deformed.ply", "bar-deformed-2.ply", "bar-deformed-3.ply", "bar-scenario.json",
+                        "bar-scenario-2.json", "bar-screenshot.png", "bar-screenshot-2.png"})
+    EXPECT_TRUE(hgdtest::exists(dir.file(f))) << f;
+}
+
+// Item 4: with unsaved changes, `q` and `e` ask first (the status line says to press again);
+// pressed again they quit. Without changes `q` quits at once. PCL's keys that make no sense
+// here (u: a colour bar, g: a grid) do nothing.
+TEST(ViewerX, QuitAsksWithUnsavedChangesAndPclKeysAreOff) {
+  REQUIRE_X();
+  hgdtest::TempDir dir;
+  writeBar(dir);
+  const std::string args =
+      hgdtest::quote(dir.file("bar.ply")) + " -s " + hgdtest::quote(dir.file("s.json")) + " --size 800x600";
+  {
+    const ViewerWindow v(x, args, dir.file("log1.txt"));
+    ASSERT_TRUE(v.ok()) << v.log();
+    ASSERT_TRUE(v.shot(dir.file("a.png")));
+    v.key("u g");
+    ASSERT_TRUE(v.shot(dir.file("b.png")));
+    const Image a = readPng(dir.file("a.png")), b = readPng(dir.file("b.png"));
+    ASSERT_FALSE(a.rgb.empty());
+    // Above the status line, nothing changed.
+    EXPECT_EQ(countDifferent(a, b, 0, a.height - 40), 0);
+    v.key("t Right");  // a frame move: an unsaved change
+    ASSERT_TRUE(v.waitFor("frame mode")) << v.log();
+    v.key("e");
+    ASSERT_TRUE(v.waitFor("press e again")) << v.log();
+    EXPECT_TRUE(v.alive(1.0));
+    v.key("c q");  // another key in between: asks again
+    ASSERT_TRUE(v.waitFor("press q again")) << v.log();
+    EXPECT_TRUE(v.alive(1.0));
+    v.key("q");
+    EXPECT_FALSE(v.alive(10)) << v.log();
+  }
+  {
+    const ViewerWindow v(x, args, dir.file("log2.txt"));
+    ASSERT_TRUE(v.ok()) << v.log();
+    v.key("t Right s q");  // saved: quits at once
+    EXPECT_FALSE(v.alive(10)) << v.log();
+    EXPECT_FALSE(hgdtest::contains(v.log(), "press q again")) << v.log();
+  }
+}
+
+// Item 10: the help stays at the window's top and the status line at its bottom when the
+// window is resized; `h` hides and shows the help again; a status line with warnings wraps
+// instead of running off the window's right edge.
+TEST(ViewerX, OverlaysFollowTheWindowAndTheStatusLineWraps) {
+  REQUIRE_X();
+  hgdtest::TempDir dir;
+  hgd::writeShape(dir.file("bar.ply"), hgd::shapes::barBesideABox());
+  hgdtest::writeText(dir.file("s.json"), R"({
+    "fixed": [ { "box": { "min": [-1, -1, -1], "max": [0.5, 0.3, 1] } } ],
+    "manipulated": { "box": { "min": [0.5001, -1, -1], "max": [2, 0.3, 1] } },
+    "move": { "frame": { "translate": [0, 0.3, 0] } }
+  })");
+  const ViewerWindow v(
+      x,
+      hgdtest::quote(dir.file("bar.ply")) + " -s " + hgdtest::quote(dir.file("s.json")) + " --size 800x600",
+      dir.file("log.txt"));
+  ASSERT_TRUE(v.ok()) << v.log();
+  ASSERT_TRUE(v.shot(dir.file("opening.png")));  // the viewer is in its event loop
+  std::string out;
+  v.xdo("windowsize --sync " + v.window() + " 640 420", out);
+  std::this_thread::sleep_for(300ms);
+  ASSERT_TRUE(v.shot(dir.file("small.png")));
+  v.xdo("windowsize --sync " + v.window() + " 1000 900", out);
+  std::this_thread::sleep_for(300ms);
+  ASSERT_TRUE(v.shot(dir.file("large.png")));
+  v.key("h");
+  ASSERT_TRUE(v.shot(dir.file("nohelp.png")));
+  v.key("h");
+  ASSERT_TRUE(v.shot(dir.file("help.png")));
+  keep(dir.file("small.png"), "overlays-small.png");
+  keep(dir.file("large.png"), "overlays-large.png");
+  const Image small = readPng(dir.file("small.png")), large = readPng(dir.file("large.png")),
+              nohelp = readPng(dir.file("nohelp.png")), help = readPng(dir.file("help.png"));
+  ASSERT_EQ(small.width, 640);
+  ASSERT_EQ(large.height, 900);
+  // The help's five lines in the top 90 rows, whatever the height.
+  EXPECT_GT(darkPixels(small, 0, 0, small.width, 90), 400);
+  EXPECT_GT(darkPixels(large, 0, 0, large.width, 90), 400);
+  EXPECT_LT(darkPixels(nohelp, 0, 0, nohelp.width, 90), 20);
+  EXPECT_GT(darkPixels(help, 0, 0, help.width, 90), 400);
+  // The status line (warnings: pieces apart, a surface pulled apart) at the bottom, within the
+  // window: nothing dark in the last 12 columns.
+  EXPECT_GT(darkPixels(small, 0, small.height - 20, small.width, small.height), 100);
+  EXPECT_EQ(darkPixels(small, small.width - 12, small.height - 120, small.width, small.height), 0);
+}
+
+}  // namespace
+
+namespace {
+
+// Item 9: `r` returns to the opening view after the mouse turned it (PCL's `r` kept the turn).
+TEST(ViewerX, RReturnsToTheOpeningView) {
+  REQUIRE_X();
+  hgdtest::TempDir dir;
+  writeBar(dir);
+  const ViewerWindow v(x, hgdtest::quote(dir.file("bar.ply")) + " --size 800x600", dir.file("log.txt"));
+  ASSERT_TRUE(v.ok()) << v.log();
+  ASSERT_TRUE(v.shot(dir.file("opening.png")));
+  v.move(400, 300);
+  v.xdo("mousedown 1");
+  for (int k = 1; k <= 8; ++k) v.move(400 + 20 * k, 300 + 12 * k);
+  v.xdo("mouseup 1");
+  ASSERT_TRUE(v.shot(dir.file("turned.png")));
+  v.key("r");
+  ASSERT_TRUE(v.shot(dir.file("back.png")));
+  const Image opening = readPng(dir.file("opening.png")), turned = readPng(dir.file("turned.png")),
+              back = readPng(dir.file("back.png"));
+  ASSERT_FALSE(opening.rgb.empty());
+  EXPECT_GT(countDifferent(opening, turned, 0, opening.height - 40), 500);
+  EXPECT_EQ(countDifferent(opening, back, 0, opening.height - 40), 0);
 }
 
 }  // namespace

@@ -93,6 +93,7 @@ void Viewer::markSelection(int role) {
   h.joints.erase(std::remove_if(h.joints.begin(), h.joints.end(), [](const auto& v) { return v.empty(); }),
                  h.joints.end());
   handles_ = h;
+  unsaved_ = true;
   syncRegions();
   clearSelection(false);
   refreshRoles();
@@ -132,6 +133,7 @@ void Viewer::clearSelection(bool redraw) {
 
 void Viewer::clearHandles() {
   handles_ = hgd::Handles{};
+  unsaved_ = true;
   fixed_regions_.clear();
   joint_regions_.clear();
   run_.setHandles(handles_);
@@ -172,6 +174,7 @@ void Viewer::updateAlerts(bool live) {
 void Viewer::commit(const hgd::Move& m) {
   if (!run_.ready()) return;
   run_.apply(m);
+  unsaved_ = true;
   updateAlerts();
 }
 
@@ -189,11 +192,14 @@ void Viewer::frameMove(const Eigen::Vector3d& translate, const Eigen::Vector3d& 
   commit(m);
   stats_.solve.push_back(msSince(t0));
   stats_.interpolate.push_back(run_.deformer().lastInterpolationMs());
+  timing_frame_ = true;  // the frame's render counts (--stats)
   refresh();
+  timing_frame_ = false;
 }
 
 void Viewer::undo() {
   if (!run_.ready() || !run_.undo()) return message("nothing to undo");
+  unsaved_ = true;
   updateAlerts();
   message("undone");
   refresh();
@@ -201,6 +207,7 @@ void Viewer::undo() {
 
 void Viewer::redo() {
   if (!run_.ready() || !run_.redo()) return message("nothing to redo");
+  unsaved_ = true;
   updateAlerts();
   message("redone");
   refresh();
@@ -209,6 +216,7 @@ void Viewer::redo() {
 void Viewer::resetShape() {
   if (!run_.ready()) return;
   run_.reset();
+  unsaved_ = true;
   updateAlerts();
   message("rest shape");
   refresh();
@@ -216,6 +224,7 @@ void Viewer::resetShape() {
 
 void Viewer::saveShape(const std::string& path) {
   run_.write(path, {}, inputs_);
+  unsaved_ = false;
   message("saved " + path);
 }
 
@@ -224,6 +233,7 @@ void Viewer::saveScenario(const std::string& path) {
   if (handles_.fixed.empty() || handles_.manipulated.empty())
     return message("a scenario needs a fixed and a manipulated handle");
   hgd::writeFileAtomically(path, hgd::scenarioToJson(run_.scenario()));
+  unsaved_ = false;  // the session replays from it
   message("saved " + path);
 }
 
@@ -245,6 +255,14 @@ Eigen::Vector3d Viewer::handleCentre() const {
 std::string Viewer::defaultPath(const std::string& suffix, const std::string& ext) const {
   const std::filesystem::path p(input_);
   return (p.parent_path() / (p.stem().string() + suffix + ext)).string();
+}
+
+// Saving never replaces an earlier result: INPUT-deformed.ply, then INPUT-deformed-2.ply, ...
+std::string Viewer::freshPath(const std::string& suffix, const std::string& ext) const {
+  std::string path = defaultPath(suffix, ext);
+  for (int n = 2; std::filesystem::exists(std::filesystem::symlink_status(path)); ++n)
+    path = defaultPath(suffix + "-" + std::to_string(n), ext);
+  return path;
 }
 
 std::string Viewer::extensionOf(const std::string& path) {

@@ -13,6 +13,7 @@
 #include <vtkRenderWindowInteractor.h>
 #include <vtkScalarBarActor.h>
 #include <vtkSmartPointer.h>
+#include <vtkTextActor.h>
 
 #include <Eigen/Core>
 #include <chrono>
@@ -25,6 +26,7 @@
 #include "hgdeform/scenario.h"
 #include "replay.h"
 
+class vtkAbstractPicker;
 class vtkPolyData;
 class vtkRenderer;
 
@@ -35,14 +37,24 @@ inline double msSince(Clock::time_point t) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
 }
 
+// Every key the viewer answers to (PCL's and VTK's own keys are off; the mouse turns, pans and
+// zooms the view as in PCL). Kept in step with main.cpp's comment and README.md's viewer section.
 inline const char* const kHelp =
-    "x  area select on/off   shift+click  select around a point   +/-  radius   c  clear selection\n"
-    "f  fixed handle   m  manipulated handle   j  joint   C  clear all handles\n"
-    "d  drag mode (left-drag the manipulated handle)   l  drags keep its orientation\n"
-    "t  frame mode (arrows, [ ], , .)   v  view: colours / field / clusters   o  rest overlay\n"
-    "z/y  undo/redo   n  rest shape   s  save shape   S  save scenario   k  screenshot   h  help   q  quit";
+    "modes: x  area select   d  drag the manipulated handle   t  frame (arrows, [ ], , .)   (again: pick)\n"
+    "shift+click  select around a point (any mode)   +/-  radius   c  clear selection\n"
+    "f  fixed handle   m  manipulated handle   j  joint   C  clear all handles   l  drags keep orientation\n"
+    "v  view: colours / field / clusters   o  rest overlay   r  opening view   z/y  undo/redo   n  rest "
+    "shape\n"
+    "s  save shape   S  save scenario   k  screenshot (numbered, never replaced)   h  help   q/e  quit";
 
 class Viewer;
+
+/// Whether Caps Lock is on (viewer_x11.cpp); `display` is the window's X Display.
+bool capsLockOn(void* display);
+
+/// The character a key press means: a letter in the case that Shift and Caps Lock make it
+/// (VTK hands `s` with the shift flag from a keyboard, `S` from XLookupString or a replay).
+char keyChar(char code, bool shift, bool caps_lock);
 
 // The interactor style: our keys and the handle drag first, PCL's behaviour for the rest
 // (viewer_input.cpp).
@@ -52,12 +64,19 @@ class Style : public pcl::visualization::PCLVisualizerInteractorStyle {
   vtkTypeMacro(Style, pcl::visualization::PCLVisualizerInteractorStyle) Viewer* viewer = nullptr;
 
   void OnKeyDown() override;
+  void OnEnter() override;
   void OnChar() override;
   void OnLeftButtonDown() override;
   void OnLeftButtonUp() override;
   void OnMouseMove() override;
   // vtkInteractorStyleRubberBandPick's modes: 0 orient (camera), 1 select (rubber band).
   bool selecting() const { return CurrentMode == 1; }
+  /// Area mode on or off, with the picker PCL's area pick needs (as PCL's own `x` does).
+  void setSelecting(bool on);
+  bool band = false;                                // a rubber band was started by this press
+  bool picked = false;                              // this press was a shift+click pick
+  vtkSmartPointer<vtkAbstractPicker> point_picker;  // kept while the area picker is in use
+  int caps_lock = -1;  // Caps Lock: -1 not known yet (read from X at the next key)
   void rubberBand(int& x0, int& y0, int& x1, int& y1) const {
     x0 = StartPosition[0];
     y0 = StartPosition[1];
@@ -85,6 +104,10 @@ class Viewer {
 
   // --- events (viewer_input.cpp) ----------------------------------------------------------
   bool key(const std::string& sym, char code);
+  /// The current mode: "pick", "area", "drag" or "frame".
+  const char* mode() const;
+  /// Places the help and the status line for the window's size (before every render).
+  void placeOverlays();
   void pickAt(int x, int y);
   void selectArea(int x0, int y0, int x1, int y1);
   bool dragBegin(int x, int y);
@@ -116,11 +139,16 @@ class Viewer {
   Eigen::Vector3d centre() const;
   Eigen::Vector3d handleCentre() const;
   std::string defaultPath(const std::string& suffix, const std::string& ext) const;
+  /// defaultPath(), numbered (-2, -3, ...) past every file that is there already.
+  std::string freshPath(const std::string& suffix, const std::string& ext) const;
+  void setMode(const std::string& mode);
+  void requestQuit(char key);
   static std::string extensionOf(const std::string& path);
   static std::string num(double v);
 
   // --- drawing (viewer_draw.cpp) ----------------------------------------------------------
   void fileColours();
+  void openingView();
   void refreshRoles();
   void refresh();
   void updatePositions();
@@ -171,6 +199,10 @@ class Viewer {
   int view_ = 0;
   bool overlay_ = false, overlay_shown_ = false, help_visible_ = false;
   bool frame_mode_ = false, dragging_ = false, live_shown_ = false, quit_ = false;
+  bool timing_frame_ = false;  // a frame-mode key's render counts in --stats
+  bool unsaved_ = false;       // moves or handles since the last save
+  bool quit_asked_ = false;    // q/e pressed once with unsaved changes
+  vtkSmartPointer<vtkTextActor> help_, status_, mode_label_;
   Eigen::Vector3d drag_from_, drag_last_;
   double drag_depth_ = 0;
   std::string message_;

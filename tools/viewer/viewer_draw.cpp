@@ -3,6 +3,7 @@
 // conversions between the shape's space and the screen.
 #include <pcl/conversions.h>
 #include <vtkActor.h>
+#include <vtkCallbackCommand.h>
 #include <vtkCamera.h>
 #include <vtkFloatArray.h>
 #include <vtkLODActor.h>
@@ -16,8 +17,10 @@
 #include <vtkTextProperty.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
+#include <map>
 #include <sstream>
 
 #include "hgdeform/colormap.h"
@@ -47,9 +50,28 @@ void Viewer::open() {
     mesh.polygons = run_.geometry().faces;
     vis_->addPolygonMesh(mesh, "shape");
   }
-  vis_->addText("", 10, 10, 13, 0.1, 0.1, 0.1, "status");
-  vis_->addText(kHelp, 10, height_ - 110, 13, 0.1, 0.1, 0.1, "help");
+  // The overlays: help at the window's top, the mode and the status line at its bottom, placed
+  // again before every render (placeOverlays), so that they follow the window's size.
+  auto text = [this](bool top, bool bold) {
+    auto a = vtkSmartPointer<vtkTextActor>::New();
+    vtkTextProperty* p = a->GetTextProperty();
+    p->SetFontSize(13);
+    p->SetColor(0.1, 0.1, 0.1);
+    p->SetBold(bold);
+    p->SetVerticalJustification(top ? VTK_TEXT_TOP : VTK_TEXT_BOTTOM);
+    renderer()->AddActor2D(a);
+    return a;
+  };
+  help_ = text(true, false);
+  help_->SetInput(kHelp);
+  status_ = text(false, false);
+  mode_label_ = text(false, true);
   help_visible_ = true;
+  auto place = vtkSmartPointer<vtkCallbackCommand>::New();
+  place->SetClientData(this);
+  place->SetCallback(
+      [](vtkObject*, unsigned long, void* self, void*) { static_cast<Viewer*>(self)->placeOverlays(); });
+  vis_->getRenderWindow()->AddObserver(vtkCommand::StartEvent, place);
   // The field's colour scale, shown in field view.
   auto lut = vtkSmartPointer<vtkLookupTable>::New();
   lut->SetNumberOfTableValues(256);
@@ -71,10 +93,29 @@ void Viewer::open() {
   scale_bar_->SetVisibility(false);
   renderer()->AddActor2D(scale_bar_);
   vis_->resetCamera();
-  const Eigen::Vector3d c = centre();
-  vis_->setCameraPosition(c.x(), c.y(), c.z() + 2.2 * diagonal_, c.x(), c.y(), c.z(), 0, 1, 0);
-  vis_->setCameraClipDistances(0.01 * diagonal_, 10 * diagonal_);
+  openingView();
   refresh();
+}
+
+// The opening view, and `r`'s: the whole shape, upright by hgdeform-render's rule
+// (hgd::upAxis "auto": a camera-frame scan, organized or a PCD with a sensor pose, has -y up and
+// is seen from the sensor's side, +x to the right; anything else +y up, seen from +z).
+void Viewer::openingView() {
+  const Eigen::Vector3d up = hgd::upAxis("auto", {&run_.shape()}).cast<double>();
+  const Eigen::Vector3d eye(0, 0, up.y() < 0 ? -1.0 : 1.0);
+  const Eigen::Vector3d c = centre(), at = c + 2.2 * diagonal_ * eye;
+  vis_->setCameraPosition(at.x(), at.y(), at.z(), c.x(), c.y(), c.z(), up.x(), up.y(), up.z());
+  vis_->setCameraClipDistances(0.01 * diagonal_, 10 * diagonal_);
+  if (style_) render();
+}
+
+void Viewer::placeOverlays() {
+  if (!help_) return;
+  const int* size = vis_->getRenderWindow()->GetSize();
+  help_->SetPosition(10, size[1] - 10);
+  help_->SetVisibility(help_visible_);
+  mode_label_->SetPosition(10, 10);
+  status_->SetPosition(80, 10);
 }
 
 void Viewer::spin() {
@@ -232,21 +273,55 @@ void Viewer::render() {
   const auto t0 = Clock::now();
   updateStatus();
   vis_->getRenderWindow()->Render();
-  if (dragging_) stats_.render.push_back(msSince(t0));
+  if (dragging_ || timing_frame_) stats_.render.push_back(msSince(t0));
 }
 
+// The status line: the mode (its own label, always there), then what the shape is, the
+// timings, the warnings and the last message; wrapped at " | " to the window's width (it grows
+// upwards) rather than cut off.
 void Viewer::updateStatus() {
+  if (!status_) return;
   static const char* kViews[3] = {"colours", "field", "clusters"};
+  std::vector<std::string> parts;
   std::ostringstream s;
   s << run_.geometry().size() << " points";
   if (run_.ready()) s << ", " << run_.deformer().clustering().clusters.size() << " clusters";
-  s << " | view " << kViews[view_] << (drag_mode_ ? " | DRAG" : "") << (frame_mode_ ? " | FRAME" : "");
+  parts.push_back(s.str());
+  parts.push_back(std::string("view ") + kViews[view_]);
   if (!stats_.solve.empty())
-    s << " | solve " << num(stats_.solve.back()) << " ms, interpolate " << num(stats_.interpolate.back())
-      << " ms, render " << (stats_.render.empty() ? std::string("-") : num(stats_.render.back())) << " ms";
-  s << alert_;
-  if (!message_.empty()) s << " | " << message_;
-  vis_->updateText(s.str(), 10, 10, 13, 0.1, 0.1, 0.1, "status");
+    parts.push_back("solve " + num(stats_.solve.back()) + " ms, interpolate " +
+                    num(stats_.interpolate.back()) + " ms, render " +
+                    (stats_.render.empty() ? std::string("-") : num(stats_.render.back())) + " ms");
+  for (std::size_t p = alert_.find(" | "); p != std::string::npos;) {
+    const std::size_t next = alert_.find(" | ", p + 3);
+    parts.push_back(alert_.substr(p + 3, next == std::string::npos ? std::string::npos : next - p - 3));
+    p = next;
+  }
+  if (!message_.empty()) parts.push_back(message_);
+  const int* size = vis_->getRenderWindow()->GetSize();
+  // About 7 pixels a character at 13 points.
+  const std::size_t columns = static_cast<std::size_t>(std::max(20, (size[0] - 90) / 7));
+  std::string text, line;
+  for (const std::string& part : parts) {
+    const std::string add = line.empty() ? part : " | " + part;
+    if (!line.empty() && line.size() + add.size() > columns) {
+      text += line + "\n";
+      line = part;
+    } else {
+      line += add;
+    }
+  }
+  text += line;
+  status_->SetInput(text.c_str());
+  static const std::map<std::string, Eigen::Vector3d> kModeColour = {{"pick", {0.1, 0.1, 0.1}},
+                                                                     {"area", {0.85, 0.45, 0.0}},
+                                                                     {"drag", {0.8, 0.1, 0.1}},
+                                                                     {"frame", {0.45, 0.1, 0.75}}};
+  std::string label = mode();
+  const Eigen::Vector3d c = kModeColour.at(label);
+  for (char& ch : label) ch = static_cast<char>(std::toupper(static_cast<unsigned char>(ch)));
+  mode_label_->SetInput(label.c_str());
+  mode_label_->GetTextProperty()->SetColor(c.x(), c.y(), c.z());
 }
 
 void Viewer::message(const std::string& m) {
