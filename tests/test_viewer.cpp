@@ -914,3 +914,78 @@ TEST(Viewer, StatsCountTheRenderTimeOfFrameKeys) {
 }
 
 }  // namespace
+
+namespace {
+
+/// Pixels with every channel under 90 in rows [y0, y1) and columns [x0, x1).
+int darkIn(const Image& img, int x0, int y0, int x1, int y1) {
+  int n = 0;
+  for (int y = std::max(0, y0); y < std::min(img.height, y1); ++y)
+    for (int x = std::max(0, x0); x < std::min(img.width, x1); ++x) {
+      const unsigned char* p = img.at(x, y);
+      n += p[0] < 90 && p[1] < 90 && p[2] < 90;
+    }
+  return n;
+}
+
+// Item 6: handles stand out on any file colours. A bar coloured red all over, its right end the
+// (red) manipulated handle and its left end the fixed one: the handles are outlined in dark
+// halos (the old blend of red into red left nothing to see).
+TEST(Viewer, HandlesStandOutOnFileColours) {
+  if (!haveXvfb()) GTEST_SKIP() << "xvfb-run not installed";
+  hgdtest::TempDir dir;
+  hgd::Shape bar = hgd::shapes::bar(1.0f, 0.1f, 0.01f);
+  pcl::PointCloud<pcl::PointXYZRGB> rgb;
+  pcl::fromPCLPointCloud2(bar.cloud, rgb);
+  for (auto& p : rgb) {
+    p.r = 230;
+    p.g = 30;
+    p.b = 20;
+  }
+  pcl::toPCLPointCloud2(rgb, bar.cloud);
+  hgd::writeShape(dir.file("red.ply"), bar);
+  hgdtest::writeText(dir.file("events.json"), R"({"events": [{"key": "h"},
+    {"pick": {"world": [1, 0, 0.05], "radius": 0.06}}, {"key": "m"},
+    {"pick": {"world": [0, 0, 0.05], "radius": 0.06}}, {"key": "f"}]})");
+  std::string out;
+  ASSERT_EQ(hgdtest::run(viewer(dir.file("red.ply") + " --replay " + dir.file("events.json") +
+                                " --screenshot " + dir.file("h.png") + " --size 800x500 --quiet"),
+                         out),
+            0)
+      << out;
+  const Image img = readPng(dir.file("h.png"));
+  ASSERT_EQ(img.width, 800);
+  // Above the status line: the right end (the manipulated handle) and the left (fixed).
+  const int right = darkIn(img, 560, 0, 800, 460), left = darkIn(img, 0, 0, 240, 460);
+  std::printf("dark outline pixels: %d around the manipulated handle, %d around the fixed one\n", right,
+              left);
+  EXPECT_GT(right, 60);
+  EXPECT_GT(left, 60);
+}
+
+// Item 7: the rest overlay `o` on a mesh is a wireframe that shows (it was faint one-pixel dots).
+TEST(Viewer, RestOverlayShowsOnMeshes) {
+  if (!haveXvfb()) GTEST_SKIP() << "xvfb-run not installed";
+  hgdtest::TempDir dir;
+  hgd::writeShape(dir.file("bar.ply"), hgd::shapes::barMesh(1.0f, 0.1f, 0.025f));
+  hgdtest::writeText(dir.file("s.json"), R"({"fixed": [{"box": {"min": [-1, -1, -1], "max": [0.1, 1, 1]}}],
+    "manipulated": {"box": {"min": [0.9, -1, -1], "max": [2, 1, 1]}},
+    "move": {"frame": {"translate": [0, 0.4, 0]}}})");
+  const std::string d = dir.path().string() + "/";
+  hgdtest::writeText(dir.file("events.json"), R"({"events": [{"key": "h"}, {"screenshot": ")" + d +
+                                                  R"(off.png"}, {"key": "o"}, {"screenshot": ")" + d +
+                                                  R"(on.png"}]})");
+  std::string out;
+  ASSERT_EQ(hgdtest::run(viewer(dir.file("bar.ply") + " -s " + dir.file("s.json") + " --replay " +
+                                dir.file("events.json") + " --size 800x500 --quiet"),
+                         out),
+            0)
+      << out;
+  const Image off = readPng(dir.file("off.png")), on = readPng(dir.file("on.png"));
+  ASSERT_FALSE(off.rgb.empty());
+  const int changed = countDifferent(off, on);
+  std::printf("the rest overlay changes %d pixels\n", changed);
+  EXPECT_GT(changed, 6000);  // the old dots: about 2900
+}
+
+}  // namespace

@@ -151,6 +151,8 @@ class Viewer {
   void openingView();
   void refreshRoles();
   void refresh();
+  void drawHandles(const Eigen::Vector3f* role_colours, bool field_view);
+  double shapePointSize() const;
   void updatePositions();
   void showLod(bool on);
   vtkPolyData* shapePolyData();
@@ -209,7 +211,8 @@ class Viewer {
   std::string alert_;                  // see updateAlerts()
   std::vector<std::string> reported_;  // warnings already printed on stderr
   FrameStats stats_;
-  std::vector<int> lod_;  // the drawn subset while dragging (empty: the whole shape is drawn)
+  std::vector<int> handle_points_;  // drawn again as marks with halos (drawHandles)
+  std::vector<int> lod_;            // the drawn subset while dragging (empty: the whole shape is drawn)
   pcl::PointCloud<pcl::PointXYZRGB>::Ptr lod_display_;
   int multisamples_ = 0;  // the window's, restored after a drag drawn at a level of detail
 };

@@ -11,6 +11,7 @@
 #include <vtkMapper.h>
 #include <vtkPoints.h>
 #include <vtkPolyData.h>
+#include <vtkProperty.h>
 #include <vtkRenderWindow.h>
 #include <vtkRenderer.h>
 #include <vtkRendererCollection.h>
@@ -38,12 +39,12 @@ void Viewer::open() {
       std::make_unique<pcl::visualization::PCLVisualizer>(argc, nullptr, "hgdeform-view", style_.Get(), true);
   vis_->setSize(width_, height_);
   vis_->setBackgroundColor(1, 1, 1);
+  vtkMapper::SetResolveCoincidentTopologyToPolygonOffset();  // the handles' marks lie over the shape
   if (run_.geometry().faces.empty()) {
     const pcl::visualization::PointCloudColorHandlerRGBField<pcl::PointXYZRGB> rgb(display_);
     vis_->addPointCloud<pcl::PointXYZRGB>(display_, rgb, "shape");
-    // Big points cost fill rate under software GL: dense clouds need no more than one pixel.
-    const double size = run_.geometry().size() > 200000 ? 1 : run_.geometry().size() > 50000 ? 2 : 3;
-    vis_->setPointCloudRenderingProperties(pcl::visualization::PCL_VISUALIZER_POINT_SIZE, size, "shape");
+    vis_->setPointCloudRenderingProperties(pcl::visualization::PCL_VISUALIZER_POINT_SIZE, shapePointSize(),
+                                           "shape");
   } else {
     pcl::PolygonMesh mesh;
     pcl::toPCLPointCloud2(*display_, mesh.cloud);
@@ -163,6 +164,7 @@ void Viewer::refresh() {
     p.g = static_cast<std::uint8_t>(std::clamp(c.y(), 0.0f, 1.0f) * 255);
     p.b = static_cast<std::uint8_t>(std::clamp(c.z(), 0.0f, 1.0f) * 255);
   }
+  drawHandles(kRole, field_view);
   if (run_.geometry().faces.empty()) {
     // With an explicit colour handler: PCL's plain update paints the cloud white.
     const pcl::visualization::PointCloudColorHandlerRGBField<pcl::PointXYZRGB> rgb(display_);
@@ -175,17 +177,85 @@ void Viewer::refresh() {
     vis_->removePolygonMesh("shape");
     vis_->addPolygonMesh(mesh, "shape");
   }
+  // The rest shape: a mesh as a grey wireframe (its points alone were faint dots), a cloud as
+  // translucent grey points.
+  const bool mesh = !run_.geometry().faces.empty();
   if (overlay_ && !overlay_shown_) {
-    const pcl::visualization::PointCloudColorHandlerRGBField<pcl::PointXYZRGB> grey(rest_);
-    vis_->addPointCloud<pcl::PointXYZRGB>(rest_, grey, "rest");
-    vis_->setPointCloudRenderingProperties(pcl::visualization::PCL_VISUALIZER_OPACITY, 0.35, "rest");
+    if (mesh) {
+      pcl::PolygonMesh rest;
+      pcl::toPCLPointCloud2(*rest_, rest.cloud);
+      rest.polygons = run_.geometry().faces;
+      vis_->addPolygonMesh(rest, "rest");
+      // (PCL keeps a mesh's actor among the clouds.)
+      auto it = vis_->getCloudActorMap()->find("rest");
+      if (it != vis_->getCloudActorMap()->end() && it->second.actor) {
+        vtkActor* a = it->second.actor;
+        a->GetMapper()->ScalarVisibilityOff();
+        a->GetProperty()->SetRepresentationToWireframe();
+        a->GetProperty()->SetColor(0.3, 0.3, 0.38);
+        a->GetProperty()->SetOpacity(0.55);
+        a->GetProperty()->SetLighting(false);
+      }
+    } else {
+      const pcl::visualization::PointCloudColorHandlerRGBField<pcl::PointXYZRGB> grey(rest_);
+      vis_->addPointCloud<pcl::PointXYZRGB>(rest_, grey, "rest");
+      vis_->setPointCloudRenderingProperties(pcl::visualization::PCL_VISUALIZER_OPACITY, 0.35, "rest");
+    }
     overlay_shown_ = true;
   } else if (!overlay_ && overlay_shown_) {
-    vis_->removePointCloud("rest");
+    if (mesh)
+      vis_->removePolygonMesh("rest");
+    else
+      vis_->removePointCloud("rest");
     overlay_shown_ = false;
   }
   scale_bar_->SetVisibility(field_view);
   render();
+}
+
+// Handles and the selection stand out on any colours: drawn again over the shape as larger
+// points in their pure colours (blue fixed, red manipulated, green joints, yellow selected),
+// each on a dark halo, both pulled towards the eye so that the shape's own points do not
+// cover them.
+void Viewer::drawHandles(const Eigen::Vector3f* role_colours, bool field_view) {
+  handle_points_.clear();
+  for (std::size_t i = 0; i < role_.size(); ++i)
+    if (selected_[i] || (role_[i] != 0 && !field_view)) handle_points_.push_back(static_cast<int>(i));
+  for (const char* id : {"handles", "halo"})
+    if (vis_->getCloudActorMap()->count(id)) vis_->removePointCloud(id);
+  if (handle_points_.empty()) return;
+  auto marks = pcl::make_shared<pcl::PointCloud<pcl::PointXYZRGB>>();
+  auto halo = pcl::make_shared<pcl::PointCloud<pcl::PointXYZRGB>>();
+  marks->reserve(handle_points_.size());
+  for (const int i : handle_points_) {
+    const std::size_t u = static_cast<std::size_t>(i);
+    pcl::PointXYZRGB p = (*display_)[u];
+    const Eigen::Vector3f c =
+        selected_[u] ? Eigen::Vector3f(1.0f, 0.85f, 0.1f) : role_colours[static_cast<int>(role_[u])];
+    p.r = static_cast<std::uint8_t>(c.x() * 255);
+    p.g = static_cast<std::uint8_t>(c.y() * 255);
+    p.b = static_cast<std::uint8_t>(c.z() * 255);
+    marks->push_back(p);
+    p.r = p.g = p.b = 25;
+    halo->push_back(p);
+  }
+  const double size = run_.geometry().faces.empty() ? shapePointSize() : 3;
+  const pcl::visualization::PointCloudColorHandlerRGBField<pcl::PointXYZRGB> halo_rgb(halo), marks_rgb(marks);
+  vis_->addPointCloud<pcl::PointXYZRGB>(halo, halo_rgb, "halo");
+  vis_->addPointCloud<pcl::PointXYZRGB>(marks, marks_rgb, "handles");
+  vis_->setPointCloudRenderingProperties(pcl::visualization::PCL_VISUALIZER_POINT_SIZE, size + 5, "halo");
+  vis_->setPointCloudRenderingProperties(pcl::visualization::PCL_VISUALIZER_POINT_SIZE, size + 2, "handles");
+  auto* clouds = vis_->getCloudActorMap().get();
+  for (const auto& [id, offset] : {std::pair<const char*, double>{"halo", -2.0}, {"handles", -4.0}}) {
+    auto it = clouds->find(id);
+    if (it != clouds->end() && it->second.actor && it->second.actor->GetMapper())
+      it->second.actor->GetMapper()->SetRelativeCoincidentTopologyPointOffsetParameter(offset);
+  }
+}
+
+double Viewer::shapePointSize() const {
+  // Big points cost fill rate under software GL: dense clouds need no more than one pixel.
+  return run_.geometry().size() > 200000 ? 1 : run_.geometry().size() > 50000 ? 2 : 3;
 }
 
 // Level of detail: a point cloud larger than --lod points is drawn, while a drag lasts, as
@@ -252,6 +322,18 @@ void Viewer::updatePositions() {
   }
   pts->Modified();
   poly->Modified();
+  // The handles' marks and halos follow their points.
+  for (const char* id : {"handles", "halo"}) {
+    vtkPolyData* marks = cloudPolyData(id);
+    vtkPoints* mp = marks ? marks->GetPoints() : nullptr;
+    if (!mp || mp->GetNumberOfPoints() != static_cast<vtkIdType>(handle_points_.size())) continue;
+    for (std::size_t k = 0; k < handle_points_.size(); ++k) {
+      const Eigen::Vector3f p = local[static_cast<std::size_t>(handle_points_[k])] + origin;
+      mp->SetPoint(static_cast<vtkIdType>(k), p.x(), p.y(), p.z());
+    }
+    mp->Modified();
+    marks->Modified();
+  }
   render();
 }
 
