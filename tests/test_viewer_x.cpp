@@ -591,3 +591,74 @@ TEST(ViewerX, RReturnsToTheOpeningView) {
 }
 
 }  // namespace
+
+namespace {
+
+/// A bumpy square of side x side points in PATH (binary PLY).
+void writePlane(const std::string& path, int side) {
+  std::FILE* f = std::fopen(path.c_str(), "wb");
+  ASSERT_NE(f, nullptr);
+  std::fprintf(f,
+               "ply\nformat binary_little_endian 1.0\nelement vertex %d\nproperty float x\nproperty float "
+               "y\nproperty float z\nend_header\n",
+               side * side);
+  for (int i = 0; i < side; ++i)
+    for (int j = 0; j < side; ++j) {
+      const float x = static_cast<float>(i) / static_cast<float>(side - 1),
+                  y = static_cast<float>(j) / static_cast<float>(side - 1);
+      const float p[3] = {x, y, 0.03f * std::sin(20 * x) * std::cos(15 * y)};
+      std::fwrite(p, sizeof p, 1, f);
+    }
+  std::fclose(f);
+}
+
+// Item 11: marking the handles of a large cloud builds the deformer off the GUI thread: while it
+// builds, the status line says so, the view turns with the mouse and a screenshot is taken,
+// all before the build ends (the old viewer froze: the screenshot came after the build).
+TEST(ViewerX, DeformerBuildsWhileTheWindowResponds) {
+  REQUIRE_X();
+  hgdtest::TempDir dir;
+  writePlane(dir.file("plane.ply"), 700);  // 490,000 points
+  const ViewerWindow v(x, hgdtest::quote(dir.file("plane.ply")) + " --size 640x480", dir.file("log.txt"));
+  ASSERT_TRUE(v.ok()) << v.log();
+  const OpeningView view = openingView(dir.file("plane.ply"));
+  auto at = [&](double wx, double wy) { return view.at({wx, wy, 0.0}, v.width(), v.height()); };
+  auto band = [&](double x0, double x1) {
+    const Eigen::Vector2d a = at(x0, 1.05), b = at(x1, -0.05);
+    v.move(a.x(), a.y());
+    v.xdo("mousedown 1");
+    v.move(0.5 * (a.x() + b.x()), 0.5 * (a.y() + b.y()));
+    v.move(b.x(), b.y());
+    v.xdo("mouseup 1");
+  };
+  ASSERT_TRUE(v.shot(dir.file("before.png")));
+  v.key("x");
+  band(-0.05, 0.1);
+  ASSERT_TRUE(v.waitFor("selected ", 1, 60)) << v.log();
+  v.key("f");
+  ASSERT_TRUE(v.waitFor("still needed", 1, 60)) << v.log();
+  band(0.9, 1.05);
+  ASSERT_TRUE(v.waitFor("selected ", 2, 60)) << v.log();
+  v.key("m x");  // the build starts; back to pick mode: the mouse turns the view
+  v.move(320, 240);
+  v.xdo("mousedown 1");
+  for (int k = 1; k <= 6; ++k) v.move(320 + 25 * k, 240 + 10 * k);
+  v.xdo("mouseup 1");
+  ASSERT_TRUE(v.shot(dir.file("during.png")));
+  ASSERT_TRUE(v.waitFor("handles: 1 fixed", 1, 300)) << v.log();
+  const std::string log = v.log();
+  std::printf("%s", log.c_str());
+  const std::size_t building = log.find("building the deformer"),
+                    shot = log.find("screenshot /", log.find("still needed")),
+                    built = log.find("handles: 1 fixed");
+  ASSERT_NE(shot, std::string::npos) << log;
+  EXPECT_LT(shot, built) << "the screenshot waited for the build";
+  EXPECT_NE(building, std::string::npos) << "the status line did not say that the deformer builds";
+  EXPECT_LT(building, shot);
+  const Image before = readPng(dir.file("before.png")), during = readPng(dir.file("during.png"));
+  ASSERT_FALSE(before.rgb.empty());
+  EXPECT_GT(countDifferent(before, during, 90, before.height - 60), 2000) << "the view did not turn";
+  keep(dir.file("during.png"), "building.png");
+}
+
+}  // namespace

@@ -124,13 +124,20 @@ int main(int argc, char** argv) {
     }
     if (const std::string problem = hgd::displayProblem(); !problem.empty())
       throw std::runtime_error(problem);
+    const auto start = hgdview::Clock::now();
     Viewer viewer(input, width, height);
+    const double read_ms = hgdview::msSince(start);
     viewer.verbose_ = !quiet;
     viewer.inputs_ = inputs;
     viewer.lod_points_ = args.lod;
     if (!scenario.empty()) viewer.loadScenario(scenario);
+    const auto opening = hgdview::Clock::now();
     viewer.open();
     viewer.vis().setSize(width, height);  // the first render may shrink the window
+    if (stats)
+      std::printf("opened: read %.0f ms, first frame %.0f ms after reading\n", read_ms,
+                  hgdview::msSince(opening));
+    if (!replay.empty() || !shot.empty()) viewer.drawWhole();  // pictures of the whole shape
     if (!replay.empty()) {
       viewer.replay(events, replay, viewer.vis().getRenderWindow()->GetInteractor());
       if (!shot.empty()) viewer.screenshot(shot);

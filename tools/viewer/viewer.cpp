@@ -2,11 +2,17 @@
 // through the runner (as `hgdeform deform` replays them, with undo and redo), and what is saved.
 #include "viewer.h"
 
+#include <omp.h>
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <iterator>
 #include <sstream>
+#include <thread>
 
 #include "hgdeform/deformer.h"
 #include "hgdeform/geometry.h"
@@ -97,7 +103,77 @@ void Viewer::markSelection(int role) {
   syncRegions();
   clearSelection(false);
   refreshRoles();
-  run_.setHandles(handles_);
+  buildDeformer();
+}
+
+// New handles: the deformer is built for them (the field, the clusters). In the interactive
+// window that happens off the GUI thread: the view still turns, the status line counts the
+// seconds, and keys that need the deformer wait (see key()); pollBuild() finishes it.
+void Viewer::buildDeformer() {
+  const bool complete = !handles_.fixed.empty() && !handles_.manipulated.empty();
+  if (!async_builds_ || !complete || !vis_) {
+    run_.setHandles(handles_);
+    finishHandles();
+    return;
+  }
+  building_ = true;
+  build_done_ = false;
+  build_error_.clear();
+  build_start_ = Clock::now();
+  build_thread_ = std::thread([this, h = handles_] {
+    // One core less than there are for the build, at a lower priority: the GUI thread keeps one
+    // to draw and answer the mouse.
+    omp_set_num_threads(std::max(1, omp_get_num_procs() - 1));
+    setpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)), 10);
+    try {
+      run_.setHandles(h);
+    } catch (const std::exception& e) {
+      build_error_ = e.what();
+    }
+    build_done_ = true;
+  });
+  last_progress_ = Clock::now();
+  message("building the deformer for " + std::to_string(run_.geometry().size()) +
+          " points... (the view turns meanwhile)");
+  refresh();
+}
+
+void Viewer::pollBuild() {
+  if (!building_) return;
+  if (!build_done_) {
+    if (msSince(last_progress_) > 1000) {  // on the status line only (not stderr), once a second
+      last_progress_ = Clock::now();
+      message_ = "building the deformer for " + std::to_string(run_.geometry().size()) + " points... " +
+                 num(msSince(build_start_) / 1000.0) + " s (the view turns meanwhile)";
+      render();
+    }
+    return;
+  }
+  build_thread_.join();
+  building_ = false;
+  if (!build_error_.empty()) {
+    handles_ = hgd::Handles{};
+    run_.setHandles(handles_);
+    refreshRoles();
+    message("cannot build the deformer: " + build_error_);
+    refresh();
+    return;
+  }
+  if (verbose_)
+    std::fprintf(stderr, "hgdeform-view: deformer built in %.2f s\n", msSince(build_start_) / 1000.0);
+  finishHandles();
+}
+
+void Viewer::waitForBuild() {
+  if (build_thread_.joinable()) build_thread_.join();
+  building_ = false;
+}
+
+Viewer::~Viewer() {
+  waitForBuild();
+}
+
+void Viewer::finishHandles() {
   updateAlerts();
   if (run_.ready()) {
     message("handles: " + std::to_string(handles_.fixed.size()) + " fixed, manipulated " +
@@ -238,7 +314,7 @@ void Viewer::saveScenario(const std::string& path) {
 }
 
 Eigen::Vector3d Viewer::deformed(std::size_t i) const {
-  return run_.ready() ? run_.deformer().deformedWorld(i) : run_.geometry().world(i);
+  return ready() ? run_.deformer().deformedWorld(i) : run_.geometry().world(i);
 }
 
 Eigen::Vector3d Viewer::centre() const {

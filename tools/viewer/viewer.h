@@ -16,9 +16,11 @@
 #include <vtkTextActor.h>
 
 #include <Eigen/Core>
+#include <atomic>
 #include <chrono>
 #include <memory>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "hgdeform/regions.h"
@@ -94,12 +96,17 @@ class Viewer {
  public:
   // --- state (viewer.cpp) -----------------------------------------------------------------
   Viewer(const std::string& input, int width, int height);
+  ~Viewer();
+  Viewer(const Viewer&) = delete;
+  Viewer& operator=(const Viewer&) = delete;
   void loadScenario(const std::string& path);
   void printStats() const;
 
   // --- the window (viewer_draw.cpp) -------------------------------------------------------
   void open();
   void spin();
+  /// After an opening frame drawn at the level of detail (a large cloud), draws it whole.
+  void drawWhole();
   void screenshot(const std::string& path);
 
   // --- events (viewer_input.cpp) ----------------------------------------------------------
@@ -124,6 +131,13 @@ class Viewer {
  private:
   // --- state changes (viewer.cpp) ---------------------------------------------------------
   void markSelection(int role);
+  void buildDeformer();
+  void finishHandles();
+  /// Finishes a deformer built off the GUI thread, or says how long it has been building.
+  void pollBuild();
+  void waitForBuild();
+  /// The deformer is there and not being built.
+  bool ready() const { return !building_ && run_.ready(); }
   void syncRegions();
   void clearSelection(bool redraw = true);
   void clearHandles();
@@ -151,6 +165,7 @@ class Viewer {
   void openingView();
   void refreshRoles();
   void refresh();
+  void fillDisplay();
   void drawHandles(const Eigen::Vector3f* role_colours, bool field_view);
   double shapePointSize() const;
   void updatePositions();
@@ -201,9 +216,17 @@ class Viewer {
   int view_ = 0;
   bool overlay_ = false, overlay_shown_ = false, help_visible_ = false;
   bool frame_mode_ = false, dragging_ = false, live_shown_ = false, quit_ = false;
-  bool timing_frame_ = false;  // a frame-mode key's render counts in --stats
-  bool unsaved_ = false;       // moves or handles since the last save
-  bool quit_asked_ = false;    // q/e pressed once with unsaved changes
+  bool async_builds_ = false;  // the interactive window builds the deformer off the GUI thread
+  bool building_ = false;
+  std::atomic<bool> build_done_{false};
+  std::string build_error_;
+  std::thread build_thread_;
+  Clock::time_point build_start_, last_progress_;
+  bool opening_ = false;        // inside open(): one render at its end
+  bool opened_at_lod_ = false;  // the opening frame drew the level of detail (spin() draws it whole)
+  bool timing_frame_ = false;   // a frame-mode key's render counts in --stats
+  bool unsaved_ = false;        // moves or handles since the last save
+  bool quit_asked_ = false;     // q/e pressed once with unsaved changes
   vtkSmartPointer<vtkTextActor> help_, status_, mode_label_;
   Eigen::Vector3d drag_from_, drag_last_;
   double drag_depth_ = 0;

@@ -32,6 +32,7 @@
 namespace hgdview {
 
 void Viewer::open() {
+  opening_ = true;
   style_ = vtkSmartPointer<Style>::Take(Style::New());
   style_->viewer = this;
   int argc = 0;
@@ -40,6 +41,7 @@ void Viewer::open() {
   vis_->setSize(width_, height_);
   vis_->setBackgroundColor(1, 1, 1);
   vtkMapper::SetResolveCoincidentTopologyToPolygonOffset();  // the handles' marks lie over the shape
+  fillDisplay();
   if (run_.geometry().faces.empty()) {
     const pcl::visualization::PointCloudColorHandlerRGBField<pcl::PointXYZRGB> rgb(display_);
     vis_->addPointCloud<pcl::PointXYZRGB>(display_, rgb, "shape");
@@ -95,6 +97,16 @@ void Viewer::open() {
   renderer()->AddActor2D(scale_bar_);
   vis_->resetCamera();
   openingView();
+  // A cloud larger than the level of detail opens drawn at it (its first frame comes sooner);
+  // the spin loop's first turn draws it whole.
+  opening_ = false;
+  if (run_.geometry().faces.empty() && lod_points_ > 0 &&
+      run_.geometry().size() > static_cast<std::size_t>(lod_points_)) {
+    showLod(true);  // (display_ is filled: the subset is copied from it)
+    opened_at_lod_ = true;
+    render();  // handles' marks, the rest: with the whole cloud (drawWhole)
+    return;
+  }
   refresh();
 }
 
@@ -105,9 +117,13 @@ void Viewer::openingView() {
   const Eigen::Vector3d up = hgd::upAxis("auto", {&run_.shape()}).cast<double>();
   const Eigen::Vector3d eye(0, 0, up.y() < 0 ? -1.0 : 1.0);
   const Eigen::Vector3d c = centre(), at = c + 2.2 * diagonal_ * eye;
-  vis_->setCameraPosition(at.x(), at.y(), at.z(), c.x(), c.y(), c.z(), up.x(), up.y(), up.z());
-  vis_->setCameraClipDistances(0.01 * diagonal_, 10 * diagonal_);
-  if (style_) render();
+  // On VTK's camera: PCL's setCameraPosition renders (seconds for a large cloud at opening).
+  vtkCamera* cam = renderer()->GetActiveCamera();
+  cam->SetPosition(at.x(), at.y(), at.z());
+  cam->SetFocalPoint(c.x(), c.y(), c.z());
+  cam->SetViewUp(up.x(), up.y(), up.z());
+  cam->SetClippingRange(0.01 * diagonal_, 10 * diagonal_);
+  if (style_ && !opening_) render();  // (open() renders once, at its end)
 }
 
 void Viewer::placeOverlays() {
@@ -119,8 +135,21 @@ void Viewer::placeOverlays() {
   status_->SetPosition(80, 10);
 }
 
+void Viewer::drawWhole() {
+  if (!opened_at_lod_) return;
+  opened_at_lod_ = false;  // the opening frame was drawn at the level of detail: now whole
+  showLod(false);
+  refresh();
+}
+
 void Viewer::spin() {
-  while (!vis_->wasStopped() && !quit_) vis_->spinOnce(30);
+  async_builds_ = true;
+  drawWhole();
+  while (!vis_->wasStopped() && !quit_) {
+    vis_->spinOnce(30);
+    pollBuild();
+  }
+  waitForBuild();
 }
 
 void Viewer::screenshot(const std::string& path) {
@@ -146,13 +175,19 @@ void Viewer::refreshRoles() {
     for (int i : jt) role_[static_cast<std::size_t>(i)] = 3;
 }
 
-void Viewer::refresh() {
-  if (!vis_) return;
-  static const Eigen::Vector3f kRole[4] = {
-      {0, 0, 0}, {0.15f, 0.35f, 0.95f}, {0.95f, 0.15f, 0.1f}, {0.2f, 0.75f, 0.2f}};
-  const bool field_view = view_ == 1 && run_.ready();
-  const bool cluster_view = view_ == 2 && run_.ready();
-  for (std::size_t i = 0; i < run_.geometry().size(); ++i) {
+namespace {
+const Eigen::Vector3f kRole[4] = {
+    {0, 0, 0}, {0.15f, 0.35f, 0.95f}, {0.95f, 0.15f, 0.1f}, {0.2f, 0.75f, 0.2f}};
+}  // namespace
+
+// The drawn points: deformed positions, and colours by the view, the roles and the selection.
+void Viewer::fillDisplay() {
+  const bool field_view = view_ == 1 && ready();
+  const bool cluster_view = view_ == 2 && ready();
+  const long long n = static_cast<long long>(run_.geometry().size());
+#pragma omp parallel for schedule(static)
+  for (long long k = 0; k < n; ++k) {
+    const std::size_t i = static_cast<std::size_t>(k);
     auto& p = (*display_)[i];
     p.getVector3fMap() = deformed(i).cast<float>();
     Eigen::Vector3f c = colours_[i];
@@ -164,6 +199,12 @@ void Viewer::refresh() {
     p.g = static_cast<std::uint8_t>(std::clamp(c.y(), 0.0f, 1.0f) * 255);
     p.b = static_cast<std::uint8_t>(std::clamp(c.z(), 0.0f, 1.0f) * 255);
   }
+}
+
+void Viewer::refresh() {
+  if (!vis_) return;
+  const bool field_view = view_ == 1 && ready();
+  fillDisplay();
   drawHandles(kRole, field_view);
   if (run_.geometry().faces.empty()) {
     // With an explicit colour handler: PCL's plain update paints the cloud white.
@@ -219,8 +260,16 @@ void Viewer::refresh() {
 // cover them.
 void Viewer::drawHandles(const Eigen::Vector3f* role_colours, bool field_view) {
   handle_points_.clear();
+  std::size_t marked = 0;
+  for (std::size_t i = 0; i < role_.size(); ++i) marked += selected_[i] || (role_[i] != 0 && !field_view);
+  // At most kMaxMarks marks (an even subset of a larger handle): big points cost fill rate,
+  // and a handle of a million points is seen without marking each.
+  constexpr std::size_t kMaxMarks = 4000;
+  const std::size_t stride = std::max<std::size_t>(1, (marked + kMaxMarks - 1) / kMaxMarks);
+  std::size_t seen = 0;
   for (std::size_t i = 0; i < role_.size(); ++i)
-    if (selected_[i] || (role_[i] != 0 && !field_view)) handle_points_.push_back(static_cast<int>(i));
+    if ((selected_[i] || (role_[i] != 0 && !field_view)) && seen++ % stride == 0)
+      handle_points_.push_back(static_cast<int>(i));
   for (const char* id : {"handles", "halo"})
     if (vis_->getCloudActorMap()->count(id)) vis_->removePointCloud(id);
   if (handle_points_.empty()) return;
@@ -243,7 +292,7 @@ void Viewer::drawHandles(const Eigen::Vector3f* role_colours, bool field_view) {
   const pcl::visualization::PointCloudColorHandlerRGBField<pcl::PointXYZRGB> halo_rgb(halo), marks_rgb(marks);
   vis_->addPointCloud<pcl::PointXYZRGB>(halo, halo_rgb, "halo");
   vis_->addPointCloud<pcl::PointXYZRGB>(marks, marks_rgb, "handles");
-  vis_->setPointCloudRenderingProperties(pcl::visualization::PCL_VISUALIZER_POINT_SIZE, size + 5, "halo");
+  vis_->setPointCloudRenderingProperties(pcl::visualization::PCL_VISUALIZER_POINT_SIZE, size + 4, "halo");
   vis_->setPointCloudRenderingProperties(pcl::visualization::PCL_VISUALIZER_POINT_SIZE, size + 2, "handles");
   auto* clouds = vis_->getCloudActorMap().get();
   for (const auto& [id, offset] : {std::pair<const char*, double>{"halo", -2.0}, {"handles", -4.0}}) {
@@ -367,7 +416,7 @@ void Viewer::updateStatus() {
   std::vector<std::string> parts;
   std::ostringstream s;
   s << run_.geometry().size() << " points";
-  if (run_.ready()) s << ", " << run_.deformer().clustering().clusters.size() << " clusters";
+  if (ready()) s << ", " << run_.deformer().clustering().clusters.size() << " clusters";
   parts.push_back(s.str());
   parts.push_back(std::string("view ") + kViews[view_]);
   if (!stats_.solve.empty())

@@ -52,6 +52,12 @@ bool Viewer::key(const std::string& sym, char code) {
                  sym == "Caps_Lock"))
     return false;
   if (k != 'q' && k != 'e') quit_asked_ = false;
+  // While the deformer builds, keys that need it wait; the view, the selection, the help, the
+  // mode, screenshots and quitting do not.
+  if (building_ && k != 0 && std::string("hrxc+=-kqe").find(k) == std::string::npos) {
+    message("the deformer is still being built: this key waits for it");
+    return true;
+  }
   if (frame_mode_) {
     const double step = 0.02 * diagonal_, turn = 5.0;
     Eigen::Vector3d up, right, view;
@@ -149,7 +155,7 @@ void Viewer::selectArea(int x0, int y0, int x1, int y1) {
 
 // Direct manipulation: press on the manipulated handle, move, release.
 bool Viewer::dragBegin(int x, int y) {
-  if (!drag_mode_ || !run_.ready()) return false;
+  if (!drag_mode_ || !ready()) return false;
   const int hit = nearestOnScreen(x, y, 20.0, /*manipulated_only=*/true);
   if (hit < 0) {
     message("press on the manipulated handle (red) to drag it");
