@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cstdint>
 
 #include "viewer.h"
 
@@ -270,6 +271,22 @@ void Style::OnLeftButtonDown() {
 
 void Style::OnMouseMove() {
   const int* p = Interactor->GetEventPosition();
+  if (viewer && viewer->dragging()) {
+    // Motions that queued while the last frame was solved: only the latest is drawn (each live
+    // frame is the whole drag's result, so skipping the ones between changes nothing).
+    int x = p[0], y = p[1];
+    vtkRenderWindow* w = Interactor->GetRenderWindow();
+    int qx = 0, qy = 0;
+    if (w &&
+        latestMotion(w->GetGenericDisplayId(),
+                     static_cast<unsigned long>(reinterpret_cast<std::uintptr_t>(w->GetGenericWindowId())),
+                     qx, qy)) {
+      x = qx;
+      y = w->GetSize()[1] - 1 - qy;
+    }
+    viewer->dragMove(x, y);
+    return;
+  }
   if (viewer && viewer->dragMove(p[0], p[1])) return;
   Superclass::OnMouseMove();
 }
