@@ -133,8 +133,11 @@ void Viewer::buildDeformer() {
     build_done_ = true;
   });
   last_progress_ = Clock::now();
-  message("building the deformer for " + std::to_string(run_.geometry().size()) +
-          " points... (the view turns meanwhile)");
+  message_ = "building the deformer for " + std::to_string(run_.geometry().size()) +
+             " points... (the view turns meanwhile)";
+  if (verbose_) std::fprintf(stderr, "hgdeform-view: %s\n", message_.c_str());
+  fillDisplay();
+  showLod(true);  // a large cloud turns at its level of detail while the cores build
   refresh();
 }
 
@@ -151,6 +154,7 @@ void Viewer::pollBuild() {
   }
   build_thread_.join();
   building_ = false;
+  showLod(false);
   if (!build_error_.empty()) {
     handles_ = hgd::Handles{};
     run_.setHandles(handles_);
