@@ -6,6 +6,7 @@
 //   viewer_replay.cpp  plays a replay file's events (read and checked by replay.cpp)
 //   viewer.cpp         state: selection, handles, moves, undo, saving
 //   viewer_draw.cpp    the window: drawing, colours, the status line, screenshots, screen geometry
+//   viewer_x11.cpp     what is asked of X directly (Caps Lock, queued pointer motions)
 #pragma once
 
 #include <pcl/visualization/interactor_style.h>
