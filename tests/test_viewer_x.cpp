@@ -662,3 +662,44 @@ TEST(ViewerX, DeformerBuildsWhileTheWindowResponds) {
 }
 
 }  // namespace
+
+namespace {
+
+// Item 1, the warnings: a drag that pulls the surface apart says so while the button is held
+// (on the frame shown), not only after the release. The bar's handles touch at x = 0.5; its far
+// end is lifted with the mouse and held; a screenshot taken while held comes after the warning.
+TEST(ViewerX, SurfacePulledApartIsSaidWhileTheDragIsHeld) {
+  REQUIRE_X();
+  hgdtest::TempDir dir;
+  hgd::writeShape(dir.file("bar.ply"), hgd::shapes::barBesideABox());
+  hgdtest::writeText(dir.file("s.json"), R"({
+    "fixed": [ { "box": { "min": [-1, -1, -1], "max": [0.5, 0.3, 1] } } ],
+    "manipulated": { "box": { "min": [0.5001, -1, -1], "max": [2, 0.3, 1] } } })");
+  const ViewerWindow v(
+      x,
+      hgdtest::quote(dir.file("bar.ply")) + " -s " + hgdtest::quote(dir.file("s.json")) + " --size 800x600",
+      dir.file("log.txt"));
+  ASSERT_TRUE(v.ok()) << v.log();
+  const OpeningView view = openingView(dir.file("bar.ply"));
+  const Eigen::Vector2d from = view.at({1.0, 0.0, 0.05}, v.width(), v.height()),
+                        to = view.at({1.0, 0.35, 0.05}, v.width(), v.height());
+  v.key("d");
+  ASSERT_TRUE(v.waitFor("drag mode")) << v.log();
+  v.move(from.x(), from.y());
+  v.xdo("mousedown 1");
+  for (int k = 1; k <= 6; ++k) {
+    const Eigen::Vector2d p = from + (to - from) * (k / 6.0);
+    v.move(p.x(), p.y());
+    std::this_thread::sleep_for(30ms);
+  }
+  std::this_thread::sleep_for(500ms);
+  v.key("k");
+  ASSERT_TRUE(v.waitFor("screenshot ")) << v.log();
+  v.xdo("mouseup 1");
+  const std::string log = v.log();
+  const std::size_t warned = log.find("pulled apart"), shot = log.find("screenshot ");
+  EXPECT_NE(warned, std::string::npos) << log;
+  EXPECT_LT(warned, shot) << "the warning came only after the release\n" << log;
+}
+
+}  // namespace
