@@ -989,3 +989,26 @@ TEST(Viewer, RestOverlayShowsOnMeshes) {
 }
 
 }  // namespace
+
+namespace {
+
+// Item 11: a cloud larger than --lod opens drawn at its level of detail (a quicker first frame),
+// then whole: the picture taken then is the one a whole-cloud opening gives, same view, same
+// points (a cloud added after the camera was set once came out framed differently).
+TEST(Viewer, CloudOpenedAtTheLevelOfDetailIsThenDrawnWhole) {
+  if (!haveXvfb()) GTEST_SKIP() << "xvfb-run not installed";
+  hgdtest::TempDir dir;
+  hgd::writeShape(dir.file("bar.ply"), hgd::shapes::bar(1.0f, 0.1f, 0.01f));
+  std::string out;
+  for (const std::string lod : {"0", "1000"})
+    ASSERT_EQ(hgdtest::run(viewer(dir.file("bar.ply") + " --screenshot " + dir.file("lod" + lod + ".png") +
+                                  " --size 600x400 --quiet --lod " + lod),
+                           out),
+              0)
+        << out;
+  const Image whole = readPng(dir.file("lod0.png")), opened = readPng(dir.file("lod1000.png"));
+  ASSERT_FALSE(whole.rgb.empty());
+  EXPECT_EQ(countDifferent(whole, opened), 0);
+}
+
+}  // namespace

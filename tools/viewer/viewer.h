@@ -171,6 +171,7 @@ class Viewer {
   void refreshRoles();
   void refresh();
   void fillDisplay();
+  void addShapeCloud();
   void drawHandles(const Eigen::Vector3f* role_colours, bool field_view);
   double shapePointSize() const;
   void updatePositions();

@@ -31,6 +31,11 @@
 
 namespace hgdview {
 
+namespace {
+const Eigen::Vector3f kRole[4] = {
+    {0, 0, 0}, {0.15f, 0.35f, 0.95f}, {0.95f, 0.15f, 0.1f}, {0.2f, 0.75f, 0.2f}};
+}  // namespace
+
 void Viewer::open() {
   opening_ = true;
   style_ = vtkSmartPointer<Style>::Take(Style::New());
@@ -42,11 +47,12 @@ void Viewer::open() {
   vis_->setBackgroundColor(1, 1, 1);
   vtkMapper::SetResolveCoincidentTopologyToPolygonOffset();  // the handles' marks lie over the shape
   fillDisplay();
+  // A cloud larger than the level of detail opens drawn at it (its first frame comes sooner):
+  // the whole cloud is handed to VTK by drawWhole(), on the spin loop's first turn.
+  opened_at_lod_ = run_.geometry().faces.empty() && lod_points_ > 0 &&
+                   run_.geometry().size() > static_cast<std::size_t>(lod_points_);
   if (run_.geometry().faces.empty()) {
-    const pcl::visualization::PointCloudColorHandlerRGBField<pcl::PointXYZRGB> rgb(display_);
-    vis_->addPointCloud<pcl::PointXYZRGB>(display_, rgb, "shape");
-    vis_->setPointCloudRenderingProperties(pcl::visualization::PCL_VISUALIZER_POINT_SIZE, shapePointSize(),
-                                           "shape");
+    if (!opened_at_lod_) addShapeCloud();
   } else {
     pcl::PolygonMesh mesh;
     pcl::toPCLPointCloud2(*display_, mesh.cloud);
@@ -97,17 +103,20 @@ void Viewer::open() {
   renderer()->AddActor2D(scale_bar_);
   vis_->resetCamera();
   openingView();
-  // A cloud larger than the level of detail opens drawn at it (its first frame comes sooner);
-  // the spin loop's first turn draws it whole.
   opening_ = false;
-  if (run_.geometry().faces.empty() && lod_points_ > 0 &&
-      run_.geometry().size() > static_cast<std::size_t>(lod_points_)) {
+  if (opened_at_lod_) {
     showLod(true);  // (display_ is filled: the subset is copied from it)
-    opened_at_lod_ = true;
-    render();  // handles' marks, the rest: with the whole cloud (drawWhole)
+    render();       // handles' marks, the rest: with the whole cloud (drawWhole)
     return;
   }
   refresh();
+}
+
+void Viewer::addShapeCloud() {
+  const pcl::visualization::PointCloudColorHandlerRGBField<pcl::PointXYZRGB> rgb(display_);
+  vis_->addPointCloud<pcl::PointXYZRGB>(display_, rgb, "shape");
+  vis_->setPointCloudRenderingProperties(pcl::visualization::PCL_VISUALIZER_POINT_SIZE, shapePointSize(),
+                                         "shape");
 }
 
 // The opening view, and `r`'s: the whole shape, upright by hgdeform-render's rule
@@ -117,11 +126,17 @@ void Viewer::openingView() {
   const Eigen::Vector3d up = hgd::upAxis("auto", {&run_.shape()}).cast<double>();
   const Eigen::Vector3d eye(0, 0, up.y() < 0 ? -1.0 : 1.0);
   const Eigen::Vector3d c = centre(), at = c + 2.2 * diagonal_ * eye;
-  // On VTK's camera: PCL's setCameraPosition renders (seconds for a large cloud at opening).
+  if (opening_) {
+    // PCL's own call once, at opening (nothing large is drawn yet, so its render is cheap):
+    // without it PCL frames the view anew when the whole cloud is added later.
+    vis_->setCameraPosition(at.x(), at.y(), at.z(), c.x(), c.y(), c.z(), up.x(), up.y(), up.z());
+  }
+  // Then on VTK's camera: PCL's setCameraPosition renders (seconds for a large cloud).
   vtkCamera* cam = renderer()->GetActiveCamera();
   cam->SetPosition(at.x(), at.y(), at.z());
   cam->SetFocalPoint(c.x(), c.y(), c.z());
   cam->SetViewUp(up.x(), up.y(), up.z());
+  cam->SetViewAngle(30);  // VTK's default (PCL's camera calls may leave another)
   cam->SetClippingRange(0.01 * diagonal_, 10 * diagonal_);
   if (style_ && !opening_) render();  // (open() renders once, at its end)
 }
@@ -138,8 +153,10 @@ void Viewer::placeOverlays() {
 void Viewer::drawWhole() {
   if (!opened_at_lod_) return;
   opened_at_lod_ = false;  // the opening frame was drawn at the level of detail: now whole
+  addShapeCloud();         // (display_ was filled by open())
   showLod(false);
-  refresh();
+  drawHandles(kRole, view_ == 1 && ready());
+  render();
 }
 
 void Viewer::spin() {
@@ -174,11 +191,6 @@ void Viewer::refreshRoles() {
   for (const auto& jt : handles_.joints)
     for (int i : jt) role_[static_cast<std::size_t>(i)] = 3;
 }
-
-namespace {
-const Eigen::Vector3f kRole[4] = {
-    {0, 0, 0}, {0.15f, 0.35f, 0.95f}, {0.95f, 0.15f, 0.1f}, {0.2f, 0.75f, 0.2f}};
-}  // namespace
 
 // The drawn points: deformed positions, and colours by the view, the roles and the selection.
 void Viewer::fillDisplay() {
