@@ -329,7 +329,25 @@ struct ClusterPhases {
         const int id = newCluster(ClusterKind::Iso, b, -1, v);
         Cluster& cl = c.clusters.back();
         std::sort(piece.begin(), piece.end());
-        for (int site : piece) cl.members.push_back(sg.sites[static_cast<std::size_t>(site)]);
+        // Its members: of each site pair that crosses the isovalue, the site nearer it in
+        // harmonic value (half a sample spacing from the isoline at most, at any density);
+        // all the contour's sites only when fewer than three are. Both ends of every pair
+        // made each isocluster's fit span two sample spacings and the shape less rigid
+        // (docs/method.md).
+        for (int site : piece) {
+          const auto x = static_cast<std::size_t>(site);
+          const double a = sitePhi(x);
+          bool nearer = false;
+          for (const int* t = sg.graph.begin(x); t != sg.graph.end(x) && !nearer; ++t) {
+            const double e = sitePhi(static_cast<std::size_t>(*t));
+            nearer = ((a < v && v <= e) || (e < v && v <= a)) && std::abs(a - v) <= std::abs(e - v);
+          }
+          if (nearer) cl.members.push_back(sg.sites[x]);
+        }
+        if (cl.members.size() < 3) {
+          cl.members.clear();
+          for (int site : piece) cl.members.push_back(sg.sites[static_cast<std::size_t>(site)]);
+        }
         // The contour's cells seed the gaps on either side of it.
         for (int site : piece)
           for (int m = sg.cell_start[static_cast<std::size_t>(site)];

@@ -552,7 +552,10 @@ TEST(Deform, UnitsDoNotMatter) {
   for (std::size_t i = 0; i < results[0].size(); ++i)
     worst = std::max(worst, (results[0][i] - results[1][i]).norm());
   std::printf("metres vs millimetres: max difference %.2e of the bar's length\n", worst);
-  EXPECT_LE(worst, 1e-6);  // measured 2.3e-7: float rounding at either scale
+  // Measured 3.2e-6: float rounding at either scale, amplified by the isoclusters' fits on the
+  // sites nearest each isoline (a thinner, nearly planar set; 2.3e-7 when both ends of every
+  // crossing pair were members).
+  EXPECT_LE(worst, 5e-6);
 }
 
 // The unit normal of the plane fitted (PCA) to a set of points; its sign is arbitrary.

@@ -97,9 +97,10 @@ TEST(Multires, FieldAndShapeMatchFullResolutionOnResampledForks) {
   // four; moves 0.010-0.014 / 0.0031-0.0051 of the drag, and 0.051 / 0.0124 with noise and
   // strays together. Bounds: about 1.5x those.
   // Normals, degrees from the full build's over the moved points (median / 99.9th percentile):
-  // 2.9 / 4.9, 0.46 / 1.2, 2.1 / 3.3, and 11.2 / 19.0 with noise and strays; bounds 1.5x.
+  // 2.9 / 4.9, 0.46 / 1.2, 2.1 / 3.3, and 11.2 / 19.0 with noise and strays; bounds 1.5x. Since
+  // isoclusters fit the sites nearest each isoline, the noisy fork's median is 1.33 (bound 2.0).
   const Case cases[] = {{"clean", 0, 0, 0.03, 0.0035, 0.022, 0.008, 4.3, 7.4},
-                        {"noise 0.2% of the diagonal", 0.002, 0, 0.03, 0.0035, 0.022, 0.008, 0.7, 1.9},
+                        {"noise 0.2% of the diagonal", 0.002, 0, 0.03, 0.0035, 0.022, 0.008, 2.0, 1.9},
                         {"1% strays", 0, 0.01, 0.03, 0.0035, 0.022, 0.008, 3.2, 5.0},
                         {"noise and strays", 0.002, 0.01, 0.03, 0.0035, 0.075, 0.019, 17, 28.5}};
   for (const Case& k : cases) {
@@ -299,8 +300,8 @@ TEST(Multires, MeshWithAJointMatchesFullResolution) {
       multi.coarseLevel().points.size(), rf.first, rf.second, rm.first, rm.second, e.phi_max, e.phi_rms,
       e.move_max, e.move_rms);
   // Measured: the joint's ends 0.016 and 0.018 apart, |dphi| 0.026 / 0.0093, moves 0.058 / 0.015
-  // of the drag (the full build's graph has the mesh edges besides kNN, the coarse level kNN
-  // alone: two graphs, two uniform Laplacians). Bounds: about 1.5x.
+  // of the drag (two graphs, two uniform Laplacians: the full build's is kNN plus the mesh edges
+  // the normal filter dropped, the coarse level's kNN alone). Bounds: about 1.5x.
   EXPECT_LT(std::abs(rf.first - rm.first), 0.025);
   EXPECT_LT(std::abs(rf.second - rm.second), 0.027);
   EXPECT_LT(e.phi_max, 0.04);

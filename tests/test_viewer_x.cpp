@@ -83,35 +83,34 @@ bool haveTools() {
   return hgdtest::run("command -v Xvfb && command -v xdotool", out) == 0;
 }
 
-/// A private Xvfb (with GLX) on a free display number, stopped by its pid when the object dies.
+/// A private Xvfb (with GLX) on a display number it chooses itself (-displayfd: tests running
+/// at once never share a server), stopped by its pid when the object dies.
 class Xvfb {
  public:
   Xvfb() {
-    for (int n = 150; n < 260 && display_.empty(); ++n) {
-      const std::string num = std::to_string(n), socket = "/tmp/.X11-unix/X" + num;
-      if (hgdtest::exists("/tmp/.X" + num + "-lock") || hgdtest::exists(socket)) continue;
-      pid_ = ::fork();
-      if (pid_ < 0) return;
-      if (pid_ == 0) {
-        std::freopen("/dev/null", "w", stdout);
-        std::freopen("/dev/null", "w", stderr);
-        const std::string d = ":" + num;
-        ::execlp("Xvfb", "Xvfb", d.c_str(), "-nolisten", "tcp", "-screen", "0", "1280x1024x24",
-                 static_cast<char*>(nullptr));
-        ::_exit(127);
-      }
-      for (int i = 0; i < 1000 && display_.empty(); ++i) {  // 10 s at most
-        if (hgdtest::exists(socket)) {
-          display_ = ":" + num;
-        } else if (::waitpid(pid_, nullptr, WNOHANG) == pid_) {
-          pid_ = -1;
-          break;
-        } else {
-          std::this_thread::sleep_for(10ms);
-        }
-      }
-      if (display_.empty()) stop();
+    int fds[2];
+    if (::pipe(fds) != 0) return;
+    pid_ = ::fork();
+    if (pid_ < 0) return;
+    if (pid_ == 0) {
+      ::close(fds[0]);
+      std::freopen("/dev/null", "w", stdout);
+      std::freopen("/dev/null", "w", stderr);
+      const std::string fd = std::to_string(fds[1]);
+      ::execlp("Xvfb", "Xvfb", "-displayfd", fd.c_str(), "-nolisten", "tcp", "-screen", "0", "1280x1024x24",
+               static_cast<char*>(nullptr));
+      ::_exit(127);
     }
+    ::close(fds[1]);
+    std::string number;
+    char c = 0;
+    while (::read(fds[0], &c, 1) == 1 && c != '\n') number += c;  // written once it accepts clients
+    ::close(fds[0]);
+    if (number.empty() || number.find_first_not_of("0123456789") != std::string::npos) {
+      stop();
+      return;
+    }
+    display_ = ":" + number;
   }
   ~Xvfb() { stop(); }
   Xvfb(const Xvfb&) = delete;
@@ -163,8 +162,9 @@ class ViewerWindow {
   ViewerWindow& operator=(const ViewerWindow&) = delete;
 
   bool ok() const { return !window_.empty() && width_ > 0 && height_ > 0; }
-  int width() const { return width_; }
-  int height() const { return height_; }
+  /// The window's size now (asked each time: the viewer sets its size again after opening).
+  int width() const { return geometry("WIDTH="); }
+  int height() const { return geometry("HEIGHT="); }
   const std::string& window() const { return window_; }
 
   /// Runs `xdotool ARGS` on this display (at most `seconds`); returns its exit code.
@@ -183,6 +183,12 @@ class ViewerWindow {
   }
   void key(const std::string& keys) const { xdo("key --delay 30 " + keys); }
 
+  int geometry(const std::string& key) const {
+    std::string out;
+    xdo("getwindowgeometry --shell " + window_, out);
+    const std::size_t at = out.find(key);
+    return at == std::string::npos ? 0 : std::atoi(out.c_str() + at + key.size());
+  }
   std::string log() const { return hgdtest::slurp(log_); }
   /// Waits (at most `seconds`) until the log holds `text` `count` times; returns whether it did.
   bool waitFor(const std::string& text, std::size_t count = 1, double seconds = 20) const {
@@ -416,8 +422,11 @@ TEST(ViewerX, ModeIsShownAndShiftClickPicksInAnyMode) {
   const Eigen::Vector2d a = at(-0.05, 0.1), b = at(0.08, -0.1);
   v.move(a.x(), a.y());
   v.xdo("mousedown 1");
+  std::this_thread::sleep_for(100ms);
   v.move(0.5 * (a.x() + b.x()), 0.5 * (a.y() + b.y()));
+  std::this_thread::sleep_for(100ms);
   v.move(b.x(), b.y());
+  std::this_thread::sleep_for(100ms);
   v.xdo("mouseup 1");
   ASSERT_TRUE(v.waitFor("selected ")) << v.log();
   EXPECT_FALSE(hgdtest::contains(v.log(), "selected 0 points")) << v.log();

@@ -15,7 +15,9 @@
 
 #include "batch_internal.h"
 #include "batch_provenance.h"
+#include "hgdeform/geometry.h"
 #include "hgdeform/io.h"
+#include "hgdeform/regions.h"
 #include "hgdeform/runner.h"
 #include "hgdeform/scenario.h"
 #ifdef HGD_HAVE_RENDER
@@ -98,13 +100,21 @@ void testHook(const std::string& rel) {
 #ifdef HGD_HAVE_RENDER
 std::mutex g_render_mutex;  // VTK is not thread-safe: one picture at a time
 
-void renderThumbnail(const hgd::Shape& before, const hgd::Shape& after, const fs::path& png) {
+/// The scan before (its own colours) and after (coloured by each point's displacement, with a
+/// scale), the handles marked in both, seen from the side where the motion shows best.
+void renderThumbnail(const hgd::Shape& before, const hgd::Shape& after, const hgd::Geometry& rest,
+                     const hgd::Handles& handles, const fs::path& png) {
   fs::create_directories(png.parent_path());
   hgd::RenderOptions o;
   o.width = 640;
   o.height = 320;
-  o.point_size = 2;
+  o.point_size = 3;  // a lit cloud's points fill the thumbnail without gaps
   o.titles = {"before", "after"};
+  o.displacement_rest = &before;
+  for (const auto& f : handles.fixed)
+    for (const int i : f) o.fixed_points.push_back(rest.raw_index[static_cast<std::size_t>(i)]);
+  for (const int i : handles.manipulated)
+    o.manipulated_points.push_back(rest.raw_index[static_cast<std::size_t>(i)]);
   std::lock_guard<std::mutex> lock(g_render_mutex);
   hgd::renderPng({&before, &after}, png.string(), o);
 }
@@ -116,15 +126,17 @@ void appendWarning(std::string& warning, const std::string& more) {
   warning += (warning.empty() ? "" : "; ") + more;
 }
 
-/// Returns the name relative to the report directory, "" (and a warning) on failure.
-std::string thumbnail(const Context& ctx, const Scan& s, const hgd::Shape* before, const hgd::Shape* after,
-                      std::string& warning) {
+/// Returns the name relative to the report directory, "" (and a warning) on failure. `run`: the
+/// scan just deformed; else (an up-to-date scan) its input and output are read, and the handles
+/// resolved from `scenario` (left unmarked when they cannot be).
+std::string thumbnail(const Context& ctx, const Scan& s, const hgd::ScenarioRunner* run,
+                      const hgd::Shape* after, const hgd::Scenario& scenario, std::string& warning) {
 #ifdef HGD_HAVE_RENDER
   const std::string name = thumbnailName(s.rel);
   const fs::path png = ctx.cfg.report_dir / name;
   try {
-    if (before && after) {
-      renderThumbnail(*before, *after, png);
+    if (run && after) {
+      renderThumbnail(run->shape(), *after, run->geometry(), run->handles(), png);
     } else {
       std::error_code e1, e2;
       const auto t_png = fs::last_write_time(png, e1);
@@ -132,7 +144,13 @@ std::string thumbnail(const Context& ctx, const Scan& s, const hgd::Shape* befor
       if (e1 || e2 || t_png < t_out) {
         const hgd::Shape in = hgd::readShape(s.input.string());
         const hgd::Shape out = hgd::readShape(s.output.string());
-        renderThumbnail(in, out, png);
+        const hgd::Geometry g = hgd::extractGeometry(in);
+        hgd::Handles handles;
+        try {
+          handles = hgd::resolveHandles(scenario, g, in);
+        } catch (const std::exception&) {  // drawn without marks
+        }
+        renderThumbnail(in, out, g, handles, png);
       }
     }
     return name;
@@ -141,7 +159,7 @@ std::string thumbnail(const Context& ctx, const Scan& s, const hgd::Shape* befor
     return "";
   }
 #else
-  (void)ctx, (void)s, (void)before, (void)after, (void)warning;
+  (void)ctx, (void)s, (void)run, (void)after, (void)scenario, (void)warning;
   return "";
 #endif
 }
@@ -187,7 +205,7 @@ ScanResult processScan(const Scan& s, const Context& ctx) {
           appendWarning(r.warning, std::string("provenance record not updated: ") + e.what());
         }
       }
-      if (ctx.thumbnails) r.thumbnail = thumbnail(ctx, s, nullptr, nullptr, r.warning);
+      if (ctx.thumbnails) r.thumbnail = thumbnail(ctx, s, nullptr, nullptr, scenario, r.warning);
       r.ms_wall = msSince(t0);
       return r;
     }
@@ -240,7 +258,7 @@ ScanResult processScan(const Scan& s, const Context& ctx) {
     for (const auto& w : rep.warnings) appendWarning(r.warning, w);
     if (ctx.thumbnails) {
       const hgd::Shape after = run.deformedShape();
-      r.thumbnail = thumbnail(ctx, s, &run.shape(), &after, r.warning);
+      r.thumbnail = thumbnail(ctx, s, &run, &after, scenario, r.warning);
     }
   } catch (const std::bad_alloc&) {
     r.status = "failed";

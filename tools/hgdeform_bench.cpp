@@ -32,7 +32,6 @@
 #include <string>
 #include <vector>
 
-#include "bench_arap.h"
 #include "bench_references.h"
 #include "blas_guard.h"
 #include "cli_common.h"
@@ -41,6 +40,8 @@
 #include "hgdeform/io.h"
 #include "hgdeform/report.h"
 #include "hgdeform/version.h"
+#include "support/arap.h"
+#include "support/quality.h"
 #include "support/shapes.h"
 
 namespace {
@@ -306,7 +307,7 @@ nlohmann::json runArap(const std::string& armadillo, int repeat) {
   std::vector<Eigen::Vector3d> points(g.size());
   for (std::size_t i = 0; i < g.size(); ++i) points[i] = g.world(i);
   std::vector<std::array<int, 3>> triangles;
-  for (const auto& poly : shape.polygons)  // fans: the Armadillo is all triangles
+  for (const auto& poly : g.faces)  // fans, indices of g's order: the Armadillo is all triangles
     for (std::size_t k = 1; k + 1 < poly.vertices.size(); ++k)
       triangles.push_back({static_cast<int>(poly.vertices[0]), static_cast<int>(poly.vertices[k]),
                            static_cast<int>(poly.vertices[k + 1])});
@@ -327,6 +328,106 @@ nlohmann::json runArap(const std::string& armadillo, int repeat) {
           {"arap_over_frame", arap_ms / std::max(1e-9, ours_ms)}};
 }
 
+/// Distortion at the commit that set these figures (the quality rows' "reference" column): a
+/// change that makes a shape more than 5% worse says so in the bench's output.
+struct QualityReference {
+  const char* name;
+  double distortion;
+};
+const QualityReference kQualityReference[] = {{"armadillo", 0}, {"quadruped", 0}};
+
+/// One quality case: hgdeform (default options) and CGAL's ARAP run to convergence on the same
+/// mesh, handles and rigid move (the handle translated by `move`, exactly, in both). Local
+/// distortion (support/quality.h) of both, and the mean motion of `other` (a branch no handle
+/// is on) over the move's length.
+nlohmann::json qualityCase(const std::string& name, const hgd::Shape& shape, const hgd::Handles& h,
+                           const Eigen::Vector3d& move, const std::vector<int>& other) {
+  const hgd::Geometry g = hgd::extractGeometry(shape);
+  std::vector<Eigen::Vector3d> rest(g.size());
+  for (std::size_t i = 0; i < g.size(); ++i) rest[i] = g.world(i);
+  const auto t0 = std::chrono::steady_clock::now();
+  hgd::Deformer d(g, h, hgd::DeformOptions{});
+  const double build_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  const auto f0 = std::chrono::steady_clock::now();
+  d.setHandleTransform(Eigen::Affine3d(Eigen::Translation3d(move)));
+  const double move_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - f0).count();
+  std::vector<Eigen::Vector3d> ours(g.size());
+  for (std::size_t i = 0; i < g.size(); ++i) ours[i] = d.deformedWorld(i);
+
+  std::vector<std::array<int, 3>> triangles;
+  for (const auto& poly : g.faces)  // fans, indices of g's order
+    for (std::size_t k = 1; k + 1 < poly.vertices.size(); ++k)
+      triangles.push_back({static_cast<int>(poly.vertices[0]), static_cast<int>(poly.vertices[k]),
+                           static_cast<int>(poly.vertices[k + 1])});
+  std::vector<int> fixed;
+  for (const auto& region : h.fixed) fixed.insert(fixed.end(), region.begin(), region.end());
+  // Converged for the measure reported: the distortion changes less than 0.5% over the last 50
+  // iterations (ARAP's energy creeps on for thousands; the measure settles long before).
+  std::vector<double> history;
+  const hgdbench::ArapResult arap = hgdbench::cgalArapConverged(
+      rest, triangles, fixed, h.manipulated, move, 0, 800, 25,
+      [&](const std::vector<Eigen::Vector3d>& now, int) {
+        history.push_back(hgd::quality::localDistortion(rest, now));
+        const std::size_t k = history.size();
+        return k >= 3 && std::abs(history[k - 3] - history[k - 1]) <= 0.005 * history[k - 1];
+      });
+  const double ours_d = hgd::quality::localDistortion(rest, ours),
+               arap_d = hgd::quality::localDistortion(rest, arap.positions);
+  double reference = 0;
+  for (const auto& r : kQualityReference)
+    if (name == r.name) reference = r.distortion;
+  nlohmann::json out = {{"case", name},
+                        {"points", g.size()},
+                        {"faces", triangles.size()},
+                        {"clusters", d.clustering().clusters.size()},
+                        {"hgdeform_distortion", ours_d},
+                        {"arap_distortion", arap_d},
+                        {"distortion_over_arap", ours_d / std::max(1e-12, arap_d)},
+                        {"reference_distortion", reference},
+                        {"over_reference", reference > 0 ? ours_d / reference : 0.0},
+                        {"arap_iterations", arap.iterations},
+                        {"arap_converged", arap.converged},
+                        {"arap_ms", arap.ms},
+                        {"hgdeform_build_ms", build_ms},
+                        {"hgdeform_move_ms", move_ms}};
+  if (!other.empty()) {
+    out["other_branch_points"] = other.size();
+    out["hgdeform_other_branch"] = hgd::quality::meanDisplacement(rest, ours, other) / move.norm();
+    out["arap_other_branch"] = hgd::quality::meanDisplacement(rest, arap.positions, other) / move.norm();
+  }
+  return out;
+}
+
+/// The quality rows: the Armadillo (feet fixed, the top of the head moved up by a tenth of the
+/// diagonal) when its file is there, and the procedural quadruped (three feet fixed, the right
+/// hind foot moved back and up; the other hind shin is the branch that should stay).
+nlohmann::json runQuality(const std::string& armadillo) {
+  nlohmann::json rows = nlohmann::json::array();
+  if (std::filesystem::exists(armadillo)) {
+    const hgd::Shape shape = hgd::readShape(armadillo);
+    const hgd::Geometry g = hgd::extractGeometry(shape);
+    const hgd::Handles h = armadilloHandles(g);
+    const Eigen::AlignedBox3f box = hgd::boundingBox(*g.points);
+    rows.push_back(
+        qualityCase("armadillo", shape, h,
+                    Eigen::Vector3d(0, 0, 0.1 * static_cast<double>((box.max() - box.min()).norm())), {}));
+  }
+  const hgd::Shape q = hgd::shapes::quadruped();
+  const hgd::Geometry g = hgd::extractGeometry(q);
+  const auto ours = [&](std::vector<int> file) {  // file order -> the Geometry's (Morton) order
+    for (int& i : file) i = g.finite_index[static_cast<std::size_t>(i)];
+    return file;
+  };
+  hgd::Handles h;
+  for (const int leg : {0, 1, 3}) h.fixed.push_back(ours(hgd::shapes::quadrupedFoot(q, leg)));
+  h.manipulated = ours(hgd::shapes::quadrupedFoot(q, 2));
+  rows.push_back(
+      qualityCase("quadruped", q, h, Eigen::Vector3d(-0.25, 0.2, 0), ours(hgd::shapes::quadrupedShin(q, 3))));
+  return rows;
+}
+
 /// hgdeform-bench's command line.
 struct BenchArgs {
   std::vector<long> sizes{50000, 173000, 438000, 1000000};
@@ -336,6 +437,7 @@ struct BenchArgs {
   int repeat = 5;
   std::string json;
   bool arap = false;
+  bool quality = true;
 };
 
 /// Parses the command line into `a`; returns -1 to go on, else the exit status.
@@ -368,6 +470,9 @@ int parseArgs(int argc, char** argv, BenchArgs& a) {
   app.add_flag("--arap", a.arap,
                "also the peer: one frame against five iterations of CGAL's ARAP on the Armadillo mesh, same "
                "handles and drag (needs CGAL at build time)");
+  app.add_flag("--quality,!--no-quality", a.quality,
+               "the quality rows (default on): local distortion of hgdeform and of CGAL's ARAP run to "
+               "convergence on the same meshes, handles and moves (the Armadillo, a procedural quadruped)");
   app.add_option("--json", a.json,
                  "also write every measurement (with the tool and its version) as JSON; never the mesh")
       ->type_name("OUT");
@@ -482,6 +587,41 @@ int main(int argc, char** argv) {
       "the\n"
       "full-resolution field measured above excluded)\n",
       repeat);
+  if (args.quality) {
+    if (!hgdbench::haveCgalArap()) {
+      const std::string why = "this build has no CGAL (install libcgal-dev and configure again)";
+      std::fprintf(stderr, "hgdeform-bench: warning: the quality rows are left out: %s\n", why.c_str());
+      all.push_back({{"quality", {{"left_out", why}}}});
+    } else {
+      if (!std::filesystem::exists(armadillo))
+        std::printf("(no %s: the Armadillo's quality row is left out)\n", armadillo.c_str());
+      const nlohmann::json rows = runQuality(armadillo);
+      std::printf("%10s %7s %5s | %9s %9s %7s %7s | %8s %8s | %6s %8s %8s\n", "quality", "points", "clus",
+                  "distort", "ARAP", "/ARAP", "/ref", "branch", "ARAP br", "iters", "move ms", "ARAP ms");
+      for (const auto& r : rows) {
+        std::printf("%10s %7ld %5ld | %9.5f %9.5f %6.3fx %6.3fx | %7.2f%% %7.2f%% | %6d %8.1f %8.0f%s\n",
+                    r["case"].get<std::string>().c_str(), r["points"].get<long>(), r["clusters"].get<long>(),
+                    r["hgdeform_distortion"].get<double>(), r["arap_distortion"].get<double>(),
+                    r["distortion_over_arap"].get<double>(), r["over_reference"].get<double>(),
+                    100 * r.value("hgdeform_other_branch", 0.0), 100 * r.value("arap_other_branch", 0.0),
+                    r["arap_iterations"].get<int>(), r["hgdeform_move_ms"].get<double>(),
+                    r["arap_ms"].get<double>(),
+                    r["arap_converged"].get<bool>() ? "" : " (ARAP not converged)");
+        if (r["over_reference"].get<double>() > 1.05)
+          std::printf("quality: %s's distortion is %.0f%% worse than the reference recorded in the bench\n",
+                      r["case"].get<std::string>().c_str(), 100 * (r["over_reference"].get<double>() - 1));
+      }
+      std::printf(
+          "quality columns: distort = local distortion (per point, its 10 nearest rest neighbours, the best "
+          "rotation between their rest and deformed offsets; the mean residual over the mean offset length, "
+          "averaged over points) of hgdeform at default settings, ARAP = the same of CGAL's ARAP run to "
+          "convergence on the same mesh, handles and move; /ARAP their ratio (target <= 1); /ref against the "
+          "figure recorded in the bench (more than 1.05 is said); branch = mean motion of a branch no handle "
+          "is "
+          "on (the quadruped's other hind shin) over the move (target <= 1.5%%)\n");
+      all.push_back({{"quality", rows}});
+    }
+  }
   if (args.arap) {
     std::string why;
     if (!hgdbench::haveCgalArap())

@@ -2,11 +2,15 @@
 //
 //   hgdeform-render IN.ply [IN2.ply ...] -o OUT.png [--field harmonic] [--size 1200x600]
 //                   [--view x,y,z] [--up x|y|z|-x|-y|-z|auto] [--title "a" --title "b" ...]
+//                   [--displacement REST.ply] [--scenario S.json]
 //
 // Each input gets its own viewport, side by side, all seen from the same direction. A mesh is
 // drawn as a surface, a cloud as points; colours come from the scalar field named by --field
-// (blue to red), else from the file's colours, else a neutral grey. Needs an X display (run
-// under xvfb-run on a headless machine).
+// (blue to red), else from the file's colours, else a neutral grey. A cloud is shaded: lit
+// through its normals when it has them, else with eye-dome lighting (hgd::shadeCloud, as in the
+// viewer). --displacement REST colours each input by the distance of its points from the same
+// points of REST (with a colour bar), --scenario marks the handles its regions select. Needs an
+// X display (run under xvfb-run on a headless machine).
 #include <cstdio>
 #include <iostream>
 #include <new>
@@ -16,8 +20,11 @@
 
 #include "cli_common.h"
 #include "hgdeform/cleanup.h"
+#include "hgdeform/geometry.h"
 #include "hgdeform/io.h"
+#include "hgdeform/regions.h"
 #include "hgdeform/render.h"
+#include "hgdeform/scenario.h"
 
 int main(int argc, char** argv) {
   hgd::removeTemporaryFilesOnSignals();  // no partial picture left by an interrupted run
@@ -28,7 +35,8 @@ int main(int argc, char** argv) {
       "Off-screen pictures of shapes. Each input gets its own viewport, side by side, all seen from\n"
       "the same direction. A mesh is drawn as a surface, a cloud as points; colours come from the\n"
       "scalar field named by --field (blue to red), else from the file's colours, else a neutral\n"
-      "grey. Needs an X display (run under xvfb-run on a headless machine).");
+      "grey. A cloud is shaded: lit through its normals when it has them, else with eye-dome\n"
+      "lighting. Needs an X display (run under xvfb-run on a headless machine).");
   hgdcli::configureApp(app, "hgdeform-render");
   app.add_option("IN", inputs, "shapes to draw (PLY, PCD, OBJ, XYZ/TXT, OFF or STL), one viewport each")
       ->required()
@@ -52,7 +60,9 @@ int main(int argc, char** argv) {
           },
           "", "size"))
       ->type_name("WxH");
-  app.add_option("--view", view, "direction from the target to the eye (default 1,0.6,1.4, turned with --up)")
+  app.add_option("--view", view,
+                 "direction from the target to the eye (default: 1,0.6,1.4 turned with --up; with --up auto "
+                 "across the shape's broad side; with --displacement the side where the motion shows best)")
       ->check(CLI::Validator(
           [&opt](std::string& s) -> std::string {
             Eigen::Vector3f v;
@@ -66,7 +76,7 @@ int main(int argc, char** argv) {
   app.add_option("--up", opt.up,
                  "the axis that points up in the picture: x|y|z|-x|-y|-z|auto (default auto: -y when the "
                  "first input is a camera-frame scan, i.e. organized (height > 1) or a PCD with a sensor "
-                 "pose; else y)")
+                 "pose; z when its points spread clearly least along y (a z-up model); else y)")
       ->check(CLI::Validator(
           [](std::string& s) -> std::string {
             try {
@@ -78,6 +88,16 @@ int main(int argc, char** argv) {
           },
           "", "axis"))
       ->type_name("AXIS");
+  std::string rest_path, scenario_path;
+  app.add_option("--displacement", rest_path,
+                 "colour each input by its points' distance from the same points (file order) of REST, "
+                 "the rest shape (same point count), with a colour bar; the view faces the side where "
+                 "the motion shows best. An input that is REST itself keeps its own colours")
+      ->type_name("REST");
+  app.add_option("--scenario", scenario_path,
+                 "mark the handles this scenario's regions select (on REST when given, else on the "
+                 "first input): fixed black, manipulated magenta")
+      ->type_name("S.json");
   app.add_option("--title", opt.titles, "a title per viewport, in the inputs' order (repeat the option)")
       ->type_name("T")
       ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll)
@@ -88,8 +108,6 @@ int main(int argc, char** argv) {
     // Before the display: a picture too large is refused the same with or without one.
     if (const std::string problem = hgd::pictureSizeProblem(opt.width, opt.height); !problem.empty())
       throw std::runtime_error(output + ": " + problem);
-    if (const std::string problem = hgd::displayProblem(); !problem.empty())
-      throw std::runtime_error(problem);
     std::vector<hgd::Shape> shapes;
     for (const auto& in : inputs) {
       shapes.push_back(hgd::readShape(in));
@@ -98,6 +116,28 @@ int main(int argc, char** argv) {
     }
     std::vector<const hgd::Shape*> ptrs;
     for (const auto& s : shapes) ptrs.push_back(&s);
+    hgd::Shape rest;
+    if (!rest_path.empty()) {
+      rest = hgd::readShape(rest_path);
+      // An input that is the rest file itself is drawn as it is (its displacement is zero).
+      for (std::size_t k = 0; k < inputs.size(); ++k)
+        if (inputs[k] == rest_path) ptrs[k] = &rest;
+      for (const hgd::Shape* s : ptrs)
+        if (s != &rest) hgd::displacementFrom(rest, *s);  // a mismatch is refused before anything is drawn
+      opt.displacement_rest = &rest;
+    }
+    if (!scenario_path.empty()) {
+      const hgd::Shape& base = rest_path.empty() ? shapes.front() : rest;
+      const hgd::Geometry g = hgd::extractGeometry(base);
+      const hgd::Handles h = hgd::resolveHandles(hgd::readScenario(scenario_path), g, base);
+      for (const auto& f : h.fixed)
+        for (const int i : f) opt.fixed_points.push_back(g.raw_index[static_cast<std::size_t>(i)]);
+      for (const int i : h.manipulated)
+        opt.manipulated_points.push_back(g.raw_index[static_cast<std::size_t>(i)]);
+    }
+    // The inputs are read and checked first: their errors are the same with or without a display.
+    if (const std::string problem = hgd::displayProblem(); !problem.empty())
+      throw std::runtime_error(problem);
     hgd::renderPng(ptrs, output, opt);
     std::cout << "wrote " << output << "\n";
     return 0;

@@ -67,7 +67,7 @@ class HarmonicField {
   void compute(std::vector<float>& phi);
 
   /// The neighbour graph used (valid after compute()): the kNN graph less the pairs across a
-  /// thin gap (the normal filter), plus, on meshes, every mesh edge; then joined back through
+  /// thin gap (the normal filter), except, on meshes, mesh edges; then joined back through
   /// the dropped pairs wherever the filter alone would cut a piece without a handle off.
   const NeighborGraph& graph() const { return joined_.empty() ? graph_ : graph_joined_; }
   /// The normals the filter used: the input's (re-oriented when their signs were not

@@ -9,27 +9,80 @@
 #include <string>
 #include <vector>
 
+#include "hgdeform/geometry.h"
 #include "hgdeform/shape.h"
 
+namespace pcl {
+namespace visualization {
+class PCLVisualizer;
+}
+}  // namespace pcl
+class vtkActor;
 class vtkRenderWindow;
+class vtkRenderer;
 
 namespace hgd {
 
 struct RenderOptions {
   int width = 1200, height = 600;
-  /// Direction from the target to the eye. Unset: (1, 0.6, 1.4) turned from +y up to the `up`
-  /// axis, so that every up axis sees the shape from the same side (for -y: from the sensor's
-  /// side, +x to the right, as the camera saw it).
+  /// Direction from the target to the eye. Unset: chosen from the shapes (see chooseView): a
+  /// three-quarter view (1, 0.6, 1.4) in a frame whose "forward" axis is the shape's thinnest
+  /// side axis, or, with a displacement, the side from which the motion shows best.
   std::optional<Eigen::Vector3f> view;
-  /// Which axis points up in the picture: "x", "y", "z", "-x", "-y", "-z", or "auto": -y when
-  /// the first shape is in a camera's frame (PCL's convention: +z forward, +y down), i.e. it
-  /// is organized (height > 1) or a PCD with a sensor pose (VIEWPOINT other than the
-  /// default); else +y.
+  /// Which axis points up in the picture: "x", "y", "z", "-x", "-y", "-z", or "auto" (upAxis):
+  /// -y for a shape in a camera's frame (PCL's convention: +z forward, +y down), i.e. organized
+  /// (height > 1) or a PCD with a sensor pose; +z for a shape whose y extent is clearly its
+  /// thinnest (a z-up model: a horse, a statue, a car); else +y.
   std::string up = "auto";
   std::string field;                ///< scalar field to colour by ("" = file colours or grey)
   std::vector<std::string> titles;  ///< one per viewport, optional
   int point_size = 3;
+  /// Colour by displacement: each point by its distance from the same point (file order) of
+  /// this rest shape, blue (0) to red (the largest over the inputs), with a colour bar; the view
+  /// then faces the side where the motion shows best. An input that is this very shape (the same
+  /// object) is drawn in its own colours. Every input must have the rest shape's point count.
+  const Shape* displacement_rest = nullptr;
+  /// Handles to mark (file point indices, the same in every input): larger points, the fixed
+  /// ones black, the manipulated ones magenta (colours the displacement scale does not use),
+  /// with a legend.
+  std::vector<int> fixed_points, manipulated_points;
 };
+
+/// Per file point of `shape`, its distance from the same point of `rest` (NaN where either is
+/// not finite). Throws std::runtime_error naming both files when their point counts differ.
+std::vector<double> displacementFrom(const Shape& rest, const Shape& shape);
+
+/// How a point cloud's points are shaded (shadeCloud).
+enum class CloudShading {
+  None,     ///< drawn as it is: the file's own colours
+  Normals,  ///< lit by the renderer's headlight through the points' normals, like a surface
+  EyeDome,  ///< eye-dome lighting on the whole renderer (no normals needed)
+};
+
+/// Shades a point cloud so that its shape reads instead of a flat silhouette: the one rule of
+/// hgdeform-render, the batch thumbnails and the viewer. `actor` draws the cloud's points (its
+/// mapper's input is a vtkPolyData of `normals->size()` points) in `renderer`.
+/// - With `normals` (one per point, in the poly data's order: the file's normals), they become
+///   the poly data's point normals and the points are lit by the headlight (ambient 0.3,
+///   diffuse 0.7), on both sides: a normal facing away from the eye is turned towards it, so
+///   unoriented scan normals light as well as oriented ones. Calling it again replaces them (the
+///   viewer passes the deformed normals).
+/// - Without (nullptr, or a count that does not fit), the renderer draws with eye-dome lighting
+///   (VTK's vtkEDLShading render pass, as CloudCompare and Potree do): each pixel darkened by how
+///   far its neighbours lie in front of it, which outlines the shape and its folds from depth
+///   alone. The pass covers all that renderer draws (meshes and text too); set once.
+CloudShading shadeCloud(vtkRenderer* renderer, vtkActor* actor, const std::vector<Eigen::Vector3f>* normals);
+
+/// shadeCloud for the point cloud `id` of a PCLVisualizer, drawn in `viewport` (0 for a window of
+/// one renderer), the points of `geometry` in its order: by its file normals when it has them
+/// (or by `normals` instead, e.g. the deformed ones, when given and the file has normals), else
+/// with eye-dome lighting. A cloud drawn in its file's colours (`file_colours`: a scan's colours
+/// are a photograph of the surface, shaded already) is left as it is (CloudShading::None); grey
+/// and computed colours (a field, the displacement, handle roles) are shaded. What
+/// hgdeform-render and the viewer both call.
+CloudShading shadeCloud(pcl::visualization::PCLVisualizer& visualizer, const std::string& id,
+                        const Geometry& geometry, bool file_colours,
+                        const std::vector<Eigen::Vector3f>* normals = nullptr, int viewport = 0);
 
 /// Empty when an X display can be opened and has the GLX extension (OpenGL); else what is
 /// wrong ("DISPLAY is not set", "cannot open the X display ':99'", "the X display ':97' has no
@@ -48,8 +101,9 @@ constexpr int kMaxPictureSide = 16384;
 /// display; renderPng asks it first, front ends before they open a display.
 std::string pictureSizeProblem(int width, int height);
 
-/// The unit vector `up` names for these shapes (see RenderOptions::up). Throws
-/// std::invalid_argument naming the accepted values for anything else.
+/// The unit vector `up` names for these shapes (see RenderOptions::up; "auto" looks at the first
+/// shape: its organization and sensor pose, then the spread of its points along x, y and z).
+/// Throws std::invalid_argument naming the accepted values for anything else.
 Eigen::Vector3f upAxis(const std::string& up, const std::vector<const Shape*>& shapes);
 
 /// Renders the shapes side by side (one viewport each, one shared camera framing them all) and

@@ -2,11 +2,41 @@
 
 #include <pcl/conversions.h>
 #include <pcl/visualization/pcl_visualizer.h>
+#include <vtkActor.h>
+#include <vtkCamera.h>
+#include <vtkEDLShading.h>
+#include <vtkFloatArray.h>
+#include <vtkImageData.h>
+#include <vtkLODActor.h>
+#include <vtkLookupTable.h>
+#include <vtkMapper.h>
+#include <vtkObjectFactory.h>
+#include <vtkOpenGLFramebufferObject.h>
+#include <vtkOpenGLHelper.h>
+#include <vtkOpenGLRenderWindow.h>
+#include <vtkOpenGLShaderCache.h>
+#include <vtkOpenGLState.h>
+#include <vtkOverlayPass.h>
 #include <vtkPNGWriter.h>
+#include <vtkPointData.h>
+#include <vtkPolyData.h>
+#include <vtkProperty.h>
+#include <vtkRenderPassCollection.h>
+#include <vtkRenderState.h>
+#include <vtkRenderStepsPass.h>
 #include <vtkRenderWindow.h>
+#include <vtkRenderer.h>
+#include <vtkRendererCollection.h>
+#include <vtkScalarBarActor.h>
+#include <vtkSequencePass.h>
+#include <vtkShaderProgram.h>
+#include <vtkShaderProperty.h>
 #include <vtkSmartPointer.h>
+#include <vtkTextProperty.h>
+#include <vtkTextureObject.h>
 #include <vtkUnsignedCharArray.h>
 #include <vtkWindowToImageFilter.h>
+#include <vtk_glew.h>
 
 #include <algorithm>
 #include <cmath>
@@ -23,8 +53,11 @@
 namespace hgd {
 
 namespace {
+/// The points of `g` in world coordinates, coloured by the scalar `field`, else by `displacement`
+/// (per file point, scaled by `scale`: NaN grey), else by the file's colours (grey without).
 pcl::PointCloud<pcl::PointXYZRGB>::Ptr colouredPoints(const hgd::Shape& shape, const hgd::Geometry& g,
-                                                      const std::string& field) {
+                                                      const std::string& field,
+                                                      const std::vector<double>* displacement, double scale) {
   pcl::PointCloud<pcl::PointXYZRGB>::Ptr out(new pcl::PointCloud<pcl::PointXYZRGB>);
   out->resize(g.size());
   const int f = field.empty() ? -1 : hgd::findField(shape.cloud, field);
@@ -33,10 +66,17 @@ pcl::PointCloud<pcl::PointXYZRGB>::Ptr colouredPoints(const hgd::Shape& shape, c
     auto& p = (*out)[i];
     p.getVector3fMap() = (g.world(i)).cast<float>();
     const auto raw = static_cast<std::size_t>(g.raw_index[i]);
-    const Eigen::Vector3f c = f >= 0
-                                  ? colourMap(static_cast<float>(hgd::readValue(
-                                        shape.cloud, raw, shape.cloud.fields[static_cast<std::size_t>(f)])))
-                                  : readColour(shape.cloud, raw, colours);
+    Eigen::Vector3f c;
+    if (f >= 0) {
+      c = colourMap(static_cast<float>(
+          hgd::readValue(shape.cloud, raw, shape.cloud.fields[static_cast<std::size_t>(f)])));
+    } else if (displacement) {
+      const double d = (*displacement)[raw];
+      c = std::isfinite(d) ? colourMap(static_cast<float>(scale > 0 ? d / scale : 0.0))
+                           : Eigen::Vector3f(0.75f, 0.75f, 0.75f);
+    } else {
+      c = readColour(shape.cloud, raw, colours);
+    }
     p.r = static_cast<std::uint8_t>(std::clamp(c.x(), 0.0f, 1.0f) * 255);
     p.g = static_cast<std::uint8_t>(std::clamp(c.y(), 0.0f, 1.0f) * 255);
     p.b = static_cast<std::uint8_t>(std::clamp(c.z(), 0.0f, 1.0f) * 255);
@@ -45,6 +85,54 @@ pcl::PointCloud<pcl::PointXYZRGB>::Ptr colouredPoints(const hgd::Shape& shape, c
   out->height = 1;
   return out;
 }
+
+/// The x, y, z fields of a shape (throws naming the file when one is missing).
+struct Xyz {
+  const pcl::PCLPointField *x, *y, *z;
+};
+Xyz xyzFields(const Shape& shape) {
+  const int fx = findField(shape.cloud, "x"), fy = findField(shape.cloud, "y"),
+            fz = findField(shape.cloud, "z");
+  if (fx < 0 || fy < 0 || fz < 0)
+    throw std::runtime_error((shape.path.empty() ? std::string("a shape") : shape.path) +
+                             ": no x, y, z fields");
+  return {&shape.cloud.fields[static_cast<std::size_t>(fx)],
+          &shape.cloud.fields[static_cast<std::size_t>(fy)],
+          &shape.cloud.fields[static_cast<std::size_t>(fz)]};
+}
+
+Eigen::Vector3d pointOf(const Shape& shape, const Xyz& f, std::size_t i) {
+  return {readValue(shape.cloud, i, *f.x), readValue(shape.cloud, i, *f.y), readValue(shape.cloud, i, *f.z)};
+}
+
+/// The standard deviation of the finite points of `shape` along x, y and z (from at most about
+/// 200,000 of them, evenly spaced in the file); ones when it has no finite point.
+Eigen::Vector3d axisSpread(const Shape& shape) {
+  const Xyz f = xyzFields(shape);
+  const std::size_t n = shape.size(), stride = std::max<std::size_t>(1, n / 200000);
+  Eigen::Vector3d first = Eigen::Vector3d::Zero(), sum = first, sum2 = first;
+  bool have_first = false;
+  double count = 0;
+  for (std::size_t i = 0; i < n; i += stride) {
+    const Eigen::Vector3d p = pointOf(shape, f, i);
+    if (!p.allFinite()) continue;
+    if (!have_first) {
+      first = p;  // sums relative to a point of the shape: georeferenced coordinates keep precision
+      have_first = true;
+    }
+    const Eigen::Vector3d q = p - first;
+    sum += q;
+    sum2 += q.cwiseProduct(q);
+    ++count;
+  }
+  if (count < 1) return Eigen::Vector3d::Ones();
+  const Eigen::Vector3d mean = sum / count;
+  return (sum2 / count - mean.cwiseProduct(mean)).cwiseMax(0.0).cwiseSqrt();
+}
+
+/// How much thinner (in standard deviation) an axis must be than another to be taken as the
+/// thinner one by upAxis and the default view: near-equal spreads keep the default.
+constexpr double kThinnest = 0.85;
 
 /// The rotation that takes +y onto the unit axis `up` (one of the six), turning the default
 /// view with it.
@@ -58,16 +146,398 @@ Eigen::Matrix3d turnYOnto(const Eigen::Vector3f& up) {
   return r;
 }
 
+/// Appended to VTK's fragment-shader normal code: a normal facing away from the eye (view
+/// coordinates: the eye looks down -z) is turned towards it. Points have no front or back face,
+/// so without this a point whose normal faces away would get ambient light only.
+constexpr const char* kNormalTag = "//VTK::Normal::Impl";
+constexpr const char* kTwoSidedNormal =
+    "//VTK::Normal::Impl\n"
+    "  if (normalVCVSOutput.z < 0.0) { normalVCVSOutput = -normalVCVSOutput; }\n";
+
+/// PCL draws clouds with a vtkLODActor, which renders through an inner actor of its own (its
+/// protected `Device`) that does not take the outer actor's shader property: reach it (a pointer
+/// to a protected member formed through a derived class is the standard's legal way).
+struct LodDevice : vtkLODActor {
+  static vtkActor* of(vtkLODActor* actor) { return actor->*(&LodDevice::Device); }
+};
+
+/// The overlay (text, colour bars) drawn after the eye-dome pass, blended: the pass leaves
+/// blending off, which would draw anti-aliased text with opaque edges.
+class BlendedOverlayPass : public vtkOverlayPass {
+ public:
+  static BlendedOverlayPass* New();
+  vtkTypeMacro(BlendedOverlayPass, vtkOverlayPass) void Render(const vtkRenderState* s) override {
+    if (auto* window = vtkOpenGLRenderWindow::SafeDownCast(s->GetRenderer()->GetRenderWindow())) {
+      vtkOpenGLState* state = window->GetState();
+      state->vtkglEnable(GL_BLEND);
+      state->vtkglBlendFuncSeparate(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
+    }
+    vtkOverlayPass::Render(s);
+  }
+};
+vtkStandardNewMacro(BlendedOverlayPass);
+
+/// VTK's eye-dome lighting (vtkEDLShading: the same depth passes), composed more softly and
+/// within its viewport. VTK's own composition multiplies the colour by the shade as is, which on
+/// a sparse cloud (the background showing between its points is "far") turns most of it near
+/// black, and clears the whole window, erasing the other viewports. Here the shade darkens by
+/// kStrength of its own amount and the clear is kept to the renderer's viewport.
+class SoftEyeDome : public vtkEDLShading {
+ public:
+  static SoftEyeDome* New();
+  vtkTypeMacro(SoftEyeDome, vtkEDLShading)
+
+      static constexpr float kStrength = 0.6f;
+
+  void Render(const vtkRenderState* s) override {
+    this->NumberOfRenderedProps = 0;
+    vtkRenderer* r = s->GetRenderer();
+    auto* window = vtkOpenGLRenderWindow::SafeDownCast(r->GetRenderWindow());
+    if (!this->DelegatePass || !window) return;
+    // What vtkEDLShading::Render does, up to its composition.
+    this->ReadWindowSize(s);
+    this->ExtraPixels = 0;
+    this->W = this->Width;
+    this->H = this->Height;
+    vtkRenderState s2(r);
+    s2.SetPropArrayAndCount(s->GetPropArray(), s->GetPropArrayCount());
+    this->EDLInitializeFramebuffers(s2);
+    this->EDLInitializeShaders(window);
+    if (!this->Compose.Program)
+      this->Compose.Program = window->GetShaderCache()->ReadyShaderProgram(kQuadVS, kComposeFS, "");
+    if (!this->EDLShadeProgram.Program || !this->BilateralProgram.Program || !this->Compose.Program) return;
+    double znear = 0, zfar = 1;
+    r->GetActiveCamera()->GetClippingRange(znear, zfar);
+    this->Zn = static_cast<float>(znear);
+    this->Zf = static_cast<float>(zfar);
+    this->ProjectionFBO->SaveCurrentBindingsAndBuffers();
+    this->ProjectionFBO->Bind();
+    this->RenderDelegate(s, this->Width, this->Height, this->W, this->H, this->ProjectionFBO,
+                         this->ProjectionColorTexture, this->ProjectionDepthTexture);
+    this->ProjectionFBO->UnBind();
+    if (!this->EDLShadeHigh(s2, window)) this->ProjectionFBO->RestorePreviousBindingsAndBuffers();
+    if (!this->EDLShadeLow(s2, window)) this->ProjectionFBO->RestorePreviousBindingsAndBuffers();
+    if (this->EDLIsFiltered) this->EDLBlurLow(s2, window);
+    if (s->GetFrameBuffer()) vtkOpenGLFramebufferObject::SafeDownCast(s->GetFrameBuffer())->Bind();
+    this->ProjectionFBO->RestorePreviousBindingsAndBuffers();
+    compose(window);
+  }
+
+  void ReleaseGraphicsResources(vtkWindow* w) override {
+    this->Compose.ReleaseGraphicsResources(w);
+    vtkEDLShading::ReleaseGraphicsResources(w);
+  }
+
+ private:
+  static constexpr const char* kQuadVS =
+      "//VTK::System::Dec\n"
+      "in vec4 vertexMC;\n"
+      "in vec2 tcoordMC;\n"
+      "out vec2 tcoordVC;\n"
+      "void main() { tcoordVC = tcoordMC; gl_Position = vertexMC; }\n";
+  static constexpr const char* kComposeFS =
+      "//VTK::System::Dec\n"
+      "//VTK::Output::Dec\n"
+      "in vec2 tcoordVC;\n"
+      "uniform sampler2D s2_S1;\n"
+      "uniform sampler2D s2_S2;\n"
+      "uniform sampler2D s2_C;\n"
+      "uniform float strength;\n"
+      "void main() {\n"
+      "  vec4 shade1 = texture2D(s2_S1, tcoordVC.st);\n"
+      "  vec4 shade2 = texture2D(s2_S2, tcoordVC.st);\n"
+      "  vec4 color = texture2D(s2_C, tcoordVC.st);\n"
+      "  float lum = 1.0 - strength * (1.0 - mix(shade1.r, shade2.r, 0.3));\n"
+      "  gl_FragData[0] = vec4(color.rgb * lum, color.a);\n"
+      "  gl_FragDepth = shade1.a;\n"
+      "}\n";
+
+  void compose(vtkOpenGLRenderWindow* window) {
+    window->GetShaderCache()->ReadyShaderProgram(this->Compose.Program);
+    vtkShaderProgram* prog = this->Compose.Program;
+    vtkTextureObject* low = this->EDLIsFiltered ? this->EDLLowBlurTexture : this->EDLLowShadeTexture;
+    this->EDLHighShadeTexture->Activate();
+    prog->SetUniformi("s2_S1", this->EDLHighShadeTexture->GetTextureUnit());
+    low->Activate();
+    prog->SetUniformi("s2_S2", low->GetTextureUnit());
+    this->ProjectionColorTexture->Activate();
+    prog->SetUniformi("s2_C", this->ProjectionColorTexture->GetTextureUnit());
+    prog->SetUniformf("strength", kStrength);
+    vtkOpenGLState* state = window->GetState();
+    state->vtkglEnable(GL_SCISSOR_TEST);
+    state->vtkglScissor(this->Origin[0], this->Origin[1], this->W, this->H);
+    state->vtkglClearColor(1., 1., 1., 1.);
+    state->vtkglClearDepth(1.0);
+    state->vtkglClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+    state->vtkglDisable(GL_BLEND);
+    state->vtkglEnable(GL_DEPTH_TEST);
+    this->EDLHighShadeTexture->CopyToFrameBuffer(0, 0, this->W - 1, this->H - 1, this->Origin[0],
+                                                 this->Origin[1], this->Origin[0] + this->W - 1,
+                                                 this->Origin[1] + this->H - 1, prog, this->Compose.VAO);
+    low->Deactivate();
+    this->EDLHighShadeTexture->Deactivate();
+    this->ProjectionColorTexture->Deactivate();
+    // The overlay (drawn next) goes into the renderer's viewport, whatever the passes left set.
+    state->vtkglViewport(this->Origin[0], this->Origin[1], this->W, this->H);
+    state->vtkglScissor(this->Origin[0], this->Origin[1], this->W, this->H);
+  }
+
+  vtkOpenGLHelper Compose;
+};
+vtkStandardNewMacro(SoftEyeDome);
+
+/// Whether `renderer` already draws with the eye-dome pass set by shadeCloud.
+bool hasEyeDome(vtkRenderer* renderer) {
+  auto* seq = vtkSequencePass::SafeDownCast(renderer->GetPass());
+  return seq && seq->GetPasses() && seq->GetPasses()->GetNumberOfItems() > 0 &&
+         vtkEDLShading::SafeDownCast(seq->GetPasses()->GetItemAsObject(0));
+}
+
+/// Encodes an RGB picture in memory, then writes it by the one atomic writer as every other
+/// output is: a temporary file beside the target renamed over it (a link followed), a FIFO or a
+/// device written to directly, nothing left behind on failure.
+void writeImagePng(vtkImageData* image, const std::string& png_path, const std::string& what) {
+  auto writer = vtkSmartPointer<vtkPNGWriter>::New();
+  writer->SetWriteToMemory(1);
+  writer->SetInputData(image);
+  writer->Write();
+  vtkUnsignedCharArray* png = writer->GetResult();
+  if (writer->GetErrorCode() != 0 || !png || png->GetNumberOfValues() == 0)
+    throw std::runtime_error(png_path + ": cannot write the " + what + ": the PNG could not be encoded");
+  writeFileAtomically(png_path, std::string_view(reinterpret_cast<const char*>(png->GetPointer(0)),
+                                                 static_cast<std::size_t>(png->GetNumberOfValues())));
+}
+
+/// The default view for `up`: a three-quarter view, 1.4 along a "forward" axis, 1 along the
+/// side axis (up x forward) and 0.6 up: (1, 0.6, 1.4) for +y up.
+Eigen::Vector3d threeQuarter(const Eigen::Vector3d& up, const Eigen::Vector3d& forward) {
+  return 1.4 * forward + up.cross(forward) + 0.6 * up;
+}
+
+/// The direction from the target to the eye when none is given. The forward axis is the one
+/// the up axis turns +z onto (+z for +y up, as ever); when the up axis was chosen from the shape
+/// (`auto_up`), the other side axis instead when the shape is clearly thinner along it (`spread`:
+/// its standard deviations along x, y, z): the shape is seen across its broad side. With a displacement
+/// (`moved`, whose points are at their deformed places, and the rest shape), of the four sides the one from
+/// which the motion shows best: the most displacement across the line of sight, less for moved points on the
+/// far side of the shape (they may be hidden behind it), and less for a side that shows the shape edge-on.
+Eigen::Vector3d chooseView(const Eigen::Vector3f& up_axis, const Eigen::Vector3d& spread, bool auto_up,
+                           const Geometry* moved, const Shape* rest, const Eigen::Vector3d& centre,
+                           double radius) {
+  const Eigen::Vector3d up = up_axis.cast<double>();
+  Eigen::Vector3d forward = turnYOnto(up_axis) * Eigen::Vector3d::UnitZ();
+  const Eigen::Vector3d side = up.cross(forward);
+  const auto along = [&](const Eigen::Vector3d& axis) { return axis.cwiseAbs().dot(spread); };
+  if (auto_up && along(side) < kThinnest * along(forward)) forward = side;
+  if (!moved || !rest) return threeQuarter(up, forward);
+  // Sampled motion: at most about 20,000 points, evenly spaced.
+  const Xyz f = xyzFields(*rest);
+  std::vector<Eigen::Vector3d> at, motion;
+  const std::size_t stride = std::max<std::size_t>(1, moved->size() / 20000);
+  for (std::size_t i = 0; i < moved->size(); i += stride) {
+    const Eigen::Vector3d p = moved->world(i);
+    const Eigen::Vector3d d = p - pointOf(*rest, f, static_cast<std::size_t>(moved->raw_index[i]));
+    if (!d.allFinite() || d.isZero()) continue;
+    at.push_back(p);
+    motion.push_back(d);
+  }
+  if (motion.empty()) return threeQuarter(up, forward);
+  const Eigen::Vector3d sideways = up.cross(forward);
+  const Eigen::Vector3d candidates[4] = {forward, sideways, -forward, -sideways};
+  Eigen::Vector3d best = forward;
+  double best_score = -1;
+  for (const Eigen::Vector3d& c : candidates) {
+    const Eigen::Vector3d eye = threeQuarter(up, c).normalized();
+    // The share of the shape's spread (variance along x, y, z) that lies across the line of
+    // sight, cubed: a side that shows the shape edge-on (a plate seen from its rim) loses.
+    const Eigen::Vector3d variance = spread.cwiseProduct(spread);
+    const double across =
+        variance.dot(Eigen::Vector3d::Ones() - eye.cwiseProduct(eye)) / std::max(variance.sum(), 1e-300);
+    double score = 0;
+    for (std::size_t i = 0; i < motion.size(); ++i) {
+      // A moved point on the far side may be hidden behind the rest: counted less.
+      const double far = std::clamp((at[i] - centre).dot(c) / radius, -1.0, 0.0);
+      score += motion[i].cross(eye).norm() * (1.0 + 0.5 * far);
+    }
+    score *= across * across * across;
+    // A clear gain over the sides tried before is needed to leave the default (tried first).
+    if (score > (best_score < 0 ? 0.0 : 1.15 * best_score)) {
+      best_score = score;
+      best = c;
+    }
+  }
+  return threeQuarter(up, best);
+}
+
+constexpr std::size_t kMarks = 120;
+
+/// Marks the handles of `options` on `g` (drawn in viewport `vp`) as larger points: fixed black,
+/// manipulated magenta. Returns whether any was drawn.
+bool markHandles(pcl::visualization::PCLVisualizer& viewer, const Geometry& g, const RenderOptions& options,
+                 const std::string& id, int vp) {
+  pcl::PointCloud<pcl::PointXYZRGB>::Ptr marks(new pcl::PointCloud<pcl::PointXYZRGB>);
+  const auto add = [&](const std::vector<int>& raw, std::uint8_t r, std::uint8_t gr, std::uint8_t b) {
+    // At most about kMarks points a handle, evenly spaced in the list: the region shows, and so
+    // do the colours beneath (the handle is what moved most, or least).
+    const std::size_t stride = std::max<std::size_t>(1, raw.size() / kMarks);
+    for (std::size_t m = 0; m < raw.size(); m += stride) {
+      const int k = raw[m];
+      if (k < 0 || static_cast<std::size_t>(k) >= g.finite_index.size()) continue;
+      const int i = g.finite_index[static_cast<std::size_t>(k)];
+      if (i < 0) continue;
+      pcl::PointXYZRGB p;
+      p.getVector3fMap() = g.world(static_cast<std::size_t>(i)).cast<float>();
+      p.r = r;
+      p.g = gr;
+      p.b = b;
+      marks->push_back(p);
+    }
+  };
+  add(options.fixed_points, 15, 15, 15);
+  add(options.manipulated_points, 220, 0, 220);
+  if (marks->empty()) return false;
+  marks->width = static_cast<std::uint32_t>(marks->size());
+  marks->height = 1;
+  const pcl::visualization::PointCloudColorHandlerRGBField<pcl::PointXYZRGB> rgb(marks);
+  viewer.addPointCloud<pcl::PointXYZRGB>(marks, rgb, id, vp);
+  viewer.setPointCloudRenderingProperties(pcl::visualization::PCL_VISUALIZER_POINT_SIZE,
+                                          std::max(5, options.point_size + 3), id, vp);
+  return true;
+}
+
+/// The displacement colour scale (0 to `scale`, blue to red) at the top right of viewport `vp`.
+void addDisplacementBar(pcl::visualization::PCLVisualizer& viewer, double scale, int vp) {
+  auto lut = vtkSmartPointer<vtkLookupTable>::New();
+  lut->SetNumberOfTableValues(256);
+  for (int k = 0; k < 256; ++k) {
+    const Eigen::Vector3f c = colourMap(static_cast<float>(k) / 255.0f);
+    lut->SetTableValue(k, c.x(), c.y(), c.z(), 1.0);
+  }
+  lut->SetRange(0, scale > 0 ? scale : 1);
+  lut->Build();
+  auto bar = vtkSmartPointer<vtkScalarBarActor>::New();
+  bar->SetLookupTable(lut);
+  bar->SetTitle("displacement");
+  bar->SetNumberOfLabels(3);
+  bar->SetLabelFormat("%.3g");
+  bar->UnconstrainedFontSizeOn();
+  bar->GetTitleTextProperty()->SetFontSize(13);
+  bar->GetLabelTextProperty()->SetFontSize(12);
+  bar->GetTitleTextProperty()->SetColor(0.1, 0.1, 0.1);
+  bar->GetTitleTextProperty()->ShadowOff();
+  bar->GetTitleTextProperty()->ItalicOff();
+  bar->GetLabelTextProperty()->SetColor(0.1, 0.1, 0.1);
+  bar->GetLabelTextProperty()->ShadowOff();
+  bar->GetLabelTextProperty()->ItalicOff();
+  bar->SetOrientationToHorizontal();         // across the top right, beside the handles' legend
+  bar->SetTextPositionToSucceedScalarBar();  // the labels below the bar, the title above
+  bar->SetWidth(0.4);
+  bar->SetHeight(0.13);
+  bar->SetPosition(0.57, 0.85);
+  vtkRenderer::SafeDownCast(viewer.getRendererCollection()->GetItemAsObject(vp))->AddActor2D(bar);
+}
+
 }  // namespace
+
+CloudShading shadeCloud(vtkRenderer* renderer, vtkActor* actor, const std::vector<Eigen::Vector3f>* normals) {
+  vtkPolyData* poly = actor && actor->GetMapper()
+                          ? vtkPolyData::SafeDownCast(actor->GetMapper()->GetInputAsDataSet())
+                          : nullptr;
+  if (normals && poly && static_cast<vtkIdType>(normals->size()) == poly->GetNumberOfPoints()) {
+    auto array = vtkSmartPointer<vtkFloatArray>::New();
+    array->SetName("Normals");
+    array->SetNumberOfComponents(3);
+    array->SetNumberOfTuples(static_cast<vtkIdType>(normals->size()));
+    float* out = array->GetPointer(0);
+    for (std::size_t i = 0; i < normals->size(); ++i) {
+      const Eigen::Vector3f& n = (*normals)[i];
+      out[3 * i] = n.x();
+      out[3 * i + 1] = n.y();
+      out[3 * i + 2] = n.z();
+    }
+    poly->GetPointData()->SetNormals(array);
+    poly->Modified();
+    vtkProperty* p = actor->GetProperty();
+    p->LightingOn();
+    p->SetInterpolationToGouraud();  // PCL sets flat, with which VTK ignores point normals
+    p->SetAmbient(0.3);
+    p->SetDiffuse(0.7);
+    p->SetSpecular(0.0);
+    vtkShaderProperty* sp = actor->GetShaderProperty();
+    sp->ClearFragmentShaderReplacement(kNormalTag, true);
+    sp->AddFragmentShaderReplacement(kNormalTag, true, kTwoSidedNormal, false);
+    if (auto* lod = vtkLODActor::SafeDownCast(actor)) LodDevice::of(lod)->SetShaderProperty(sp);
+    return CloudShading::Normals;
+  }
+  if (renderer && !hasEyeDome(renderer)) {
+    // The eye-dome pass shades what its delegate draws: the 3D scene only. Text and colour bars
+    // (the overlay) are drawn after it, unshaded. Its final step clears the whole window, so a
+    // window of several viewports draws them one at a time (renderPng).
+    auto steps = vtkSmartPointer<vtkRenderStepsPass>::New();
+    steps->SetOverlayPass(nullptr);
+    auto edl = vtkSmartPointer<SoftEyeDome>::New();
+    edl->SetDelegatePass(steps);
+    auto overlay = vtkSmartPointer<BlendedOverlayPass>::New();
+    auto passes = vtkSmartPointer<vtkRenderPassCollection>::New();
+    passes->AddItem(edl);
+    passes->AddItem(overlay);
+    auto seq = vtkSmartPointer<vtkSequencePass>::New();
+    seq->SetPasses(passes);
+    renderer->SetPass(seq);
+  }
+  return CloudShading::EyeDome;
+}
+
+CloudShading shadeCloud(pcl::visualization::PCLVisualizer& visualizer, const std::string& id,
+                        const Geometry& geometry, bool file_colours,
+                        const std::vector<Eigen::Vector3f>* normals, int viewport) {
+  if (file_colours) return CloudShading::None;
+  vtkRendererCollection* renderers = visualizer.getRendererCollection();
+  vtkRenderer* renderer = viewport >= 0 && viewport < renderers->GetNumberOfItems()
+                              ? vtkRenderer::SafeDownCast(renderers->GetItemAsObject(viewport))
+                              : nullptr;
+  const auto clouds = visualizer.getCloudActorMap();
+  const auto it = clouds->find(id);
+  vtkActor* actor = it != clouds->end() ? it->second.actor.Get() : nullptr;
+  std::vector<Eigen::Vector3f> file;
+  if (geometry.hasFileNormals() && !normals) {
+    file.reserve(geometry.file_normals->size());
+    for (const auto& fn : *geometry.file_normals) file.push_back(fn.getNormalVector3fMap());
+    normals = &file;
+  }
+  return shadeCloud(renderer, actor, geometry.hasFileNormals() ? normals : nullptr);
+}
+
+std::vector<double> displacementFrom(const Shape& rest, const Shape& shape) {
+  const std::string rest_name = rest.path.empty() ? std::string("the rest shape") : rest.path;
+  const std::string name = shape.path.empty() ? std::string("the shape") : shape.path;
+  if (rest.size() != shape.size())
+    throw std::runtime_error(rest_name + ": the rest shape has " + std::to_string(rest.size()) +
+                             " points but " + name + " has " + std::to_string(shape.size()) +
+                             ": a displacement needs the same points in the same order");
+  const Xyz fr = xyzFields(rest), fs = xyzFields(shape);
+  std::vector<double> d(shape.size());
+  for (std::size_t i = 0; i < d.size(); ++i) {
+    const double v = (pointOf(shape, fs, i) - pointOf(rest, fr, i)).norm();
+    d[i] = std::isfinite(v) ? v : NAN;
+  }
+  return d;
+}
 
 Eigen::Vector3f upAxis(const std::string& up, const std::vector<const Shape*>& shapes) {
   if (up == "auto") {
     const Shape* s = shapes.empty() ? nullptr : shapes.front();
-    const bool posed = s && s->format == FileFormat::Pcd &&
-                       (!s->sensor_origin.head<3>().isZero() ||
-                        !s->sensor_orientation.isApprox(Eigen::Quaternionf::Identity()));
-    return s && (s->isOrganized() || posed) ? Eigen::Vector3f(-Eigen::Vector3f::UnitY())
-                                            : Eigen::Vector3f(Eigen::Vector3f::UnitY());
+    if (!s) return Eigen::Vector3f::UnitY();
+    const bool posed =
+        s->format == FileFormat::Pcd && (!s->sensor_origin.head<3>().isZero() ||
+                                         !s->sensor_orientation.isApprox(Eigen::Quaternionf::Identity()));
+    if (s->isOrganized() || posed) return -Eigen::Vector3f::UnitY();
+    // A z-up model (a horse, a statue, a car: the convention of scanners and CAD) is thinnest
+    // along y, the axis a y-up picture would look down: take z up when y is clearly the thinnest
+    // (a margin, so that near-equal spreads keep +y and similar files do not flip).
+    const Eigen::Vector3d spread = axisSpread(*s);
+    if (spread.y() < kThinnest * std::min(spread.x(), spread.z())) return Eigen::Vector3f::UnitZ();
+    return Eigen::Vector3f::UnitY();
   }
   const bool minus = !up.empty() && up[0] == '-';
   const std::string axis = minus ? up.substr(1) : up;
@@ -108,10 +578,21 @@ void renderPng(const std::vector<const Shape*>& shapes, const std::string& png_p
   if (const std::string problem = pictureSizeProblem(options.width, options.height); !problem.empty())
     throw std::runtime_error(png_path + ": " + problem);
   const Eigen::Vector3f up = upAxis(options.up, shapes);
-  const Eigen::Vector3d view = options.view ? Eigen::Vector3d(options.view->cast<double>())
-                                            : Eigen::Vector3d(turnYOnto(up) * Eigen::Vector3d(1.0, 0.6, 1.4));
+  const std::size_t n = shapes.size();
   std::vector<Geometry> geoms;
   for (const Shape* s : shapes) geoms.push_back(extractGeometry(*s));
+  // Displacements (per file point) of the inputs coloured by them, one scale for all.
+  std::vector<std::vector<double>> displacement(n);
+  double scale = 0;
+  int moved = -1;  // the last input coloured by displacement: its motion chooses the view
+  if (options.displacement_rest && options.field.empty())
+    for (std::size_t k = 0; k < n; ++k) {
+      if (shapes[k] == options.displacement_rest) continue;  // the rest itself: its own colours
+      displacement[k] = displacementFrom(*options.displacement_rest, *shapes[k]);
+      for (const double d : displacement[k])
+        if (std::isfinite(d)) scale = std::max(scale, d);
+      moved = static_cast<int>(k);
+    }
   // One camera for all: the union of the bounding boxes, seen along `view`.
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(INFINITY), hi = -lo;
   for (const auto& g : geoms)
@@ -121,17 +602,24 @@ void renderPng(const std::vector<const Shape*>& shapes, const std::string& png_p
     }
   const Eigen::Vector3d centre = 0.5 * (lo + hi);
   const double radius = std::max(0.5 * (hi - lo).norm(), 1e-9);
+  const Eigen::Vector3d view =
+      options.view ? Eigen::Vector3d(options.view->cast<double>())
+                   : chooseView(up, axisSpread(*shapes.front()), options.up == "auto",
+                                moved >= 0 ? &geoms[static_cast<std::size_t>(moved)] : nullptr,
+                                moved >= 0 ? options.displacement_rest : nullptr, centre, radius);
   const int width = options.width, height = options.height;
 
   pcl::visualization::PCLVisualizer viewer("hgdeform", false);
   viewer.setSize(width, height);
-  const int n = static_cast<int>(shapes.size());
-  for (int k = 0; k < n; ++k) {
+  for (std::size_t k = 0; k < n; ++k) {
     int vp = 0;
-    viewer.createViewPort(static_cast<double>(k) / n, 0.0, static_cast<double>(k + 1) / n, 1.0, vp);
+    viewer.createViewPort(static_cast<double>(k) / static_cast<double>(n), 0.0,
+                          static_cast<double>(k + 1) / static_cast<double>(n), 1.0, vp);
     viewer.setBackgroundColor(1.0, 1.0, 1.0, vp);
-    const auto& g = geoms[static_cast<std::size_t>(k)];
-    const auto cloud = colouredPoints(*shapes[static_cast<std::size_t>(k)], g, options.field);
+    const auto& g = geoms[k];
+    const bool by_displacement = !displacement[k].empty();
+    const auto cloud =
+        colouredPoints(*shapes[k], g, options.field, by_displacement ? &displacement[k] : nullptr, scale);
     const std::string id = "shape" + std::to_string(k);
     if (!g.faces.empty()) {
       pcl::PolygonMesh mesh;
@@ -142,12 +630,23 @@ void renderPng(const std::vector<const Shape*>& shapes, const std::string& png_p
       viewer.addPointCloud<pcl::PointXYZRGB>(cloud, id, vp);
       viewer.setPointCloudRenderingProperties(pcl::visualization::PCL_VISUALIZER_POINT_SIZE,
                                               options.point_size, id, vp);
+      const bool file_colours =
+          options.field.empty() && !by_displacement && findColourFields(shapes[k]->cloud).any();
+      shadeCloud(viewer, id, g, file_colours, nullptr, vp);
     }
-    if (k < static_cast<int>(options.titles.size()))
-      viewer.addText(options.titles[static_cast<std::size_t>(k)], 12, 12, 18, 0.1, 0.1, 0.1, id + "_title",
-                     vp);
+    const bool last = k + 1 == n;
+    if (markHandles(viewer, g, options, id + "_handles", vp) && last) {
+      viewer.addText("fixed handle", 12, height - 22, 13, 0.05, 0.05, 0.05, id + "_fixed_legend", vp);
+      viewer.addText("moved handle", 12, height - 40, 13, 0.85, 0.0, 0.85, id + "_moved_legend", vp);
+    }
+    if (static_cast<int>(k) == moved) addDisplacementBar(viewer, scale, vp);
+    if (k < options.titles.size())
+      viewer.addText(options.titles[k], 12, 12, 18, 0.1, 0.1, 0.1, id + "_title", vp);
   }
-  const Eigen::Vector3d eye = centre + view.normalized() * radius * 3.3;  // 30 degree view angle
+  // 30 degree view angle: the bounding sphere fills the height, with a margin at the top for
+  // the displacement scale and the handles' legend when they are drawn.
+  const bool legends = moved >= 0 || !options.fixed_points.empty() || !options.manipulated_points.empty();
+  const Eigen::Vector3d eye = centre + view.normalized() * radius * (legends ? 3.8 : 3.3);
   viewer.setCameraPosition(eye.x(), eye.y(), eye.z(), centre.x(), centre.y(), centre.z(), up.x(), up.y(),
                            up.z());
   viewer.setCameraClipDistances(radius * 0.1, radius * 10);
@@ -156,8 +655,43 @@ void renderPng(const std::vector<const Shape*>& shapes, const std::string& png_p
   auto window = viewer.getRenderWindow();
   window->SetSize(width, height);
   window->SetOffScreenRendering(1);
-  window->Render();
-  writeWindowPng(window, png_path);
+  // One viewport at a time (the eye-dome pass clears the whole window when it composes), each
+  // copied into its columns of the picture.
+  vtkRendererCollection* renderers = viewer.getRendererCollection();
+  auto picture = vtkSmartPointer<vtkImageData>::New();
+  picture->SetDimensions(width, height, 1);
+  picture->AllocateScalars(VTK_UNSIGNED_CHAR, 3);
+  auto* out = static_cast<unsigned char*>(picture->GetScalarPointer());
+  std::fill(out, out + std::size_t{3} * static_cast<std::size_t>(width) * static_cast<std::size_t>(height),
+            static_cast<unsigned char>(255));
+  for (int k = 1; k <= static_cast<int>(n); ++k) {
+    for (int j = 0; j < renderers->GetNumberOfItems(); ++j)
+      vtkRenderer::SafeDownCast(renderers->GetItemAsObject(j))->SetDraw(j == k);
+    window->Render();
+    auto grab = vtkSmartPointer<vtkWindowToImageFilter>::New();
+    grab->SetInput(window);
+    grab->SetInputBufferTypeToRGB();
+    grab->ReadFrontBufferOff();
+    grab->ShouldRerenderOff();
+    grab->Update();
+    vtkImageData* shot = grab->GetOutput();
+    int dims[3];
+    shot->GetDimensions(dims);
+    if (dims[0] != width || dims[1] != height)
+      throw std::runtime_error(png_path + ": cannot render: the window drew " + std::to_string(dims[0]) +
+                               "x" + std::to_string(dims[1]) + " pixels");
+    vtkRenderer* r = vtkRenderer::SafeDownCast(renderers->GetItemAsObject(k));
+    const int* origin = r->GetOrigin();
+    const int* size = r->GetSize();
+    const int x0 = std::clamp(origin[0], 0, width), x1 = std::clamp(origin[0] + size[0], 0, width);
+    const auto* in = static_cast<const unsigned char*>(shot->GetScalarPointer());
+    for (int y = 0; y < height; ++y) {
+      const std::size_t row = static_cast<std::size_t>(y) * static_cast<std::size_t>(width);
+      std::copy(in + 3 * (row + static_cast<std::size_t>(x0)), in + 3 * (row + static_cast<std::size_t>(x1)),
+                out + 3 * (row + static_cast<std::size_t>(x0)));
+    }
+  }
+  writeImagePng(picture, png_path, "picture");
 }
 
 void writeWindowPng(vtkRenderWindow* window, const std::string& png_path,
@@ -168,18 +702,7 @@ void writeWindowPng(vtkRenderWindow* window, const std::string& png_path,
   grab->SetInputBufferTypeToRGB();
   grab->ReadFrontBufferOff();
   grab->Update();
-  // Encoded in memory, then written by the one atomic writer as every other output is: a
-  // temporary file beside the target renamed over it (a link followed), a FIFO or a device
-  // written to directly, nothing left behind on failure.
-  auto writer = vtkSmartPointer<vtkPNGWriter>::New();
-  writer->SetWriteToMemory(1);
-  writer->SetInputConnection(grab->GetOutputPort());
-  writer->Write();
-  vtkUnsignedCharArray* png = writer->GetResult();
-  if (writer->GetErrorCode() != 0 || !png || png->GetNumberOfValues() == 0)
-    throw std::runtime_error(png_path + ": cannot write the " + what + ": the PNG could not be encoded");
-  writeFileAtomically(png_path, std::string_view(reinterpret_cast<const char*>(png->GetPointer(0)),
-                                                 static_cast<std::size_t>(png->GetNumberOfValues())));
+  writeImagePng(grab->GetOutput(), png_path, what);
 }
 
 }  // namespace hgd

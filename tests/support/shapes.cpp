@@ -1,7 +1,9 @@
 #include "support/shapes.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <map>
 #include <random>
@@ -344,6 +346,179 @@ PointsAndNormals sampledFork(std::size_t n, unsigned seed, double noise, double 
     s.n.push_back(V3(gauss(rng), gauss(rng), gauss(rng)).normalized());
   }
   return s;
+}
+
+namespace {
+
+/// Signed distance (negative inside) to a smooth union of capsules: the quadruped's body.
+struct Capsule {
+  Eigen::Vector3d a, b;
+  double r;
+};
+
+double capsuleDistance(const Capsule& c, const Eigen::Vector3d& p) {
+  const Eigen::Vector3d ab = c.b - c.a;
+  const double t = std::clamp((p - c.a).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
+  return (p - (c.a + t * ab)).norm() - c.r;
+}
+
+double quadrupedDistance(const Eigen::Vector3d& p) {
+  static const Capsule parts[] = {{{-0.5, 0, 0}, {0.5, 0, 0}, 0.22},                // body
+                                  {{0.38, -0.05, 0.14}, {0.4, -0.75, 0.14}, 0.07},  // front right leg
+                                  {{0.38, -0.05, -0.14}, {0.4, -0.75, -0.14}, 0.07},
+                                  {{-0.38, -0.05, 0.14}, {-0.4, -0.75, 0.14}, 0.07},  // hind right leg
+                                  {{-0.38, -0.05, -0.14}, {-0.4, -0.75, -0.14}, 0.07},
+                                  {{0.5, 0.05, 0}, {0.75, 0.4, 0}, 0.09},        // neck
+                                  {{0.72, 0.42, 0}, {0.95, 0.35, 0}, 0.1},       // head
+                                  {{-0.55, 0.05, 0}, {-0.85, -0.15, 0}, 0.04}};  // tail
+  const double k = 0.05;                                                         // smooth-union radius
+  double d = capsuleDistance(parts[0], p);
+  for (std::size_t i = 1; i < sizeof(parts) / sizeof(parts[0]); ++i) {
+    const double e = capsuleDistance(parts[i], p);
+    const double h = std::max(k - std::abs(d - e), 0.0) / k;
+    d = std::min(d, e) - h * h * k / 4;
+  }
+  return d;
+}
+
+}  // namespace
+
+Shape quadruped(float h_in) {
+  // Marching tetrahedra (each grid cube cut into the six tetrahedra around its main diagonal,
+  // so that neighbouring cubes agree), one vertex per crossed grid edge, then three rounds of
+  // neighbour averaging projected back onto the surface so that triangles are well shaped.
+  const double h = h_in;
+  const Eigen::Vector3d lo(-1.0 + 0.0137 * h, -0.9 + 0.0291 * h, -0.32 + 0.0173 * h);
+  const Eigen::Vector3d hi(1.1, 0.65, 0.32);
+  int n[3];
+  for (int a = 0; a < 3; ++a) n[a] = static_cast<int>(std::ceil((hi[a] - lo[a]) / h)) + 1;
+  const auto id = [&](int i, int j, int k) {
+    return static_cast<std::int64_t>(i) +
+           static_cast<std::int64_t>(n[0]) * (j + static_cast<std::int64_t>(n[1]) * k);
+  };
+  const auto at = [&](std::int64_t g) {
+    const std::int64_t i = g % n[0], j = (g / n[0]) % n[1], k = g / (static_cast<std::int64_t>(n[0]) * n[1]);
+    return Eigen::Vector3d(lo.x() + h * static_cast<double>(i), lo.y() + h * static_cast<double>(j),
+                           lo.z() + h * static_cast<double>(k));
+  };
+  std::vector<double> f(static_cast<std::size_t>(n[0]) * n[1] * n[2]);
+  for (int k = 0; k < n[2]; ++k)
+    for (int j = 0; j < n[1]; ++j)
+      for (int i = 0; i < n[0]; ++i)
+        f[static_cast<std::size_t>(id(i, j, k))] = quadrupedDistance(at(id(i, j, k)));
+
+  std::map<std::pair<std::int64_t, std::int64_t>, int> edge_vertex;
+  std::vector<Eigen::Vector3d> p;
+  const auto vertex = [&](std::int64_t a, std::int64_t b) {
+    if (a > b) std::swap(a, b);
+    auto [it, added] = edge_vertex.emplace(std::make_pair(a, b), static_cast<int>(p.size()));
+    if (added) {
+      const double fa = f[static_cast<std::size_t>(a)], fb = f[static_cast<std::size_t>(b)];
+      const double t = std::clamp(fa / (fa - fb), 0.05, 0.95);
+      p.push_back(at(a) + t * (at(b) - at(a)));
+    }
+    return it->second;
+  };
+  std::vector<std::array<int, 3>> tris;
+  const int perms[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
+  for (int k = 0; k + 1 < n[2]; ++k)
+    for (int j = 0; j + 1 < n[1]; ++j)
+      for (int i = 0; i + 1 < n[0]; ++i)
+        for (const auto& perm : perms) {
+          std::int64_t t[4];
+          int c[3] = {i, j, k};
+          t[0] = id(c[0], c[1], c[2]);
+          for (int s = 0; s < 3; ++s) {
+            ++c[perm[s]];
+            t[s + 1] = id(c[0], c[1], c[2]);
+          }
+          std::vector<std::int64_t> in, out;
+          for (const std::int64_t g : t) (f[static_cast<std::size_t>(g)] < 0 ? in : out).push_back(g);
+          if (in.empty() || out.empty()) continue;
+          Eigen::Vector3d outward = Eigen::Vector3d::Zero();
+          for (const auto g : out) outward += at(g) / static_cast<double>(out.size());
+          for (const auto g : in) outward -= at(g) / static_cast<double>(in.size());
+          const auto emit = [&](int a, int b, int c2) {
+            const Eigen::Vector3d nrm = (p[b] - p[a]).cross(p[c2] - p[a]);
+            if (nrm.dot(outward) < 0) std::swap(b, c2);
+            tris.push_back({a, b, c2});
+          };
+          if (in.size() == 1 || out.size() == 1) {
+            const bool one_in = in.size() == 1;
+            const std::int64_t apex = one_in ? in[0] : out[0];
+            const auto& rest = one_in ? out : in;
+            emit(vertex(apex, rest[0]), vertex(apex, rest[1]), vertex(apex, rest[2]));
+          } else {
+            const int a = vertex(in[0], out[0]), b = vertex(in[0], out[1]), c2 = vertex(in[1], out[1]),
+                      d = vertex(in[1], out[0]);
+            emit(a, b, c2);
+            emit(a, c2, d);
+          }
+        }
+
+  std::vector<std::vector<int>> nb(p.size());
+  for (const auto& t : tris)
+    for (int e = 0; e < 3; ++e) {
+      nb[static_cast<std::size_t>(t[e])].push_back(t[(e + 1) % 3]);
+      nb[static_cast<std::size_t>(t[e])].push_back(t[(e + 2) % 3]);
+    }
+  const auto project = [&](Eigen::Vector3d x) {
+    for (int it = 0; it < 3; ++it) {
+      const double d = quadrupedDistance(x), e = 1e-5;
+      Eigen::Vector3d g;
+      for (int a = 0; a < 3; ++a) {
+        Eigen::Vector3d y = x;
+        y[a] += e;
+        g[a] = (quadrupedDistance(y) - d) / e;
+      }
+      x -= d * g / std::max(1e-12, g.squaredNorm());
+    }
+    return x;
+  };
+  for (int round = 0; round < 3; ++round) {
+    std::vector<Eigen::Vector3d> q(p.size());
+    for (std::size_t v = 0; v < p.size(); ++v) {
+      Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+      for (const int w : nb[v]) mean += p[static_cast<std::size_t>(w)];
+      q[v] = project(nb[v].empty() ? p[v] : Eigen::Vector3d(mean / static_cast<double>(nb[v].size())));
+    }
+    p.swap(q);
+  }
+  std::vector<Eigen::Vector3f> pf(p.size());
+  for (std::size_t v = 0; v < p.size(); ++v) pf[v] = p[v].cast<float>();
+  Shape s = cloudShape(pf, {});
+  s.polygons.reserve(tris.size());
+  for (const auto& t : tris) {
+    pcl::Vertices v;
+    v.vertices.assign(t.begin(), t.end());
+    s.polygons.push_back(std::move(v));
+  }
+  return s;
+}
+
+namespace {
+
+std::vector<int> legPart(const Shape& s, int leg, float y_lo, float y_hi) {
+  const float sx = leg < 2 ? 1.0f : -1.0f, sz = leg % 2 == 0 ? 1.0f : -1.0f;
+  std::vector<int> out;
+  const auto& c = s.cloud;
+  for (std::size_t i = 0; i < c.width * c.height; ++i) {
+    float x[3];
+    std::memcpy(x, &c.data[i * c.point_step], sizeof(x));  // cloudShape: x, y, z first
+    if (x[1] >= y_lo && x[1] < y_hi && x[0] * sx > 0.2f && x[2] * sz > 0.02f)
+      out.push_back(static_cast<int>(i));
+  }
+  return out;
+}
+
+}  // namespace
+
+std::vector<int> quadrupedFoot(const Shape& quadruped, int leg) {
+  return legPart(quadruped, leg, -1.0f, -0.68f);
+}
+
+std::vector<int> quadrupedShin(const Shape& quadruped, int leg) {
+  return legPart(quadruped, leg, -0.6f, -0.3f);
 }
 
 }  // namespace shapes

@@ -59,5 +59,17 @@ Shape barBesideABox(float h = 0.01f);
 /// Triangle mesh of the same bar as bar(): vertices on the grid, two triangles per cell.
 Shape barMesh(float length = 1.0f, float width = 0.1f, float h = 0.01f);
 
+/// A four-legged animal as one closed triangle mesh (the surface of a smooth union of capsules:
+/// body along x, legs down -y at x = ±0.38, z = ±0.14 reaching y = -0.75, neck and head at +x,
+/// a tail at -x), meshed by marching tetrahedra on a grid of spacing h: a shape with branches
+/// for quality checks. About 15,000 vertices at h = 0.02.
+Shape quadruped(float h = 0.02f);
+
+/// The quadruped's parts by position: foot `leg` (0 front right, 1 front left, 2 hind right,
+/// 3 hind left; right is +z) is the vertices of that leg below y = -0.68; its shin those
+/// between y = -0.6 and -0.3.
+std::vector<int> quadrupedFoot(const Shape& quadruped, int leg);
+std::vector<int> quadrupedShin(const Shape& quadruped, int leg);
+
 }  // namespace shapes
 }  // namespace hgd

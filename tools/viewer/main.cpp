@@ -13,6 +13,7 @@
 //   + / -      selection radius up / down;  c  clear the selection
 //   f / m / j  the selection becomes a fixed handle / the manipulated handle / a joint
 //   C          clear all handles;  l  drags keep the handle's orientation
+//   < / >      point size smaller / larger (clouds)
 //   v          view: original colours / harmonic field / clusters;  o  rest shape overlay
 //   r          the opening view;  z / y  undo / redo;  n  back to the rest shape
 //   s / S      save the deformed shape / the session as a scenario (beside the input, numbered:

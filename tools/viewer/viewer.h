@@ -46,7 +46,8 @@ inline const char* const kHelp =
     "modes: x  area select   d  drag the manipulated handle   t  frame (arrows, [ ], , .)   (again: pick)\n"
     "shift+click  select around a point (any mode)   +/-  radius   c  clear selection\n"
     "f  fixed handle   m  manipulated handle   j  joint   C  clear all handles   l  drags keep orientation\n"
-    "v  view: colours / field / clusters   o  rest overlay   r  opening view   z/y  undo/redo   n  rest "
+    "v  view: colours / field / clusters   o  rest overlay   < >  point size   r  opening view   z/y  "
+    "undo/redo   n  rest "
     "shape\n"
     "s  save shape   S  save scenario   k  screenshot (numbered, never replaced)   h  help   q/e  quit";
 

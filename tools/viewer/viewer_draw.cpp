@@ -117,6 +117,8 @@ void Viewer::addShapeCloud() {
   vis_->addPointCloud<pcl::PointXYZRGB>(display_, rgb, "shape");
   vis_->setPointCloudRenderingProperties(pcl::visualization::PCL_VISUALIZER_POINT_SIZE, shapePointSize(),
                                          "shape");
+  // Lit by its normals, else eye-dome lighting; file colours as they are.
+  hgd::shadeCloud(*vis_, "shape", run_.geometry(), hgd::findColourFields(run_.shape().cloud).any());
 }
 
 // The opening view, and `r`'s: the whole shape, upright by hgdeform-render's rule
@@ -222,6 +224,9 @@ void Viewer::refresh() {
     // With an explicit colour handler: PCL's plain update paints the cloud white.
     const pcl::visualization::PointCloudColorHandlerRGBField<pcl::PointXYZRGB> rgb(display_);
     vis_->updatePointCloud<pcl::PointXYZRGB>(display_, rgb, "shape");
+    if (ready() && run_.geometry().hasFileNormals())  // lit by the deformed normals
+      hgd::shadeCloud(*vis_, "shape", run_.geometry(), hgd::findColourFields(run_.shape().cloud).any(),
+                      &run_.deformer().deformedNormals());
   } else {
     // PCL's updatePolygonMesh drops the colours (the mesh turns black): add it afresh.
     pcl::PolygonMesh mesh;
@@ -348,6 +353,13 @@ void Viewer::showLod(bool on) {
   for (const int i : lod_) lod_display_->push_back((*display_)[static_cast<std::size_t>(i)]);
   const pcl::visualization::PointCloudColorHandlerRGBField<pcl::PointXYZRGB> rgb(lod_display_);
   vis_->addPointCloud<pcl::PointXYZRGB>(lod_display_, rgb, "lod");
+  if (ready() && run_.geometry().hasFileNormals()) {  // lit as the whole cloud is
+    const std::vector<Eigen::Vector3f>& deformed = run_.deformer().deformedNormals();
+    std::vector<Eigen::Vector3f> normals;
+    normals.reserve(lod_.size());
+    for (const int i : lod_) normals.push_back(deformed[static_cast<std::size_t>(i)]);
+    hgd::shadeCloud(*vis_, "lod", run_.geometry(), hgd::findColourFields(run_.shape().cloud).any(), &normals);
+  }
   // As many pixels as the whole cloud fills: each drawn point stands for `stride`.
   vis_->setPointCloudRenderingProperties(pcl::visualization::PCL_VISUALIZER_POINT_SIZE, 2, "lod");
   if (shape != clouds->end() && shape->second.actor) shape->second.actor->SetVisibility(false);
@@ -383,6 +395,19 @@ void Viewer::updatePositions() {
   }
   pts->Modified();
   poly->Modified();
+  // Lit by the deformed normals, as the frame kept on release is (what you see is what you get).
+  if (run_.geometry().faces.empty() && ready() && run_.geometry().hasFileNormals()) {
+    const std::vector<Eigen::Vector3f>& deformed_normals = run_.deformer().deformedNormals();
+    const bool file_colours = hgd::findColourFields(run_.shape().cloud).any();
+    if (lod) {
+      std::vector<Eigen::Vector3f> normals;
+      normals.reserve(lod_.size());
+      for (const int i : lod_) normals.push_back(deformed_normals[static_cast<std::size_t>(i)]);
+      hgd::shadeCloud(*vis_, "lod", run_.geometry(), file_colours, &normals);
+    } else {
+      hgd::shadeCloud(*vis_, "shape", run_.geometry(), file_colours, &deformed_normals);
+    }
+  }
   // The handles' marks and halos follow their points.
   for (const char* id : {"handles", "halo"}) {
     vtkPolyData* marks = cloudPolyData(id);

@@ -55,7 +55,7 @@ bool Viewer::key(const std::string& sym, char code) {
   if (k != 'q' && k != 'e') quit_asked_ = false;
   // While the deformer builds, keys that need it wait; the view, the selection, the help, the
   // mode, screenshots and quitting do not.
-  if (building_ && k != 0 && std::string("hrxc+=-kqe").find(k) == std::string::npos) {
+  if (building_ && k != 0 && std::string("hrxc+=-kqe<>").find(k) == std::string::npos) {
     message("the deformer is still being built: this key waits for it");
     return true;
   }
@@ -116,6 +116,16 @@ bool Viewer::key(const std::string& sym, char code) {
       radius_ /= 1.25;
       message("selection radius " + num(radius_));
       return true;
+    case '<':
+    case '>': {  // point size (+/- are the selection radius)
+      if (!run_.geometry().faces.empty()) return message("point size: a mesh is drawn as a surface"), true;
+      double size = 1;
+      vis_->getPointCloudRenderingProperties(pcl::visualization::PCL_VISUALIZER_POINT_SIZE, size, "shape");
+      size = std::clamp(size + (k == '>' ? 1.0 : -1.0), 1.0, 16.0);
+      vis_->setPointCloudRenderingProperties(pcl::visualization::PCL_VISUALIZER_POINT_SIZE, size, "shape");
+      message("point size " + num(size));
+      return true;
+    }
     case 'q':
     case 'e': requestQuit(k); return true;
     default: return false;
