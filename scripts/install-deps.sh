@@ -19,6 +19,7 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
   libcgal-dev                               # hgdeform-bench --arap: CGAL's ARAP, the peer (header-only, optional)
   xvfb xauth clang-format
+  xdotool                                   # tests/test_viewer_x.cpp: real X keyboard and mouse events (XTEST) for the viewer
   clang libclang-rt-14-dev                  # scripts/fuzz.sh: libFuzzer targets (clang's runtime)
 )
 

@@ -93,6 +93,8 @@ void ScenarioRunner::clearHistory() {
   redo_states_.clear();
   results_.clear();
   live_ = false;
+  live_move_.reset();
+  live_result_.reset();
 }
 
 void ScenarioRunner::applyMoves() {
@@ -103,8 +105,48 @@ MoveResult ScenarioRunner::apply(const Move& move) {
   requireShape("apply");
   if (!deformer_) throw std::logic_error("ScenarioRunner::apply: no handles yet");
   dropLive();
+  history_.push_back(deformer_->state());
+  const MoveResult r = solveMove(move);
+  record(move, r);
+  return r;
+}
+
+void ScenarioRunner::record(const Move& move, const MoveResult& result) {
+  moves_.push_back(move);
+  results_.push_back(result);
+  undone_.clear();
+  redo_states_.clear();
+}
+
+MoveResult ScenarioRunner::previewMove(const Move& move, const std::vector<int>* preview) {
+  requireShape("previewMove");
+  if (!deformer_) throw std::logic_error("ScenarioRunner::previewMove: no handles yet");
+  if (!live_) {
+    history_.push_back(deformer_->state());  // the last applied state, taken back by dropLive()
+    live_ = true;
+    if (preview) deformer_->setPreview(*preview);
+  } else {
+    deformer_->restore(history_.back());  // each preview starts where apply() would
+  }
+  live_move_ = move;
+  live_result_ = solveMove(move);
+  return *live_result_;
+}
+
+std::optional<MoveResult> ScenarioRunner::commitLive() {
+  if (!live_ || !live_move_ || !live_result_) return std::nullopt;
+  live_ = false;  // the state before the gesture stays in history_, as apply() leaves it
+  if (!deformer_->preview().empty()) deformer_->setPreview({});  // every point, same transforms
+  const Move move = *live_move_;
+  const MoveResult r = *live_result_;
+  live_move_.reset();
+  live_result_.reset();
+  record(move, r);
+  return r;
+}
+
+MoveResult ScenarioRunner::solveMove(const Move& move) {
   Deformer& d = *deformer_;
-  history_.push_back(d.state());
   const int number = static_cast<int>(moves_.size()) + 1;
   MoveResult r;
   if (move.kind == Move::Kind::Drag && !move.drag.keep_orientation) {
@@ -151,10 +193,6 @@ MoveResult ScenarioRunner::apply(const Move& move) {
     r.solve_ms = st.ms;
     r.interpolation_ms = d.lastInterpolationMs();
   }
-  moves_.push_back(move);
-  results_.push_back(r);
-  undone_.clear();
-  redo_states_.clear();
   return r;
 }
 
@@ -167,12 +205,16 @@ SolveStats ScenarioRunner::liveDrag(const Eigen::Vector3d& from, const Eigen::Ve
     live_ = true;
     if (preview) deformer_->setPreview(*preview);
   }
+  live_move_.reset();  // incremental frames: no move to commit as shown
+  live_result_.reset();
   return keep_orientation ? deformer_->translateHandle(from, to) : deformer_->drag(from, to);
 }
 
 void ScenarioRunner::dropLive() {
   if (!live_) return;
   live_ = false;
+  live_move_.reset();
+  live_result_.reset();
   deformer_->restore(history_.back());  // with a preview, its points only
   history_.pop_back();
   if (!deformer_->preview().empty()) deformer_->setPreview({});  // then every point

@@ -417,3 +417,36 @@ TEST(ScenarioRunner, KeepOrientationMustBeABoolean) {
         << e.what();
   }
 }
+
+namespace {
+
+// What the viewer's live drag frames are (issue 29, item 1): previewMove() shows the move's own
+// result, from the last applied state, however many previews came before (the cursor's path
+// does not matter); commitLive() keeps it, to the bit, without solving again; it equals apply()
+// of the same move on a fresh runner, and with a level of detail every point is there after the
+// commit.
+TEST(ScenarioRunner, PreviewedMoveIsCommittedAsShown) {
+  const Eigen::Vector3d to = kTip + Eigen::Vector3d(-0.2, 0.4, 0.1);
+  hgd::ScenarioRunner a = bar(), b = bar(), c = bar();
+  std::vector<int> subset;
+  for (std::size_t i = 0; i < a.geometry().size(); i += 5) subset.push_back(static_cast<int>(i));
+  for (int k = 1; k <= 6; ++k)  // a wandering path, ending at `to`
+    a.previewMove(dragMove(kTip, kTip + Eigen::Vector3d(0.05 * k, -0.1 * k, 0)), &subset);
+  a.previewMove(dragMove(kTip, to), &subset);
+  const std::vector<Eigen::Vector3f> shown = a.deformer().deformedPoints();
+  ASSERT_TRUE(a.commitLive().has_value());
+  ASSERT_EQ(a.moves().size(), 1u);
+  EXPECT_FALSE(a.commitLive().has_value());  // nothing live any more
+  const auto& kept = a.deformer().deformedPoints();
+  for (const int i : subset)
+    EXPECT_EQ(shown[static_cast<std::size_t>(i)], kept[static_cast<std::size_t>(i)]) << i;
+  b.apply(dragMove(kTip, to));
+  EXPECT_EQ(largestDifference(a, b), 0.0);
+  // Undo returns to before the gesture; a live frame of incremental drags is not committable.
+  ASSERT_TRUE(a.undo());
+  EXPECT_LE(largestDifference(a, c), 1e-7);
+  a.liveDrag(kTip, to);
+  EXPECT_FALSE(a.commitLive().has_value());
+}
+
+}  // namespace

@@ -116,6 +116,16 @@ class ScenarioRunner {
   /// Back to the last applied state, if live frames moved the shape.
   void dropLive();
 
+  /// A live frame that is the move's own result: from the last applied state (each call starts
+  /// there again), `move` solved exactly as apply() solves it, shown but not recorded. With
+  /// `preview` (as liveDrag's) only those points are interpolated. commitLive() then keeps it:
+  /// what was shown is what is applied, point for point, and `hgdeform deform` replays it.
+  MoveResult previewMove(const Move& move, const std::vector<int>* preview = nullptr);
+  /// Records the move of the last previewMove() as apply() would, without solving again (the
+  /// preview's level of detail is left: every point interpolated with the same transforms).
+  /// Nothing (std::nullopt) when the live frames are not a previewMove().
+  std::optional<MoveResult> commitLive();
+
   bool undo();  ///< false when there is nothing to undo
   bool redo();  ///< false when there is nothing to redo
   /// Back to the rest shape; the recorded moves and history are cleared.
@@ -172,6 +182,10 @@ class ScenarioRunner {
                 bool release_shape);
   void noteWriteWarnings(const std::vector<std::string>& warnings);
   void clearHistory();
+  /// Solves `move` from the deformer's current state (apply()'s and previewMove()'s solve).
+  MoveResult solveMove(const Move& move);
+  /// Records an applied move and its result; the redo list is cleared.
+  void record(const Move& move, const MoveResult& result);
 
   Shape shape_;
   std::shared_ptr<const Geometry> geometry_;  // shared with the deformer
@@ -185,6 +199,8 @@ class ScenarioRunner {
   std::vector<MoveResult> results_;  // one per applied move
   std::vector<std::string> read_warnings_, write_warnings_;
   bool live_ = false;
+  std::optional<Move> live_move_;  // the move the live frame shows (previewMove), if any
+  std::optional<MoveResult> live_result_;
   bool released_ = false;  // the shape was handed over (release, writeAndRelease)
   double read_ms_ = 0, build_ms_ = 0, write_ms_ = 0;
 };

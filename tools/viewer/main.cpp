@@ -3,18 +3,24 @@
 //   hgdeform-view INPUT [--scenario S.json] [--replay EVENTS.json] [--screenshot OUT.png]
 //                 [--size WxH] [--stats] [--lod N]
 //
-// Keys (also shown by 'h'):
-//   x          area selection (rubber band) on/off; shift+click selects a point and its radius
+// One mode at a time, shown at the start of the status line: pick (the mouse turns the view),
+// area, drag or frame. Keys (also shown by 'h'; kHelp in viewer.h and README.md's viewer
+// section say the same):
+//   x / d / t  area (rubber band) / drag (left-drag the manipulated handle) / frame mode (arrows
+//              move the handle in the view plane, [ ] turn it about the view direction, , .
+//              about the view's vertical); the same key again: pick mode
+//   shift+click  selects a point and everything within the radius, in any mode
 //   + / -      selection radius up / down;  c  clear the selection
 //   f / m / j  the selection becomes a fixed handle / the manipulated handle / a joint
-//   C          clear all handles;  < / >  point size smaller / larger (clouds)
-//   d          drag mode on/off: left-drag on the manipulated handle moves it (else the camera)
-//   t          frame mode on/off: arrows move the handle in the view plane, [ ] turn it about
-//              the view direction, , . about the view's vertical
+//   C          clear all handles;  l  drags keep the handle's orientation
+//   < / >      point size smaller / larger (clouds)
 //   v          view: original colours / harmonic field / clusters;  o  rest shape overlay
-//   z / y      undo / redo;  n  back to the rest shape
-//   s / S      save the deformed shape / the session as a scenario (beside the input)
-//   k          screenshot (PNG);  h  this help;  q  quit
+//   r          the opening view;  z / y  undo / redo;  n  back to the rest shape
+//   s / S      save the deformed shape / the session as a scenario (beside the input, numbered:
+//              never replacing an earlier file)
+//   k          screenshot (PNG, numbered likewise);  h  this help
+//   q / e      quit (pressed twice with unsaved changes)
+// Shift and Caps Lock make capitals as on any keyboard. PCL's and VTK's own keys are off.
 //
 // --replay plays a script of events (picks, keys, drags in screen or world coordinates) and
 // exits; with --screenshot it saves a picture at the end. The replay format, checked as a whole
@@ -119,13 +125,20 @@ int main(int argc, char** argv) {
     }
     if (const std::string problem = hgd::displayProblem(); !problem.empty())
       throw std::runtime_error(problem);
+    const auto start = hgdview::Clock::now();
     Viewer viewer(input, width, height);
+    const double read_ms = hgdview::msSince(start);
     viewer.verbose_ = !quiet;
     viewer.inputs_ = inputs;
     viewer.lod_points_ = args.lod;
     if (!scenario.empty()) viewer.loadScenario(scenario);
+    const auto opening = hgdview::Clock::now();
     viewer.open();
     viewer.vis().setSize(width, height);  // the first render may shrink the window
+    if (stats)
+      std::printf("opened: read %.0f ms, first frame %.0f ms after reading\n", read_ms,
+                  hgdview::msSince(opening));
+    if (!replay.empty() || !shot.empty()) viewer.drawWhole();  // pictures of the whole shape
     if (!replay.empty()) {
       viewer.replay(events, replay, viewer.vis().getRenderWindow()->GetInteractor());
       if (!shot.empty()) viewer.screenshot(shot);

@@ -2,11 +2,17 @@
 // through the runner (as `hgdeform deform` replays them, with undo and redo), and what is saved.
 #include "viewer.h"
 
+#include <omp.h>
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <iterator>
 #include <sstream>
+#include <thread>
 
 #include "hgdeform/deformer.h"
 #include "hgdeform/geometry.h"
@@ -93,10 +99,85 @@ void Viewer::markSelection(int role) {
   h.joints.erase(std::remove_if(h.joints.begin(), h.joints.end(), [](const auto& v) { return v.empty(); }),
                  h.joints.end());
   handles_ = h;
+  unsaved_ = true;
   syncRegions();
   clearSelection(false);
   refreshRoles();
-  run_.setHandles(handles_);
+  buildDeformer();
+}
+
+// New handles: the deformer is built for them (the field, the clusters). In the interactive
+// window that happens off the GUI thread: the view still turns, the status line counts the
+// seconds, and keys that need the deformer wait (see key()); pollBuild() finishes it.
+void Viewer::buildDeformer() {
+  const bool complete = !handles_.fixed.empty() && !handles_.manipulated.empty();
+  if (!async_builds_ || !complete || !vis_) {
+    run_.setHandles(handles_);
+    finishHandles();
+    return;
+  }
+  building_ = true;
+  build_done_ = false;
+  build_error_.clear();
+  build_start_ = Clock::now();
+  build_thread_ = std::thread([this, h = handles_] {
+    // One core less than there are for the build, at a lower priority: the GUI thread keeps one
+    // to draw and answer the mouse.
+    omp_set_num_threads(std::max(1, omp_get_num_procs() - 1));
+    setpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)), 10);
+    try {
+      run_.setHandles(h);
+    } catch (const std::exception& e) {
+      build_error_ = e.what();
+    }
+    build_done_ = true;
+  });
+  last_progress_ = Clock::now();
+  message_ = "building the deformer for " + std::to_string(run_.geometry().size()) +
+             " points... (the view turns meanwhile)";
+  if (verbose_) std::fprintf(stderr, "hgdeform-view: %s\n", message_.c_str());
+  fillDisplay();
+  showLod(true);  // a large cloud turns at its level of detail while the cores build
+  refresh();
+}
+
+void Viewer::pollBuild() {
+  if (!building_) return;
+  if (!build_done_) {
+    if (msSince(last_progress_) > 1000) {  // on the status line only (not stderr), once a second
+      last_progress_ = Clock::now();
+      message_ = "building the deformer for " + std::to_string(run_.geometry().size()) + " points... " +
+                 num(msSince(build_start_) / 1000.0) + " s (the view turns meanwhile)";
+      render();
+    }
+    return;
+  }
+  build_thread_.join();
+  building_ = false;
+  showLod(false);
+  if (!build_error_.empty()) {
+    handles_ = hgd::Handles{};
+    run_.setHandles(handles_);
+    refreshRoles();
+    message("cannot build the deformer: " + build_error_);
+    refresh();
+    return;
+  }
+  if (verbose_)
+    std::fprintf(stderr, "hgdeform-view: deformer built in %.2f s\n", msSince(build_start_) / 1000.0);
+  finishHandles();
+}
+
+void Viewer::waitForBuild() {
+  if (build_thread_.joinable()) build_thread_.join();
+  building_ = false;
+}
+
+Viewer::~Viewer() {
+  waitForBuild();
+}
+
+void Viewer::finishHandles() {
   updateAlerts();
   if (run_.ready()) {
     message("handles: " + std::to_string(handles_.fixed.size()) + " fixed, manipulated " +
@@ -132,6 +213,7 @@ void Viewer::clearSelection(bool redraw) {
 
 void Viewer::clearHandles() {
   handles_ = hgd::Handles{};
+  unsaved_ = true;
   fixed_regions_.clear();
   joint_regions_.clear();
   run_.setHandles(handles_);
@@ -144,7 +226,8 @@ void Viewer::clearHandles() {
 
 // What the deformation cannot do for this shape, on the status line and stderr: pieces that
 // no handle reaches (followed or left), a piece moved rigidly, a surface pulled apart.
-void Viewer::updateAlerts() {
+// `live`: a drag's live frame, which is the move it will commit (the stretch is measured on it).
+void Viewer::updateAlerts(bool live) {
   alert_.clear();
   if (!run_.ready()) return;
   const hgd::PieceReport& p = run_.deformer().pieces().report;
@@ -153,7 +236,7 @@ void Viewer::updateAlerts() {
   if (p.followed_points) s << " | " << p.followed_points << " points without a handle follow";
   if (p.stayed_points) s << " | " << p.stayed_points << " points without a handle stay";
   if (p.rigid_points) s << " | " << p.rigid_points << " points move rigidly with the handle";
-  if (!run_.moves().empty()) {
+  if (!run_.moves().empty() || live) {
     const hgd::SurfaceStretch st = run_.deformer().surfaceStretch();
     if (st.split_points) s << " | SURFACE PULLED APART at " << st.split_points << " points";
     if (const std::string w = hgd::stretchWarning(st); !w.empty()) full.push_back(w);
@@ -171,6 +254,7 @@ void Viewer::updateAlerts() {
 void Viewer::commit(const hgd::Move& m) {
   if (!run_.ready()) return;
   run_.apply(m);
+  unsaved_ = true;
   updateAlerts();
 }
 
@@ -188,11 +272,14 @@ void Viewer::frameMove(const Eigen::Vector3d& translate, const Eigen::Vector3d& 
   commit(m);
   stats_.solve.push_back(msSince(t0));
   stats_.interpolate.push_back(run_.deformer().lastInterpolationMs());
+  timing_frame_ = true;  // the frame's render counts (--stats)
   refresh();
+  timing_frame_ = false;
 }
 
 void Viewer::undo() {
   if (!run_.ready() || !run_.undo()) return message("nothing to undo");
+  unsaved_ = true;
   updateAlerts();
   message("undone");
   refresh();
@@ -200,6 +287,7 @@ void Viewer::undo() {
 
 void Viewer::redo() {
   if (!run_.ready() || !run_.redo()) return message("nothing to redo");
+  unsaved_ = true;
   updateAlerts();
   message("redone");
   refresh();
@@ -208,6 +296,7 @@ void Viewer::redo() {
 void Viewer::resetShape() {
   if (!run_.ready()) return;
   run_.reset();
+  unsaved_ = true;
   updateAlerts();
   message("rest shape");
   refresh();
@@ -215,6 +304,7 @@ void Viewer::resetShape() {
 
 void Viewer::saveShape(const std::string& path) {
   run_.write(path, {}, inputs_);
+  unsaved_ = false;
   message("saved " + path);
 }
 
@@ -223,11 +313,12 @@ void Viewer::saveScenario(const std::string& path) {
   if (handles_.fixed.empty() || handles_.manipulated.empty())
     return message("a scenario needs a fixed and a manipulated handle");
   hgd::writeFileAtomically(path, hgd::scenarioToJson(run_.scenario()));
+  unsaved_ = false;  // the session replays from it
   message("saved " + path);
 }
 
 Eigen::Vector3d Viewer::deformed(std::size_t i) const {
-  return run_.ready() ? run_.deformer().deformedWorld(i) : run_.geometry().world(i);
+  return ready() ? run_.deformer().deformedWorld(i) : run_.geometry().world(i);
 }
 
 Eigen::Vector3d Viewer::centre() const {
@@ -244,6 +335,14 @@ Eigen::Vector3d Viewer::handleCentre() const {
 std::string Viewer::defaultPath(const std::string& suffix, const std::string& ext) const {
   const std::filesystem::path p(input_);
   return (p.parent_path() / (p.stem().string() + suffix + ext)).string();
+}
+
+// Saving never replaces an earlier result: INPUT-deformed.ply, then INPUT-deformed-2.ply, ...
+std::string Viewer::freshPath(const std::string& suffix, const std::string& ext) const {
+  std::string path = defaultPath(suffix, ext);
+  for (int n = 2; std::filesystem::exists(std::filesystem::symlink_status(path)); ++n)
+    path = defaultPath(suffix + "-" + std::to_string(n), ext);
+  return path;
 }
 
 std::string Viewer::extensionOf(const std::string& path) {

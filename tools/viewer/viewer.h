@@ -6,6 +6,7 @@
 //   viewer_replay.cpp  plays a replay file's events (read and checked by replay.cpp)
 //   viewer.cpp         state: selection, handles, moves, undo, saving
 //   viewer_draw.cpp    the window: drawing, colours, the status line, screenshots, screen geometry
+//   viewer_x11.cpp     what is asked of X directly (Caps Lock, queued pointer motions)
 #pragma once
 
 #include <pcl/visualization/interactor_style.h>
@@ -13,11 +14,14 @@
 #include <vtkRenderWindowInteractor.h>
 #include <vtkScalarBarActor.h>
 #include <vtkSmartPointer.h>
+#include <vtkTextActor.h>
 
 #include <Eigen/Core>
+#include <atomic>
 #include <chrono>
 #include <memory>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "hgdeform/regions.h"
@@ -25,6 +29,7 @@
 #include "hgdeform/scenario.h"
 #include "replay.h"
 
+class vtkAbstractPicker;
 class vtkPolyData;
 class vtkRenderer;
 
@@ -35,14 +40,28 @@ inline double msSince(Clock::time_point t) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
 }
 
+// Every key the viewer answers to (PCL's and VTK's own keys are off; the mouse turns, pans and
+// zooms the view as in PCL). Kept in step with main.cpp's comment and README.md's viewer section.
 inline const char* const kHelp =
-    "x  area select on/off   shift+click  select around a point   +/-  radius   c  clear selection\n"
-    "f  fixed handle   m  manipulated handle   j  joint   C  clear all handles   < >  point size\n"
-    "d  drag mode (left-drag the manipulated handle)   l  drags keep its orientation\n"
-    "t  frame mode (arrows, [ ], , .)   v  view: colours / field / clusters   o  rest overlay\n"
-    "z/y  undo/redo   n  rest shape   s  save shape   S  save scenario   k  screenshot   h  help   q  quit";
+    "modes: x  area select   d  drag the manipulated handle   t  frame (arrows, [ ], , .)   (again: pick)\n"
+    "shift+click  select around a point (any mode)   +/-  radius   c  clear selection\n"
+    "f  fixed handle   m  manipulated handle   j  joint   C  clear all handles   l  drags keep orientation\n"
+    "v  view: colours / field / clusters   o  rest overlay   < >  point size   r  opening view   z/y  "
+    "undo/redo   n  rest "
+    "shape\n"
+    "s  save shape   S  save scenario   k  screenshot (numbered, never replaced)   h  help   q/e  quit";
 
 class Viewer;
+
+/// Whether Caps Lock is on (viewer_x11.cpp); `display` is the window's X Display.
+bool capsLockOn(void* display);
+/// The position of the last of the pointer motions waiting first in `window`'s queue, taken out
+/// of it (viewer_x11.cpp); false when none waits.
+bool latestMotion(void* display, unsigned long window, int& x, int& y);
+
+/// The character a key press means: a letter in the case that Shift and Caps Lock make it
+/// (VTK hands `s` with the shift flag from a keyboard, `S` from XLookupString or a replay).
+char keyChar(char code, bool shift, bool caps_lock);
 
 // The interactor style: our keys and the handle drag first, PCL's behaviour for the rest
 // (viewer_input.cpp).
@@ -52,12 +71,19 @@ class Style : public pcl::visualization::PCLVisualizerInteractorStyle {
   vtkTypeMacro(Style, pcl::visualization::PCLVisualizerInteractorStyle) Viewer* viewer = nullptr;
 
   void OnKeyDown() override;
+  void OnEnter() override;
   void OnChar() override;
   void OnLeftButtonDown() override;
   void OnLeftButtonUp() override;
   void OnMouseMove() override;
   // vtkInteractorStyleRubberBandPick's modes: 0 orient (camera), 1 select (rubber band).
   bool selecting() const { return CurrentMode == 1; }
+  /// Area mode on or off, with the picker PCL's area pick needs (as PCL's own `x` does).
+  void setSelecting(bool on);
+  bool band = false;                                // a rubber band was started by this press
+  bool picked = false;                              // this press was a shift+click pick
+  vtkSmartPointer<vtkAbstractPicker> point_picker;  // kept while the area picker is in use
+  int caps_lock = -1;  // Caps Lock: -1 not known yet (read from X at the next key)
   void rubberBand(int& x0, int& y0, int& x1, int& y1) const {
     x0 = StartPosition[0];
     y0 = StartPosition[1];
@@ -75,20 +101,30 @@ class Viewer {
  public:
   // --- state (viewer.cpp) -----------------------------------------------------------------
   Viewer(const std::string& input, int width, int height);
+  ~Viewer();
+  Viewer(const Viewer&) = delete;
+  Viewer& operator=(const Viewer&) = delete;
   void loadScenario(const std::string& path);
   void printStats() const;
 
   // --- the window (viewer_draw.cpp) -------------------------------------------------------
   void open();
   void spin();
+  /// After an opening frame drawn at the level of detail (a large cloud), draws it whole.
+  void drawWhole();
   void screenshot(const std::string& path);
 
   // --- events (viewer_input.cpp) ----------------------------------------------------------
   bool key(const std::string& sym, char code);
+  /// The current mode: "pick", "area", "drag" or "frame".
+  const char* mode() const;
+  /// Places the help and the status line for the window's size (before every render).
+  void placeOverlays();
   void pickAt(int x, int y);
   void selectArea(int x0, int y0, int x1, int y1);
   bool dragBegin(int x, int y);
   bool dragMove(int x, int y);
+  bool dragging() const { return dragging_; }
   bool dragEnd(int x, int y);
 
   // --- replay (viewer_replay.cpp) ---------------------------------------------------------
@@ -101,10 +137,17 @@ class Viewer {
  private:
   // --- state changes (viewer.cpp) ---------------------------------------------------------
   void markSelection(int role);
+  void buildDeformer();
+  void finishHandles();
+  /// Finishes a deformer built off the GUI thread, or says how long it has been building.
+  void pollBuild();
+  void waitForBuild();
+  /// The deformer is there and not being built.
+  bool ready() const { return !building_ && run_.ready(); }
   void syncRegions();
   void clearSelection(bool redraw = true);
   void clearHandles();
-  void updateAlerts();
+  void updateAlerts(bool live = false);
   void commit(const hgd::Move& m);
   void frameMove(const Eigen::Vector3d& translate, const Eigen::Vector3d& axis, double degrees);
   void undo();
@@ -116,13 +159,22 @@ class Viewer {
   Eigen::Vector3d centre() const;
   Eigen::Vector3d handleCentre() const;
   std::string defaultPath(const std::string& suffix, const std::string& ext) const;
+  /// defaultPath(), numbered (-2, -3, ...) past every file that is there already.
+  std::string freshPath(const std::string& suffix, const std::string& ext) const;
+  void setMode(const std::string& mode);
+  void requestQuit(char key);
   static std::string extensionOf(const std::string& path);
   static std::string num(double v);
 
   // --- drawing (viewer_draw.cpp) ----------------------------------------------------------
   void fileColours();
+  void openingView();
   void refreshRoles();
   void refresh();
+  void fillDisplay();
+  void addShapeCloud();
+  void drawHandles(const Eigen::Vector3f* role_colours, bool field_view);
+  double shapePointSize() const;
   void updatePositions();
   void showLod(bool on);
   vtkPolyData* shapePolyData();
@@ -170,14 +222,27 @@ class Viewer {
   vtkSmartPointer<vtkScalarBarActor> scale_bar_;
   int view_ = 0;
   bool overlay_ = false, overlay_shown_ = false, help_visible_ = false;
-  bool frame_mode_ = false, dragging_ = false, quit_ = false;
+  bool frame_mode_ = false, dragging_ = false, live_shown_ = false, quit_ = false;
+  bool async_builds_ = false;  // the interactive window builds the deformer off the GUI thread
+  bool building_ = false;
+  std::atomic<bool> build_done_{false};
+  std::string build_error_;
+  std::thread build_thread_;
+  Clock::time_point build_start_, last_progress_;
+  bool opening_ = false;        // inside open(): one render at its end
+  bool opened_at_lod_ = false;  // the opening frame drew the level of detail (spin() draws it whole)
+  bool timing_frame_ = false;   // a frame-mode key's render counts in --stats
+  bool unsaved_ = false;        // moves or handles since the last save
+  bool quit_asked_ = false;     // q/e pressed once with unsaved changes
+  vtkSmartPointer<vtkTextActor> help_, status_, mode_label_;
   Eigen::Vector3d drag_from_, drag_last_;
   double drag_depth_ = 0;
   std::string message_;
   std::string alert_;                  // see updateAlerts()
   std::vector<std::string> reported_;  // warnings already printed on stderr
   FrameStats stats_;
-  std::vector<int> lod_;  // the drawn subset while dragging (empty: the whole shape is drawn)
+  std::vector<int> handle_points_;  // drawn again as marks with halos (drawHandles)
+  std::vector<int> lod_;            // the drawn subset while dragging (empty: the whole shape is drawn)
   pcl::PointCloud<pcl::PointXYZRGB>::Ptr lod_display_;
   int multisamples_ = 0;  // the window's, restored after a drag drawn at a level of detail
 };

@@ -3,6 +3,7 @@
 // conversions between the shape's space and the screen.
 #include <pcl/conversions.h>
 #include <vtkActor.h>
+#include <vtkCallbackCommand.h>
 #include <vtkCamera.h>
 #include <vtkFloatArray.h>
 #include <vtkLODActor.h>
@@ -10,14 +11,17 @@
 #include <vtkMapper.h>
 #include <vtkPoints.h>
 #include <vtkPolyData.h>
+#include <vtkProperty.h>
 #include <vtkRenderWindow.h>
 #include <vtkRenderer.h>
 #include <vtkRendererCollection.h>
 #include <vtkTextProperty.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
+#include <map>
 #include <sstream>
 
 #include "hgdeform/colormap.h"
@@ -27,7 +31,13 @@
 
 namespace hgdview {
 
+namespace {
+const Eigen::Vector3f kRole[4] = {
+    {0, 0, 0}, {0.15f, 0.35f, 0.95f}, {0.95f, 0.15f, 0.1f}, {0.2f, 0.75f, 0.2f}};
+}  // namespace
+
 void Viewer::open() {
+  opening_ = true;
   style_ = vtkSmartPointer<Style>::Take(Style::New());
   style_->viewer = this;
   int argc = 0;
@@ -35,23 +45,42 @@ void Viewer::open() {
       std::make_unique<pcl::visualization::PCLVisualizer>(argc, nullptr, "hgdeform-view", style_.Get(), true);
   vis_->setSize(width_, height_);
   vis_->setBackgroundColor(1, 1, 1);
+  vtkMapper::SetResolveCoincidentTopologyToPolygonOffset();  // the handles' marks lie over the shape
+  fillDisplay();
+  // A cloud larger than the level of detail opens drawn at it (its first frame comes sooner):
+  // the whole cloud is handed to VTK by drawWhole(), on the spin loop's first turn.
+  opened_at_lod_ = run_.geometry().faces.empty() && lod_points_ > 0 &&
+                   run_.geometry().size() > static_cast<std::size_t>(lod_points_);
   if (run_.geometry().faces.empty()) {
-    const pcl::visualization::PointCloudColorHandlerRGBField<pcl::PointXYZRGB> rgb(display_);
-    vis_->addPointCloud<pcl::PointXYZRGB>(display_, rgb, "shape");
-    // Big points cost fill rate under software GL: dense clouds need no more than one pixel.
-    const double size = run_.geometry().size() > 200000 ? 1 : run_.geometry().size() > 50000 ? 2 : 3;
-    vis_->setPointCloudRenderingProperties(pcl::visualization::PCL_VISUALIZER_POINT_SIZE, size, "shape");
-    // Lit by its normals, else eye-dome lighting; file colours as they are.
-    hgd::shadeCloud(*vis_, "shape", run_.geometry(), hgd::findColourFields(run_.shape().cloud).any());
+    if (!opened_at_lod_) addShapeCloud();
   } else {
     pcl::PolygonMesh mesh;
     pcl::toPCLPointCloud2(*display_, mesh.cloud);
     mesh.polygons = run_.geometry().faces;
     vis_->addPolygonMesh(mesh, "shape");
   }
-  vis_->addText("", 10, 10, 13, 0.1, 0.1, 0.1, "status");
-  vis_->addText(kHelp, 10, height_ - 110, 13, 0.1, 0.1, 0.1, "help");
+  // The overlays: help at the window's top, the mode and the status line at its bottom, placed
+  // again before every render (placeOverlays), so that they follow the window's size.
+  auto text = [this](bool top, bool bold) {
+    auto a = vtkSmartPointer<vtkTextActor>::New();
+    vtkTextProperty* p = a->GetTextProperty();
+    p->SetFontSize(13);
+    p->SetColor(0.1, 0.1, 0.1);
+    p->SetBold(bold);
+    p->SetVerticalJustification(top ? VTK_TEXT_TOP : VTK_TEXT_BOTTOM);
+    renderer()->AddActor2D(a);
+    return a;
+  };
+  help_ = text(true, false);
+  help_->SetInput(kHelp);
+  status_ = text(false, false);
+  mode_label_ = text(false, true);
   help_visible_ = true;
+  auto place = vtkSmartPointer<vtkCallbackCommand>::New();
+  place->SetClientData(this);
+  place->SetCallback(
+      [](vtkObject*, unsigned long, void* self, void*) { static_cast<Viewer*>(self)->placeOverlays(); });
+  vis_->getRenderWindow()->AddObserver(vtkCommand::StartEvent, place);
   // The field's colour scale, shown in field view.
   auto lut = vtkSmartPointer<vtkLookupTable>::New();
   lut->SetNumberOfTableValues(256);
@@ -73,14 +102,73 @@ void Viewer::open() {
   scale_bar_->SetVisibility(false);
   renderer()->AddActor2D(scale_bar_);
   vis_->resetCamera();
-  const Eigen::Vector3d c = centre();
-  vis_->setCameraPosition(c.x(), c.y(), c.z() + 2.2 * diagonal_, c.x(), c.y(), c.z(), 0, 1, 0);
-  vis_->setCameraClipDistances(0.01 * diagonal_, 10 * diagonal_);
+  openingView();
+  opening_ = false;
+  if (opened_at_lod_) {
+    showLod(true);  // (display_ is filled: the subset is copied from it)
+    render();       // handles' marks, the rest: with the whole cloud (drawWhole)
+    return;
+  }
   refresh();
 }
 
+void Viewer::addShapeCloud() {
+  const pcl::visualization::PointCloudColorHandlerRGBField<pcl::PointXYZRGB> rgb(display_);
+  vis_->addPointCloud<pcl::PointXYZRGB>(display_, rgb, "shape");
+  vis_->setPointCloudRenderingProperties(pcl::visualization::PCL_VISUALIZER_POINT_SIZE, shapePointSize(),
+                                         "shape");
+  // Lit by its normals, else eye-dome lighting; file colours as they are.
+  hgd::shadeCloud(*vis_, "shape", run_.geometry(), hgd::findColourFields(run_.shape().cloud).any());
+}
+
+// The opening view, and `r`'s: the whole shape, upright by hgdeform-render's rule
+// (hgd::upAxis "auto": a camera-frame scan, organized or a PCD with a sensor pose, has -y up and
+// is seen from the sensor's side, +x to the right; anything else +y up, seen from +z).
+void Viewer::openingView() {
+  const Eigen::Vector3d up = hgd::upAxis("auto", {&run_.shape()}).cast<double>();
+  const Eigen::Vector3d eye(0, 0, up.y() < 0 ? -1.0 : 1.0);
+  const Eigen::Vector3d c = centre(), at = c + 2.2 * diagonal_ * eye;
+  if (opening_) {
+    // PCL's own call once, at opening (nothing large is drawn yet, so its render is cheap):
+    // without it PCL frames the view anew when the whole cloud is added later.
+    vis_->setCameraPosition(at.x(), at.y(), at.z(), c.x(), c.y(), c.z(), up.x(), up.y(), up.z());
+  }
+  // Then on VTK's camera: PCL's setCameraPosition renders (seconds for a large cloud).
+  vtkCamera* cam = renderer()->GetActiveCamera();
+  cam->SetPosition(at.x(), at.y(), at.z());
+  cam->SetFocalPoint(c.x(), c.y(), c.z());
+  cam->SetViewUp(up.x(), up.y(), up.z());
+  cam->SetViewAngle(30);  // VTK's default (PCL's camera calls may leave another)
+  cam->SetClippingRange(0.01 * diagonal_, 10 * diagonal_);
+  if (style_ && !opening_) render();  // (open() renders once, at its end)
+}
+
+void Viewer::placeOverlays() {
+  if (!help_) return;
+  const int* size = vis_->getRenderWindow()->GetSize();
+  help_->SetPosition(10, size[1] - 10);
+  help_->SetVisibility(help_visible_);
+  mode_label_->SetPosition(10, 10);
+  status_->SetPosition(80, 10);
+}
+
+void Viewer::drawWhole() {
+  if (!opened_at_lod_) return;
+  opened_at_lod_ = false;  // the opening frame was drawn at the level of detail: now whole
+  addShapeCloud();         // (display_ was filled by open())
+  showLod(false);
+  drawHandles(kRole, view_ == 1 && ready());
+  render();
+}
+
 void Viewer::spin() {
-  while (!vis_->wasStopped() && !quit_) vis_->spinOnce(30);
+  async_builds_ = true;
+  drawWhole();
+  while (!vis_->wasStopped() && !quit_) {
+    vis_->spinOnce(30);
+    pollBuild();
+  }
+  waitForBuild();
 }
 
 void Viewer::screenshot(const std::string& path) {
@@ -106,13 +194,14 @@ void Viewer::refreshRoles() {
     for (int i : jt) role_[static_cast<std::size_t>(i)] = 3;
 }
 
-void Viewer::refresh() {
-  if (!vis_) return;
-  static const Eigen::Vector3f kRole[4] = {
-      {0, 0, 0}, {0.15f, 0.35f, 0.95f}, {0.95f, 0.15f, 0.1f}, {0.2f, 0.75f, 0.2f}};
-  const bool field_view = view_ == 1 && run_.ready();
-  const bool cluster_view = view_ == 2 && run_.ready();
-  for (std::size_t i = 0; i < run_.geometry().size(); ++i) {
+// The drawn points: deformed positions, and colours by the view, the roles and the selection.
+void Viewer::fillDisplay() {
+  const bool field_view = view_ == 1 && ready();
+  const bool cluster_view = view_ == 2 && ready();
+  const long long n = static_cast<long long>(run_.geometry().size());
+#pragma omp parallel for schedule(static)
+  for (long long k = 0; k < n; ++k) {
+    const std::size_t i = static_cast<std::size_t>(k);
     auto& p = (*display_)[i];
     p.getVector3fMap() = deformed(i).cast<float>();
     Eigen::Vector3f c = colours_[i];
@@ -124,11 +213,18 @@ void Viewer::refresh() {
     p.g = static_cast<std::uint8_t>(std::clamp(c.y(), 0.0f, 1.0f) * 255);
     p.b = static_cast<std::uint8_t>(std::clamp(c.z(), 0.0f, 1.0f) * 255);
   }
+}
+
+void Viewer::refresh() {
+  if (!vis_) return;
+  const bool field_view = view_ == 1 && ready();
+  fillDisplay();
+  drawHandles(kRole, field_view);
   if (run_.geometry().faces.empty()) {
     // With an explicit colour handler: PCL's plain update paints the cloud white.
     const pcl::visualization::PointCloudColorHandlerRGBField<pcl::PointXYZRGB> rgb(display_);
     vis_->updatePointCloud<pcl::PointXYZRGB>(display_, rgb, "shape");
-    if (run_.ready() && run_.geometry().hasFileNormals())  // lit by the deformed normals
+    if (ready() && run_.geometry().hasFileNormals())  // lit by the deformed normals
       hgd::shadeCloud(*vis_, "shape", run_.geometry(), hgd::findColourFields(run_.shape().cloud).any(),
                       &run_.deformer().deformedNormals());
   } else {
@@ -139,17 +235,93 @@ void Viewer::refresh() {
     vis_->removePolygonMesh("shape");
     vis_->addPolygonMesh(mesh, "shape");
   }
+  // The rest shape: a mesh as a grey wireframe (its points alone were faint dots), a cloud as
+  // translucent grey points.
+  const bool mesh = !run_.geometry().faces.empty();
   if (overlay_ && !overlay_shown_) {
-    const pcl::visualization::PointCloudColorHandlerRGBField<pcl::PointXYZRGB> grey(rest_);
-    vis_->addPointCloud<pcl::PointXYZRGB>(rest_, grey, "rest");
-    vis_->setPointCloudRenderingProperties(pcl::visualization::PCL_VISUALIZER_OPACITY, 0.35, "rest");
+    if (mesh) {
+      pcl::PolygonMesh rest;
+      pcl::toPCLPointCloud2(*rest_, rest.cloud);
+      rest.polygons = run_.geometry().faces;
+      vis_->addPolygonMesh(rest, "rest");
+      // (PCL keeps a mesh's actor among the clouds.)
+      auto it = vis_->getCloudActorMap()->find("rest");
+      if (it != vis_->getCloudActorMap()->end() && it->second.actor) {
+        vtkActor* a = it->second.actor;
+        a->GetMapper()->ScalarVisibilityOff();
+        a->GetProperty()->SetRepresentationToWireframe();
+        a->GetProperty()->SetColor(0.3, 0.3, 0.38);
+        a->GetProperty()->SetOpacity(0.55);
+        a->GetProperty()->SetLighting(false);
+      }
+    } else {
+      const pcl::visualization::PointCloudColorHandlerRGBField<pcl::PointXYZRGB> grey(rest_);
+      vis_->addPointCloud<pcl::PointXYZRGB>(rest_, grey, "rest");
+      vis_->setPointCloudRenderingProperties(pcl::visualization::PCL_VISUALIZER_OPACITY, 0.35, "rest");
+    }
     overlay_shown_ = true;
   } else if (!overlay_ && overlay_shown_) {
-    vis_->removePointCloud("rest");
+    if (mesh)
+      vis_->removePolygonMesh("rest");
+    else
+      vis_->removePointCloud("rest");
     overlay_shown_ = false;
   }
   scale_bar_->SetVisibility(field_view);
   render();
+}
+
+// Handles and the selection stand out on any colours: drawn again over the shape as larger
+// points in their pure colours (blue fixed, red manipulated, green joints, yellow selected),
+// each on a dark halo, both pulled towards the eye so that the shape's own points do not
+// cover them.
+void Viewer::drawHandles(const Eigen::Vector3f* role_colours, bool field_view) {
+  handle_points_.clear();
+  std::size_t marked = 0;
+  for (std::size_t i = 0; i < role_.size(); ++i) marked += selected_[i] || (role_[i] != 0 && !field_view);
+  // At most kMaxMarks marks (an even subset of a larger handle): big points cost fill rate,
+  // and a handle of a million points is seen without marking each.
+  constexpr std::size_t kMaxMarks = 4000;
+  const std::size_t stride = std::max<std::size_t>(1, (marked + kMaxMarks - 1) / kMaxMarks);
+  std::size_t seen = 0;
+  for (std::size_t i = 0; i < role_.size(); ++i)
+    if ((selected_[i] || (role_[i] != 0 && !field_view)) && seen++ % stride == 0)
+      handle_points_.push_back(static_cast<int>(i));
+  for (const char* id : {"handles", "halo"})
+    if (vis_->getCloudActorMap()->count(id)) vis_->removePointCloud(id);
+  if (handle_points_.empty()) return;
+  auto marks = pcl::make_shared<pcl::PointCloud<pcl::PointXYZRGB>>();
+  auto halo = pcl::make_shared<pcl::PointCloud<pcl::PointXYZRGB>>();
+  marks->reserve(handle_points_.size());
+  for (const int i : handle_points_) {
+    const std::size_t u = static_cast<std::size_t>(i);
+    pcl::PointXYZRGB p = (*display_)[u];
+    const Eigen::Vector3f c =
+        selected_[u] ? Eigen::Vector3f(1.0f, 0.85f, 0.1f) : role_colours[static_cast<int>(role_[u])];
+    p.r = static_cast<std::uint8_t>(c.x() * 255);
+    p.g = static_cast<std::uint8_t>(c.y() * 255);
+    p.b = static_cast<std::uint8_t>(c.z() * 255);
+    marks->push_back(p);
+    p.r = p.g = p.b = 25;
+    halo->push_back(p);
+  }
+  const double size = run_.geometry().faces.empty() ? shapePointSize() : 3;
+  const pcl::visualization::PointCloudColorHandlerRGBField<pcl::PointXYZRGB> halo_rgb(halo), marks_rgb(marks);
+  vis_->addPointCloud<pcl::PointXYZRGB>(halo, halo_rgb, "halo");
+  vis_->addPointCloud<pcl::PointXYZRGB>(marks, marks_rgb, "handles");
+  vis_->setPointCloudRenderingProperties(pcl::visualization::PCL_VISUALIZER_POINT_SIZE, size + 4, "halo");
+  vis_->setPointCloudRenderingProperties(pcl::visualization::PCL_VISUALIZER_POINT_SIZE, size + 2, "handles");
+  auto* clouds = vis_->getCloudActorMap().get();
+  for (const auto& [id, offset] : {std::pair<const char*, double>{"halo", -2.0}, {"handles", -4.0}}) {
+    auto it = clouds->find(id);
+    if (it != clouds->end() && it->second.actor && it->second.actor->GetMapper())
+      it->second.actor->GetMapper()->SetRelativeCoincidentTopologyPointOffsetParameter(offset);
+  }
+}
+
+double Viewer::shapePointSize() const {
+  // Big points cost fill rate under software GL: dense clouds need no more than one pixel.
+  return run_.geometry().size() > 200000 ? 1 : run_.geometry().size() > 50000 ? 2 : 3;
 }
 
 // Level of detail: a point cloud larger than --lod points is drawn, while a drag lasts, as
@@ -181,7 +353,7 @@ void Viewer::showLod(bool on) {
   for (const int i : lod_) lod_display_->push_back((*display_)[static_cast<std::size_t>(i)]);
   const pcl::visualization::PointCloudColorHandlerRGBField<pcl::PointXYZRGB> rgb(lod_display_);
   vis_->addPointCloud<pcl::PointXYZRGB>(lod_display_, rgb, "lod");
-  if (run_.ready() && run_.geometry().hasFileNormals()) {  // lit as the whole cloud is
+  if (ready() && run_.geometry().hasFileNormals()) {  // lit as the whole cloud is
     const std::vector<Eigen::Vector3f>& deformed = run_.deformer().deformedNormals();
     std::vector<Eigen::Vector3f> normals;
     normals.reserve(lod_.size());
@@ -223,6 +395,31 @@ void Viewer::updatePositions() {
   }
   pts->Modified();
   poly->Modified();
+  // Lit by the deformed normals, as the frame kept on release is (what you see is what you get).
+  if (run_.geometry().faces.empty() && ready() && run_.geometry().hasFileNormals()) {
+    const std::vector<Eigen::Vector3f>& deformed_normals = run_.deformer().deformedNormals();
+    const bool file_colours = hgd::findColourFields(run_.shape().cloud).any();
+    if (lod) {
+      std::vector<Eigen::Vector3f> normals;
+      normals.reserve(lod_.size());
+      for (const int i : lod_) normals.push_back(deformed_normals[static_cast<std::size_t>(i)]);
+      hgd::shadeCloud(*vis_, "lod", run_.geometry(), file_colours, &normals);
+    } else {
+      hgd::shadeCloud(*vis_, "shape", run_.geometry(), file_colours, &deformed_normals);
+    }
+  }
+  // The handles' marks and halos follow their points.
+  for (const char* id : {"handles", "halo"}) {
+    vtkPolyData* marks = cloudPolyData(id);
+    vtkPoints* mp = marks ? marks->GetPoints() : nullptr;
+    if (!mp || mp->GetNumberOfPoints() != static_cast<vtkIdType>(handle_points_.size())) continue;
+    for (std::size_t k = 0; k < handle_points_.size(); ++k) {
+      const Eigen::Vector3f p = local[static_cast<std::size_t>(handle_points_[k])] + origin;
+      mp->SetPoint(static_cast<vtkIdType>(k), p.x(), p.y(), p.z());
+    }
+    mp->Modified();
+    marks->Modified();
+  }
   render();
 }
 
@@ -244,21 +441,55 @@ void Viewer::render() {
   const auto t0 = Clock::now();
   updateStatus();
   vis_->getRenderWindow()->Render();
-  if (dragging_) stats_.render.push_back(msSince(t0));
+  if (dragging_ || timing_frame_) stats_.render.push_back(msSince(t0));
 }
 
+// The status line: the mode (its own label, always there), then what the shape is, the
+// timings, the warnings and the last message; wrapped at " | " to the window's width (it grows
+// upwards) rather than cut off.
 void Viewer::updateStatus() {
+  if (!status_) return;
   static const char* kViews[3] = {"colours", "field", "clusters"};
+  std::vector<std::string> parts;
   std::ostringstream s;
   s << run_.geometry().size() << " points";
-  if (run_.ready()) s << ", " << run_.deformer().clustering().clusters.size() << " clusters";
-  s << " | view " << kViews[view_] << (drag_mode_ ? " | DRAG" : "") << (frame_mode_ ? " | FRAME" : "");
+  if (ready()) s << ", " << run_.deformer().clustering().clusters.size() << " clusters";
+  parts.push_back(s.str());
+  parts.push_back(std::string("view ") + kViews[view_]);
   if (!stats_.solve.empty())
-    s << " | solve " << num(stats_.solve.back()) << " ms, interpolate " << num(stats_.interpolate.back())
-      << " ms, render " << (stats_.render.empty() ? std::string("-") : num(stats_.render.back())) << " ms";
-  s << alert_;
-  if (!message_.empty()) s << " | " << message_;
-  vis_->updateText(s.str(), 10, 10, 13, 0.1, 0.1, 0.1, "status");
+    parts.push_back("solve " + num(stats_.solve.back()) + " ms, interpolate " +
+                    num(stats_.interpolate.back()) + " ms, render " +
+                    (stats_.render.empty() ? std::string("-") : num(stats_.render.back())) + " ms");
+  for (std::size_t p = alert_.find(" | "); p != std::string::npos;) {
+    const std::size_t next = alert_.find(" | ", p + 3);
+    parts.push_back(alert_.substr(p + 3, next == std::string::npos ? std::string::npos : next - p - 3));
+    p = next;
+  }
+  if (!message_.empty()) parts.push_back(message_);
+  const int* size = vis_->getRenderWindow()->GetSize();
+  // About 7 pixels a character at 13 points.
+  const std::size_t columns = static_cast<std::size_t>(std::max(20, (size[0] - 90) / 7));
+  std::string text, line;
+  for (const std::string& part : parts) {
+    const std::string add = line.empty() ? part : " | " + part;
+    if (!line.empty() && line.size() + add.size() > columns) {
+      text += line + "\n";
+      line = part;
+    } else {
+      line += add;
+    }
+  }
+  text += line;
+  status_->SetInput(text.c_str());
+  static const std::map<std::string, Eigen::Vector3d> kModeColour = {{"pick", {0.1, 0.1, 0.1}},
+                                                                     {"area", {0.85, 0.45, 0.0}},
+                                                                     {"drag", {0.8, 0.1, 0.1}},
+                                                                     {"frame", {0.45, 0.1, 0.75}}};
+  std::string label = mode();
+  const Eigen::Vector3d c = kModeColour.at(label);
+  for (char& ch : label) ch = static_cast<char>(std::toupper(static_cast<unsigned char>(ch)));
+  mode_label_->SetInput(label.c_str());
+  mode_label_->GetTextProperty()->SetColor(c.x(), c.y(), c.z());
 }
 
 void Viewer::message(const std::string& m) {

@@ -1,8 +1,13 @@
 // The viewer's input: the VTK interactor style (our keys and the handle drag first, PCL's
 // behaviour for the rest), the keys, shift+click picks, the area selection and the drag gesture.
+#include <vtkAbstractPicker.h>
+#include <vtkAreaPicker.h>
 #include <vtkObjectFactory.h>
+#include <vtkRenderWindow.h>
 
 #include <algorithm>
+#include <cctype>
+#include <cstdint>
 
 #include "viewer.h"
 
@@ -10,9 +15,50 @@ namespace hgdview {
 
 vtkStandardNewMacro(Style);
 
-// Our keys; returns false for keys that PCL/VTK should handle.
+const char* Viewer::mode() const {
+  if (drag_mode_) return "drag";
+  if (frame_mode_) return "frame";
+  if (style_ && style_->selecting()) return "area";
+  return "pick";
+}
+
+// One mode at a time: pick (the mouse turns the view; shift+click selects), area (the mouse
+// draws a rectangle), drag (the mouse drags the manipulated handle), frame (keys move it).
+void Viewer::setMode(const std::string& m) {
+  drag_mode_ = m == "drag";
+  frame_mode_ = m == "frame";
+  if (style_) style_->setSelecting(m == "area");
+  if (m == "area") message("area mode: drag a rectangle to select (x again: pick mode)");
+  if (m == "drag") message("drag mode: left-drag the manipulated handle (d again: pick mode)");
+  if (m == "frame") message("frame mode: arrows move, [ ] and , . turn the handle (t again: pick mode)");
+  if (m == "pick") message("pick mode: the mouse turns the view, shift+click selects");
+}
+
+// q and e quit; with unsaved changes only when pressed twice in a row.
+void Viewer::requestQuit(char k) {
+  if (unsaved_ && !quit_asked_) {
+    quit_asked_ = true;
+    return message(std::string("unsaved changes: press ") + k + " again to quit without saving (s saves)");
+  }
+  quit_ = true;  // spin() ends
+}
+
+// Our keys, all of them: PCL's and VTK's own key bindings are off. Returns whether the key
+// meant anything.
 bool Viewer::key(const std::string& sym, char code) {
   const char k = code != 0 ? code : (sym.size() == 1 ? sym[0] : 0);
+  // Modifier keys alone neither act nor cancel a pending quit.
+  if (k == 0 && sym.find("Shift") != std::string::npos) return false;
+  if (k == 0 && (sym.find("Control") != std::string::npos || sym.find("Alt") != std::string::npos ||
+                 sym == "Caps_Lock"))
+    return false;
+  if (k != 'q' && k != 'e') quit_asked_ = false;
+  // While the deformer builds, keys that need it wait; the view, the selection, the help, the
+  // mode, screenshots and quitting do not.
+  if (building_ && k != 0 && std::string("hrxc+=-kqe<>").find(k) == std::string::npos) {
+    message("the deformer is still being built: this key waits for it");
+    return true;
+  }
   if (frame_mode_) {
     const double step = 0.02 * diagonal_, turn = 5.0;
     Eigen::Vector3d up, right, view;
@@ -33,16 +79,9 @@ bool Viewer::key(const std::string& sym, char code) {
     case 'j': markSelection(3); return true;
     case 'c': clearSelection(); return true;
     case 'C': clearHandles(); return true;
-    case 'd':
-      drag_mode_ = !drag_mode_;
-      if (drag_mode_) frame_mode_ = false;
-      message(drag_mode_ ? "drag mode: left-drag the manipulated handle" : "drag mode off");
-      return true;
-    case 't':
-      frame_mode_ = !frame_mode_;
-      if (frame_mode_) drag_mode_ = false;
-      message(frame_mode_ ? "frame mode: arrows move, [ ] and , . turn the handle" : "frame mode off");
-      return true;
+    case 'x': setMode(std::string(mode()) == "area" ? "pick" : "area"); return true;
+    case 'd': setMode(drag_mode_ ? "pick" : "drag"); return true;
+    case 't': setMode(frame_mode_ ? "pick" : "frame"); return true;
     case 'l':
       keep_orientation_ = !keep_orientation_;
       message(keep_orientation_ ? "drags keep the handle's orientation (it translates without turning)"
@@ -56,15 +95,16 @@ bool Viewer::key(const std::string& sym, char code) {
       overlay_ = !overlay_;
       refresh();
       return true;
+    case 'r': openingView(); return true;
     case 'z': undo(); return true;
     case 'y': redo(); return true;
     case 'n': resetShape(); return true;
-    case 's': saveShape(defaultPath("-deformed", extensionOf(input_))); return true;
-    case 'S': saveScenario(defaultPath("-scenario", ".json")); return true;
-    case 'k': screenshot(defaultPath("-screenshot", ".png")); return true;
+    case 's': saveShape(freshPath("-deformed", extensionOf(input_))); return true;
+    case 'S': saveScenario(freshPath("-scenario", ".json")); return true;
+    case 'k': screenshot(freshPath("-screenshot", ".png")); return true;
     case 'h':
       help_visible_ = !help_visible_;
-      vis_->updateText(help_visible_ ? kHelp : "", 10, height_ - 110, 13, 0.1, 0.1, 0.1, "help");
+      if (help_) help_->SetVisibility(help_visible_);
       render();
       return true;
     case '+':
@@ -86,7 +126,8 @@ bool Viewer::key(const std::string& sym, char code) {
       message("point size " + num(size));
       return true;
     }
-    case 'q': quit_ = true; return true;
+    case 'q':
+    case 'e': requestQuit(k); return true;
     default: return false;
   }
 }
@@ -125,7 +166,7 @@ void Viewer::selectArea(int x0, int y0, int x1, int y1) {
 
 // Direct manipulation: press on the manipulated handle, move, release.
 bool Viewer::dragBegin(int x, int y) {
-  if (!drag_mode_ || !run_.ready()) return false;
+  if (!drag_mode_ || !ready()) return false;
   const int hit = nearestOnScreen(x, y, 20.0, /*manipulated_only=*/true);
   if (hit < 0) {
     message("press on the manipulated handle (red) to drag it");
@@ -140,70 +181,135 @@ bool Viewer::dragBegin(int x, int y) {
   return true;
 }
 
+// Every live frame is the drag's own result: the move from the press to the cursor, solved from
+// the state before the gesture exactly as the release commits it (and `hgdeform deform` replays
+// it). So the last frame shown while the button is held is, point for point, the shape kept.
 bool Viewer::dragMove(int x, int y) {
   if (!dragging_) return false;
   const Eigen::Vector3d to = fromDisplay(x, y, drag_depth_);
+  if (live_shown_ && to == drag_last_) return true;  // nothing new to show
+  hgd::Move m;
+  m.kind = hgd::Move::Kind::Drag;
+  m.drag.from = drag_from_;
+  m.drag.to = to;
+  m.drag.keep_orientation = keep_orientation_;
   const auto t0 = Clock::now();
-  run_.liveDrag(drag_last_, to, keep_orientation_, lod_.empty() ? nullptr : &lod_);
+  run_.previewMove(m, lod_.empty() ? nullptr : &lod_);
   const double total = msSince(t0);
   stats_.interpolate.push_back(run_.deformer().lastInterpolationMs());
   stats_.solve.push_back(total - run_.deformer().lastInterpolationMs());
   drag_last_ = to;
+  live_shown_ = true;
+  // The warnings of what is shown (a surface pulled apart), where the whole shape is drawn.
+  if (lod_.empty()) updateAlerts(/*live=*/true);
   updatePositions();
   return true;
 }
 
 bool Viewer::dragEnd(int x, int y) {
   if (!dragging_) return false;
-  dragMove(x, y);
+  dragMove(x, y);  // a release away from the last motion shows that place first
   dragging_ = false;
-  // Commit as `hgdeform deform` would replay it: from the state before the gesture (the
-  // runner drops the live frames), the picked point dragged from where it was to where the
-  // cursor let go.
-  hgd::Move m;
-  m.kind = hgd::Move::Kind::Drag;
-  m.drag.from = drag_from_;
-  m.drag.to = drag_last_;
-  m.drag.keep_orientation = keep_orientation_;
-  commit(m);
+  live_shown_ = false;
+  // Keep what was shown: the runner records the move of the last live frame without solving
+  // it again (the level of detail's other points are interpolated with the same transforms).
+  if (run_.commitLive()) unsaved_ = true;
+  updateAlerts();
   showLod(false);
   refresh();
   return true;
 }
 
+char keyChar(char code, bool shift, bool caps_lock) {
+  if (!std::isalpha(static_cast<unsigned char>(code))) return code;
+  const bool upper = shift != caps_lock;
+  return static_cast<char>(upper ? std::toupper(static_cast<unsigned char>(code))
+                                 : std::tolower(static_cast<unsigned char>(code)));
+}
+
 void Style::OnKeyDown() {
-  if (viewer && viewer->key(Interactor->GetKeySym() ? Interactor->GetKeySym() : "", Interactor->GetKeyCode()))
+  const std::string sym = Interactor->GetKeySym() ? Interactor->GetKeySym() : "";
+  // VTK hands a key over as its unshifted character and the shift flag, and says nothing of
+  // Caps Lock: the lock is read from X once, then toggled by the Caps_Lock presses that follow.
+  if (caps_lock < 0) {
+    vtkRenderWindow* w = Interactor->GetRenderWindow();
+    caps_lock = capsLockOn(w ? w->GetGenericDisplayId() : nullptr) ? 1 : 0;
+  }
+  if (sym == "Caps_Lock") {
+    caps_lock = caps_lock ? 0 : 1;
     return;
-  Superclass::OnKeyDown();
+  }
+  const char code = keyChar(Interactor->GetKeyCode(), Interactor->GetShiftKey() != 0, caps_lock == 1);
+  // Every key is ours (the help lists them): PCL's (u colour bar, g grid, j screenshot, e quit
+  // at once, ...) and VTK's make no sense here and are off.
+  if (viewer) viewer->key(sym, code);
+}
+
+void Style::setSelecting(bool on) {
+  if (on == selecting()) return;
+  CurrentMode = on ? 1 : 0;
+  if (!Interactor) return;
+  if (on) {
+    point_picker = Interactor->GetPicker();
+    Interactor->SetPicker(vtkSmartPointer<vtkAreaPicker>::New());
+  } else if (point_picker) {
+    Interactor->SetPicker(point_picker);
+  }
+}
+
+void Style::OnEnter() {
+  caps_lock = -1;  // Caps Lock may have changed in another window: read it again
+  Superclass::OnEnter();
 }
 
 void Style::OnChar() {
-  // Our keys were handled on key-down; keep VTK's own char bindings (w, s, f, e, ...) off them.
-  const char k = Interactor->GetKeyCode();
-  if (std::string("fmjcCdtvozynsSkh+=-q[],.<>").find(k) != std::string::npos && k != 0) return;
-  Superclass::OnChar();
+  // Our keys were handled on key-down; VTK's char bindings (w, s, f, e, r, ...) stay off.
 }
 
 void Style::OnLeftButtonDown() {
   const int* p = Interactor->GetEventPosition();
-  if (!selecting() && Interactor->GetShiftKey() && viewer) {
+  band = picked = false;
+  if (Interactor->GetShiftKey() && viewer) {  // a pick, in any mode
+    picked = true;
     viewer->pickAt(p[0], p[1]);
     return;
   }
   if (!selecting() && viewer && viewer->dragBegin(p[0], p[1])) return;
+  band = selecting();
   Superclass::OnLeftButtonDown();
 }
 
 void Style::OnMouseMove() {
   const int* p = Interactor->GetEventPosition();
+  if (viewer && viewer->dragging()) {
+    // Motions that queued while the last frame was solved: only the latest is drawn (each live
+    // frame is the whole drag's result, so skipping the ones between changes nothing).
+    int x = p[0], y = p[1];
+    vtkRenderWindow* w = Interactor->GetRenderWindow();
+    int qx = 0, qy = 0;
+    if (w &&
+        latestMotion(w->GetGenericDisplayId(),
+                     static_cast<unsigned long>(reinterpret_cast<std::uintptr_t>(w->GetGenericWindowId())),
+                     qx, qy)) {
+      x = qx;
+      y = w->GetSize()[1] - 1 - qy;
+    }
+    viewer->dragMove(x, y);
+    return;
+  }
   if (viewer && viewer->dragMove(p[0], p[1])) return;
   Superclass::OnMouseMove();
 }
 
 void Style::OnLeftButtonUp() {
   const int* p = Interactor->GetEventPosition();
+  if (picked) {
+    picked = false;
+    return;
+  }
   if (viewer && viewer->dragEnd(p[0], p[1])) return;
-  if (selecting() && viewer) {
+  if (band && selecting() && viewer) {
+    band = false;
     Superclass::OnLeftButtonUp();
     int x0, y0, x1, y1;
     rubberBand(x0, y0, x1, y1);

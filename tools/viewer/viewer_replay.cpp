@@ -2,6 +2,7 @@
 // runs) as the user's own: keys and mouse events go through the interactor, so the same code
 // handles them.
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <stdexcept>
 
@@ -34,8 +35,10 @@ int Viewer::pixel(double v) {
 
 void Viewer::sendKey(vtkRenderWindowInteractor* iren, const std::string& key) {
   // Named keys (Left, Right, Up, Down) go as key symbols; others as characters.
+  // A capital letter comes with the shift flag, as from a keyboard.
   const bool named = key.size() > 1;
-  iren->SetKeyEventInformation(0, 0, named ? 0 : key[0], 1, key.c_str());
+  const bool shift = !named && std::isupper(static_cast<unsigned char>(key[0]));
+  iren->SetKeyEventInformation(0, shift ? 1 : 0, named ? 0 : key[0], 1, key.c_str());
   iren->InvokeEvent(vtkCommand::KeyPressEvent, nullptr);
   iren->InvokeEvent(vtkCommand::CharEvent, nullptr);
   iren->InvokeEvent(vtkCommand::KeyReleaseEvent, nullptr);

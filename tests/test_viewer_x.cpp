@@ -1,0 +1,714 @@
+// hgdeform-view driven as a user drives it: real X input events (XTEST, through xdotool) sent to
+// its window on a private Xvfb, not replay files. Replays inject VTK events with the modifiers
+// already decoded; these tests go through the X server, the keyboard map and the interactor, as
+// a keyboard and a mouse do (issue 29). Skipped where Xvfb or xdotool is missing.
+//
+// HGD_VIEW_UNDER_TEST names another hgdeform-view to test (an older build, to show that a test
+// fails without its fix).
+#include <png.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "hgdeform/geometry.h"
+#include "hgdeform/io.h"
+#include "support/shapes.h"
+#include "test_util.h"
+
+namespace {
+
+using namespace std::chrono_literals;
+
+/// HGD_X_SHOTS=DIR keeps the tests' pictures there (to look at them).
+void keep(const std::string& png, const std::string& name) {
+  const char* dir = std::getenv("HGD_X_SHOTS");
+  if (dir && *dir && hgdtest::exists(png))
+    std::filesystem::copy_file(png, std::string(dir) + "/" + name,
+                               std::filesystem::copy_options::overwrite_existing);
+}
+
+std::string viewerBinary() {
+  const char* other = std::getenv("HGD_VIEW_UNDER_TEST");
+  return other && *other ? other : HGD_VIEW;
+}
+
+struct Image {
+  int width = 0, height = 0;
+  std::vector<unsigned char> rgb;
+  const unsigned char* at(int x, int y) const {
+    return rgb.data() + 3 * (static_cast<std::size_t>(y) * width + x);
+  }
+};
+
+Image readPng(const std::string& path) {
+  Image img;
+  png_image png;
+  std::memset(&png, 0, sizeof png);
+  png.version = PNG_IMAGE_VERSION;
+  if (!png_image_begin_read_from_file(&png, path.c_str())) return img;
+  png.format = PNG_FORMAT_RGB;
+  img.width = static_cast<int>(png.width);
+  img.height = static_cast<int>(png.height);
+  img.rgb.resize(PNG_IMAGE_SIZE(png));
+  if (!png_image_finish_read(&png, nullptr, img.rgb.data(), 0, nullptr)) img.rgb.clear();
+  return img;
+}
+
+bool differ(const Image& a, const Image& b, int x, int y) {
+  const unsigned char *p = a.at(x, y), *q = b.at(x, y);
+  return std::abs(p[0] - q[0]) + std::abs(p[1] - q[1]) + std::abs(p[2] - q[2]) > 30;
+}
+
+/// Pixels that differ between two pictures of one size in rows [y0, y1) (top-down).
+int countDifferent(const Image& a, const Image& b, int y0, int y1) {
+  if (a.width != b.width || a.height != b.height || a.rgb.empty()) return -1;
+  int n = 0;
+  for (int y = std::max(0, y0); y < std::min(a.height, y1); ++y)
+    for (int x = 0; x < a.width; ++x) n += differ(a, b, x, y);
+  return n;
+}
+
+bool haveTools() {
+  std::string out;
+  return hgdtest::run("command -v Xvfb && command -v xdotool", out) == 0;
+}
+
+/// A private Xvfb (with GLX) on a display number it chooses itself (-displayfd: tests running
+/// at once never share a server), stopped by its pid when the object dies.
+class Xvfb {
+ public:
+  Xvfb() {
+    int fds[2];
+    if (::pipe(fds) != 0) return;
+    pid_ = ::fork();
+    if (pid_ < 0) return;
+    if (pid_ == 0) {
+      ::close(fds[0]);
+      std::freopen("/dev/null", "w", stdout);
+      std::freopen("/dev/null", "w", stderr);
+      const std::string fd = std::to_string(fds[1]);
+      ::execlp("Xvfb", "Xvfb", "-displayfd", fd.c_str(), "-nolisten", "tcp", "-screen", "0", "1280x1024x24",
+               static_cast<char*>(nullptr));
+      ::_exit(127);
+    }
+    ::close(fds[1]);
+    std::string number;
+    char c = 0;
+    while (::read(fds[0], &c, 1) == 1 && c != '\n') number += c;  // written once it accepts clients
+    ::close(fds[0]);
+    if (number.empty() || number.find_first_not_of("0123456789") != std::string::npos) {
+      stop();
+      return;
+    }
+    display_ = ":" + number;
+  }
+  ~Xvfb() { stop(); }
+  Xvfb(const Xvfb&) = delete;
+  Xvfb& operator=(const Xvfb&) = delete;
+  const std::string& display() const { return display_; }
+
+ private:
+  void stop() {
+    if (pid_ > 0) {
+      ::kill(pid_, SIGTERM);
+      ::waitpid(pid_, nullptr, 0);
+    }
+    pid_ = -1;
+  }
+  pid_t pid_ = -1;
+  std::string display_;
+};
+
+/// hgdeform-view running on `x` with `args`, its stdout and stderr in `log`; xdotool commands
+/// go to its window. The process is killed (by its pid) when the object dies.
+class ViewerWindow {
+ public:
+  ViewerWindow(const Xvfb& x, const std::string& args, const std::string& log) : x_(x), log_(log) {
+    const std::string command =
+        "exec " + hgdtest::quote(viewerBinary()) + " " + args + " >" + hgdtest::quote(log) + " 2>&1";
+    pid_ = ::fork();
+    if (pid_ == 0) {
+      ::setenv("DISPLAY", x.display().c_str(), 1);
+      ::execl("/bin/sh", "sh", "-c", command.c_str(), static_cast<char*>(nullptr));
+      ::_exit(127);
+    }
+    std::string out;
+    if (xdo("search --sync --onlyvisible --name '^hgdeform-view$'", out, 30) == 0 && !out.empty())
+      window_ = out.substr(0, out.find('\n'));
+    if (window_.empty()) return;
+    xdo("getwindowgeometry --shell " + window_, out);
+    width_ = std::atoi(out.substr(out.find("WIDTH=") + 6).c_str());
+    height_ = std::atoi(out.substr(out.find("HEIGHT=") + 7).c_str());
+    // Keys go where the keyboard focus is: on the window, the pointer over it (no window manager).
+    xdo("mousemove --window " + window_ + " 5 5 windowfocus --sync " + window_, out);
+  }
+  ~ViewerWindow() {
+    if (pid_ > 0) {
+      ::kill(pid_, SIGKILL);
+      ::waitpid(pid_, nullptr, 0);
+    }
+  }
+  ViewerWindow(const ViewerWindow&) = delete;
+  ViewerWindow& operator=(const ViewerWindow&) = delete;
+
+  bool ok() const { return !window_.empty() && width_ > 0 && height_ > 0; }
+  /// The window's size now (asked each time: the viewer sets its size again after opening).
+  int width() const { return geometry("WIDTH="); }
+  int height() const { return geometry("HEIGHT="); }
+  const std::string& window() const { return window_; }
+
+  /// Runs `xdotool ARGS` on this display (at most `seconds`); returns its exit code.
+  int xdo(const std::string& args, std::string& out, int seconds = 10) const {
+    return hgdtest::run(
+        "DISPLAY=" + x_.display() + " timeout " + std::to_string(seconds) + " xdotool " + args, out);
+  }
+  int xdo(const std::string& args) const {
+    std::string out;
+    return xdo(args, out);
+  }
+  /// The pointer to (x, y), window pixels from its top left.
+  void move(double x, double y) const {
+    xdo("mousemove --window " + window_ + " " + std::to_string(std::lround(x)) + " " +
+        std::to_string(std::lround(y)));
+  }
+  void key(const std::string& keys) const { xdo("key --delay 30 " + keys); }
+
+  int geometry(const std::string& key) const {
+    std::string out;
+    xdo("getwindowgeometry --shell " + window_, out);
+    const std::size_t at = out.find(key);
+    return at == std::string::npos ? 0 : std::atoi(out.c_str() + at + key.size());
+  }
+  std::string log() const { return hgdtest::slurp(log_); }
+  /// Waits (at most `seconds`) until the log holds `text` `count` times; returns whether it did.
+  bool waitFor(const std::string& text, std::size_t count = 1, double seconds = 20) const {
+    const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+    while (std::chrono::steady_clock::now() < end) {
+      if (occurrences(log(), text) >= count) return true;
+      std::this_thread::sleep_for(20ms);
+    }
+    return false;
+  }
+  /// The path named after the `n`-th (1-based) occurrence of `prefix` in the log, to the line's end.
+  std::string named(const std::string& prefix, std::size_t n = 1) const {
+    const std::string text = log();
+    std::size_t p = std::string::npos, from = 0;
+    for (std::size_t k = 0; k < n; ++k) {
+      p = text.find(prefix, from);
+      if (p == std::string::npos) return {};
+      from = p + prefix.size();
+    }
+    const std::size_t end = text.find_first_of(" \n", from);
+    return text.substr(from, end - from);
+  }
+  /// Whether the viewer still runs (waits up to `seconds` for it to end).
+  bool alive(double seconds = 0) const {
+    const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+    do {
+      if (pid_ <= 0) return false;
+      if (::waitpid(pid_, nullptr, WNOHANG) == pid_) {
+        pid_ = -1;
+        return false;
+      }
+      std::this_thread::sleep_for(20ms);
+    } while (std::chrono::steady_clock::now() < end);
+    return true;
+  }
+  /// Takes a screenshot with `k` and copies it to `to`; false if none came.
+  bool shot(const std::string& to) const {
+    const std::size_t n = occurrences(log(), "screenshot /") + 1;
+    key("k");
+    if (!waitFor("screenshot /", n)) return false;
+    std::filesystem::copy_file(named("screenshot ", n), to,
+                               std::filesystem::copy_options::overwrite_existing);
+    return true;
+  }
+
+  static std::size_t occurrences(const std::string& text, const std::string& part) {
+    std::size_t n = 0;
+    for (auto p = text.find(part); p != std::string::npos; p = text.find(part, p + part.size())) ++n;
+    return n;
+  }
+
+ private:
+  const Xvfb& x_;
+  std::string log_;
+  mutable pid_t pid_ = -1;
+  std::string window_;
+  int width_ = 0, height_ = 0;
+};
+
+/// Where the viewer's opening view draws a world point of a shape with +y up (seen from +z,
+/// the camera 2.2 diagonals from the bounding box's centre, VTK's 30 degree view angle):
+/// window pixels from the top left.
+struct OpeningView {
+  Eigen::Vector3d centre;
+  double diagonal;
+  Eigen::Vector2d at(const Eigen::Vector3d& w, int width, int height) const {
+    const double depth = 2.2 * diagonal - (w.z() - centre.z());
+    const double scale = 0.5 * height / (depth * std::tan(15.0 * M_PI / 180.0));
+    return {0.5 * width + (w.x() - centre.x()) * scale, 0.5 * height - (w.y() - centre.y()) * scale};
+  }
+};
+
+OpeningView openingView(const std::string& path) {
+  const hgd::Geometry g = hgd::extractGeometry(hgd::readShape(path));
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(INFINITY), hi = -lo;
+  for (std::size_t i = 0; i < g.size(); ++i) {
+    lo = lo.cwiseMin(g.world(i));
+    hi = hi.cwiseMax(g.world(i));
+  }
+  return {0.5 * (lo + hi), hgd::boundingBoxDiagonal(g)};
+}
+
+/// The bar (x from 0 to 1) in DIR/bar.ply with a scenario DIR/s.json: its left end fixed, its
+/// right end the manipulated handle, no move.
+void writeBar(hgdtest::TempDir& dir) {
+  hgd::writeShape(dir.file("bar.ply"), hgd::shapes::bar(1.0f, 0.1f, 0.01f));
+  hgdtest::writeText(dir.file("s.json"), R"({"format": "hgdeform-scenario/1",
+    "fixed": [{"box": {"min": [-1, -1, -1], "max": [0.06, 1, 1]}}],
+    "manipulated": {"box": {"min": [0.94, -1, -1], "max": [2, 1, 1]}}})");
+}
+
+double maxDistance(const std::string& a, const std::string& b) {
+  const hgd::Geometry ga = hgd::extractGeometry(hgd::readShape(a)),
+                      gb = hgd::extractGeometry(hgd::readShape(b));
+  if (ga.size() != gb.size()) return INFINITY;
+  double worst = 0;
+  for (std::size_t i = 0; i < ga.size(); ++i) worst = std::max(worst, (ga.world(i) - gb.world(i)).norm());
+  return worst;
+}
+
+#define REQUIRE_X()                                                  \
+  if (!haveTools()) GTEST_SKIP() << "Xvfb or xdotool not installed"; \
+  const Xvfb x;                                                      \
+  if (x.display().empty()) GTEST_SKIP() << "Xvfb did not start";
+
+// Item 1: what you see is what you get. The far end of the bar dragged with the mouse and held
+// still: a screenshot and a save (`k`, `s`) while the button is held, the button released, the
+// same again. The release keeps exactly the last live frame: the pictures differ nowhere but in
+// the status line, and the two saved shapes are the same point for point.
+TEST(ViewerX, ReleaseKeepsWhatTheLastLiveFrameShowed) {
+  REQUIRE_X();
+  hgdtest::TempDir dir;
+  writeBar(dir);
+  const ViewerWindow v(
+      x,
+      hgdtest::quote(dir.file("bar.ply")) + " -s " + hgdtest::quote(dir.file("s.json")) + " --size 800x600",
+      dir.file("log.txt"));
+  ASSERT_TRUE(v.ok()) << v.log();
+  const OpeningView view = openingView(dir.file("bar.ply"));
+  const Eigen::Vector2d from = view.at({1.0, 0.0, 0.05}, v.width(), v.height()),
+                        to = view.at({0.75, 0.45, 0.05}, v.width(), v.height());
+  v.key("d");
+  ASSERT_TRUE(v.waitFor("drag mode")) << v.log();
+  v.move(from.x(), from.y());
+  v.xdo("mousedown 1");
+  for (int k = 1; k <= 12; ++k) {
+    const Eigen::Vector2d p = from + (to - from) * (k / 12.0);
+    v.move(p.x(), p.y());
+    std::this_thread::sleep_for(30ms);
+  }
+  std::this_thread::sleep_for(1500ms);  // held still
+  v.key("k");
+  ASSERT_TRUE(v.waitFor("screenshot ")) << v.log();
+  const std::string held_png = v.named("screenshot ");
+  std::filesystem::copy_file(held_png, dir.file("held.png"));
+  v.key("s");
+  ASSERT_TRUE(v.waitFor("saved ")) << v.log();
+  std::filesystem::copy_file(v.named("saved "), dir.file("held.ply"));
+  v.xdo("mouseup 1");
+  std::this_thread::sleep_for(500ms);
+  v.key("k");
+  ASSERT_TRUE(v.waitFor("screenshot ", 2)) << v.log();
+  std::filesystem::copy_file(v.named("screenshot ", 2), dir.file("released.png"));
+  v.key("s");
+  ASSERT_TRUE(v.waitFor("saved ", 2)) << v.log();
+  std::filesystem::copy_file(v.named("saved ", 2), dir.file("released.ply"));
+
+  // The drag did something: the far end moved about as far as the cursor.
+  EXPECT_GT(maxDistance(dir.file("bar.ply"), dir.file("held.ply")), 0.3);
+  const double worst = maxDistance(dir.file("held.ply"), dir.file("released.ply"));
+  std::printf("largest distance between the held and the released shape: %.3g\n", worst);
+  EXPECT_LE(worst, 1e-6);
+  keep(dir.file("held.png"), "release-held.png");
+  keep(dir.file("released.png"), "release-released.png");
+  const Image held = readPng(dir.file("held.png")), released = readPng(dir.file("released.png"));
+  ASSERT_FALSE(held.rgb.empty());
+  // Everything above the status line (the bottom 40 rows: timings and messages).
+  const int changed = countDifferent(held, released, 0, held.height - 40);
+  std::printf("pixels that changed on release (above the status line): %d\n", changed);
+  EXPECT_EQ(changed, 0);
+}
+
+}  // namespace
+
+namespace {
+
+// Item 2: capital keys from a keyboard. Shift+S saves the session as a scenario (not the shape),
+// Shift+C clears the handles (not the selection), and Caps Lock makes `s` and `c` the same.
+TEST(ViewerX, ShiftAndCapsLockGiveTheCapitalKeys) {
+  REQUIRE_X();
+  hgdtest::TempDir dir;
+  writeBar(dir);
+  const ViewerWindow v(x, hgdtest::quote(dir.file("bar.ply")) + " -s " + hgdtest::quote(dir.file("s.json")),
+                       dir.file("log.txt"));
+  ASSERT_TRUE(v.ok()) << v.log();
+  v.key("shift+s");
+  ASSERT_TRUE(v.waitFor("saved ")) << v.log();
+  EXPECT_TRUE(hgdtest::contains(v.named("saved "), "scenario.json")) << v.log();
+  EXPECT_FALSE(hgdtest::exists(dir.file("bar-deformed.ply")));
+  v.key("Caps_Lock s Caps_Lock");
+  ASSERT_TRUE(v.waitFor("saved ", 2)) << v.log();
+  EXPECT_TRUE(hgdtest::contains(v.named("saved ", 2), "scenario")) << v.log();
+  EXPECT_FALSE(hgdtest::exists(dir.file("bar-deformed.ply")));
+  v.key("shift+c");
+  EXPECT_TRUE(v.waitFor("handles cleared", 1, 5)) << v.log();
+  v.key("s");  // Caps Lock is off again: the shape
+  ASSERT_TRUE(v.waitFor("saved ", 3)) << v.log();
+  EXPECT_TRUE(hgdtest::contains(v.named("saved ", 3), "deformed")) << v.log();
+}
+
+}  // namespace
+
+namespace {
+
+/// Dark pixels (text: the overlays are drawn near-black; the shapes here are grey and coloured)
+/// in the rectangle [x0, x1) x [y0, y1), rows counted from the top.
+int darkPixels(const Image& img, int x0, int y0, int x1, int y1) {
+  int n = 0;
+  for (int y = std::max(0, y0); y < std::min(img.height, y1); ++y)
+    for (int x = std::max(0, x0); x < std::min(img.width, x1); ++x) {
+      const unsigned char* p = img.at(x, y);
+      n += p[0] < 90 && p[1] < 90 && p[2] < 90;
+    }
+  return n;
+}
+
+/// Pixels that differ in the rectangle [x0, x1) x [y0, y1) (rows from the top).
+int changedIn(const Image& a, const Image& b, int x0, int y0, int x1, int y1) {
+  if (a.width != b.width || a.height != b.height || a.rgb.empty()) return -1;
+  int n = 0;
+  for (int y = std::max(0, y0); y < std::min(a.height, y1); ++y)
+    for (int x = std::max(0, x0); x < std::min(a.width, x1); ++x) n += differ(a, b, x, y);
+  return n;
+}
+
+// Item 5: the mode is shown at all times (the bottom-left corner of the status line changes
+// with it and only with it), and shift+click picks in any mode: after an area selection made
+// into a fixed handle, a shift+click in area mode (and in drag mode) selects points.
+TEST(ViewerX, ModeIsShownAndShiftClickPicksInAnyMode) {
+  REQUIRE_X();
+  hgdtest::TempDir dir;
+  writeBar(dir);
+  const ViewerWindow v(x, hgdtest::quote(dir.file("bar.ply")) + " --size 800x600", dir.file("log.txt"));
+  ASSERT_TRUE(v.ok()) << v.log();
+  const OpeningView view = openingView(dir.file("bar.ply"));
+  auto at = [&](double wx, double wy) { return view.at({wx, wy, 0.05}, v.width(), v.height()); };
+  ASSERT_TRUE(v.shot(dir.file("pick.png")));
+  v.key("x");
+  ASSERT_TRUE(v.shot(dir.file("area.png")));
+  // An area selection around the bar's left end, made with the mouse, becomes the fixed handle.
+  const Eigen::Vector2d a = at(-0.05, 0.1), b = at(0.08, -0.1);
+  v.move(a.x(), a.y());
+  v.xdo("mousedown 1");
+  std::this_thread::sleep_for(100ms);
+  v.move(0.5 * (a.x() + b.x()), 0.5 * (a.y() + b.y()));
+  std::this_thread::sleep_for(100ms);
+  v.move(b.x(), b.y());
+  std::this_thread::sleep_for(100ms);
+  v.xdo("mouseup 1");
+  ASSERT_TRUE(v.waitFor("selected ")) << v.log();
+  EXPECT_FALSE(hgdtest::contains(v.log(), "selected 0 points")) << v.log();
+  v.key("f");
+  ASSERT_TRUE(v.waitFor("still needed")) << v.log();
+  // Still in area mode: shift+click selects around the point under the cursor.
+  const Eigen::Vector2d end = at(1.0, 0.0);
+  v.move(end.x(), end.y());
+  v.xdo("keydown shift click 1 keyup shift");
+  ASSERT_TRUE(v.waitFor("points around point")) << v.log();
+  EXPECT_FALSE(hgdtest::contains(v.log(), "selected 0 points around")) << v.log();
+  v.key("m");
+  ASSERT_TRUE(v.waitFor("handles: 1 fixed")) << v.log();
+  v.key("d");
+  ASSERT_TRUE(v.shot(dir.file("drag.png")));
+  v.move(end.x(), end.y() + 5);  // drag mode: shift+click still picks (no drag begins)
+  v.xdo("keydown shift click 1 keyup shift");
+  ASSERT_TRUE(v.waitFor("points around point", 2)) << v.log();
+  v.key("t");
+  ASSERT_TRUE(v.shot(dir.file("frame.png")));
+  v.key("t");
+  ASSERT_TRUE(v.shot(dir.file("pick2.png")));
+  keep(dir.file("area.png"), "mode-area.png");
+  keep(dir.file("drag.png"), "mode-drag.png");
+  const Image pick = readPng(dir.file("pick.png")), area = readPng(dir.file("area.png")),
+              drag = readPng(dir.file("drag.png")), frame = readPng(dir.file("frame.png")),
+              pick2 = readPng(dir.file("pick2.png"));
+  ASSERT_FALSE(pick.rgb.empty());
+  // The mode's label: the status line's first 70 pixels, its bottom 30 rows.
+  auto label = [&](const Image& p, const Image& q) {
+    return changedIn(p, q, 0, p.height - 30, 70, p.height);
+  };
+  EXPECT_GT(label(pick, area), 20);
+  EXPECT_GT(label(area, drag), 20);
+  EXPECT_GT(label(drag, frame), 20);
+  EXPECT_GT(label(frame, pick2), 20);
+  EXPECT_EQ(label(pick, pick2), 0);
+}
+
+// Item 3: `s` never replaces an earlier result: INPUT-deformed.ply, INPUT-deformed-2.ply, ...,
+// each named in the status line (and on stderr); the same for `S` and `k`.
+TEST(ViewerX, SavesAreNumberedNotReplaced) {
+  REQUIRE_X();
+  hgdtest::TempDir dir;
+  writeBar(dir);
+  const ViewerWindow v(x, hgdtest::quote(dir.file("bar.ply")) + " -s " + hgdtest::quote(dir.file("s.json")),
+                       dir.file("log.txt"));
+  ASSERT_TRUE(v.ok()) << v.log();
+  v.key("s s s shift+s shift+s k k");
+  ASSERT_TRUE(v.waitFor("screenshot /", 2)) << v.log();
+  EXPECT_EQ(v.named("saved ", 1), dir.file("bar-deformed.ply")) << v.log();
+  EXPECT_EQ(v.named("saved ", 2), dir.file("bar-deformed-2.ply")) << v.log();
+  EXPECT_EQ(v.named("saved ", 3), dir.file("bar-deformed-3.ply")) << v.log();
+  EXPECT_EQ(v.named("saved ", 4), dir.file("bar-scenario.json")) << v.log();
+  EXPECT_EQ(v.named("saved ", 5), dir.file("bar-scenario-2.json")) << v.log();
+  EXPECT_EQ(v.named("screenshot ", 2), dir.file("bar-screenshot-2.png")) << v.log();
+  for (const char* f : {"bar-deformed.ply", "bar-deformed-2.ply", "bar-deformed-3.ply", "bar-scenario.json",
+                        "bar-scenario-2.json", "bar-screenshot.png", "bar-screenshot-2.png"})
+    EXPECT_TRUE(hgdtest::exists(dir.file(f))) << f;
+}
+
+// Item 4: with unsaved changes, `q` and `e` ask first (the status line says to press again);
+// pressed again they quit. Without changes `q` quits at once. PCL's keys that make no sense
+// here (u: a colour bar, g: a grid) do nothing.
+TEST(ViewerX, QuitAsksWithUnsavedChangesAndPclKeysAreOff) {
+  REQUIRE_X();
+  hgdtest::TempDir dir;
+  writeBar(dir);
+  const std::string args =
+      hgdtest::quote(dir.file("bar.ply")) + " -s " + hgdtest::quote(dir.file("s.json")) + " --size 800x600";
+  {
+    const ViewerWindow v(x, args, dir.file("log1.txt"));
+    ASSERT_TRUE(v.ok()) << v.log();
+    ASSERT_TRUE(v.shot(dir.file("a.png")));
+    v.key("u g");
+    ASSERT_TRUE(v.shot(dir.file("b.png")));
+    const Image a = readPng(dir.file("a.png")), b = readPng(dir.file("b.png"));
+    ASSERT_FALSE(a.rgb.empty());
+    // Above the status line, nothing changed.
+    EXPECT_EQ(countDifferent(a, b, 0, a.height - 40), 0);
+    v.key("t Right");  // a frame move: an unsaved change
+    ASSERT_TRUE(v.waitFor("frame mode")) << v.log();
+    v.key("e");
+    ASSERT_TRUE(v.waitFor("press e again")) << v.log();
+    EXPECT_TRUE(v.alive(1.0));
+    v.key("c q");  // another key in between: asks again
+    ASSERT_TRUE(v.waitFor("press q again")) << v.log();
+    EXPECT_TRUE(v.alive(1.0));
+    v.key("q");
+    EXPECT_FALSE(v.alive(10)) << v.log();
+  }
+  {
+    const ViewerWindow v(x, args, dir.file("log2.txt"));
+    ASSERT_TRUE(v.ok()) << v.log();
+    v.key("t Right s q");  // saved: quits at once
+    EXPECT_FALSE(v.alive(10)) << v.log();
+    EXPECT_FALSE(hgdtest::contains(v.log(), "press q again")) << v.log();
+  }
+}
+
+// Item 10: the help stays at the window's top and the status line at its bottom when the
+// window is resized; `h` hides and shows the help again; a status line with warnings wraps
+// instead of running off the window's right edge.
+TEST(ViewerX, OverlaysFollowTheWindowAndTheStatusLineWraps) {
+  REQUIRE_X();
+  hgdtest::TempDir dir;
+  hgd::writeShape(dir.file("bar.ply"), hgd::shapes::barBesideABox());
+  hgdtest::writeText(dir.file("s.json"), R"({
+    "fixed": [ { "box": { "min": [-1, -1, -1], "max": [0.5, 0.3, 1] } } ],
+    "manipulated": { "box": { "min": [0.5001, -1, -1], "max": [2, 0.3, 1] } },
+    "move": { "frame": { "translate": [0, 0.3, 0] } }
+  })");
+  const ViewerWindow v(
+      x,
+      hgdtest::quote(dir.file("bar.ply")) + " -s " + hgdtest::quote(dir.file("s.json")) + " --size 800x600",
+      dir.file("log.txt"));
+  ASSERT_TRUE(v.ok()) << v.log();
+  ASSERT_TRUE(v.shot(dir.file("opening.png")));  // the viewer is in its event loop
+  std::string out;
+  v.xdo("windowsize --sync " + v.window() + " 640 420", out);
+  std::this_thread::sleep_for(300ms);
+  ASSERT_TRUE(v.shot(dir.file("small.png")));
+  v.xdo("windowsize --sync " + v.window() + " 1000 900", out);
+  std::this_thread::sleep_for(300ms);
+  ASSERT_TRUE(v.shot(dir.file("large.png")));
+  v.key("h");
+  ASSERT_TRUE(v.shot(dir.file("nohelp.png")));
+  v.key("h");
+  ASSERT_TRUE(v.shot(dir.file("help.png")));
+  keep(dir.file("small.png"), "overlays-small.png");
+  keep(dir.file("large.png"), "overlays-large.png");
+  const Image small = readPng(dir.file("small.png")), large = readPng(dir.file("large.png")),
+              nohelp = readPng(dir.file("nohelp.png")), help = readPng(dir.file("help.png"));
+  ASSERT_EQ(small.width, 640);
+  ASSERT_EQ(large.height, 900);
+  // The help's five lines in the top 90 rows, whatever the height.
+  EXPECT_GT(darkPixels(small, 0, 0, small.width, 90), 400);
+  EXPECT_GT(darkPixels(large, 0, 0, large.width, 90), 400);
+  EXPECT_LT(darkPixels(nohelp, 0, 0, nohelp.width, 90), 20);
+  EXPECT_GT(darkPixels(help, 0, 0, help.width, 90), 400);
+  // The status line (warnings: pieces apart, a surface pulled apart) at the bottom, within the
+  // window: nothing dark in the last 12 columns.
+  EXPECT_GT(darkPixels(small, 0, small.height - 20, small.width, small.height), 100);
+  EXPECT_EQ(darkPixels(small, small.width - 12, small.height - 120, small.width, small.height), 0);
+}
+
+}  // namespace
+
+namespace {
+
+// Item 9: `r` returns to the opening view after the mouse turned it (PCL's `r` kept the turn).
+TEST(ViewerX, RReturnsToTheOpeningView) {
+  REQUIRE_X();
+  hgdtest::TempDir dir;
+  writeBar(dir);
+  const ViewerWindow v(x, hgdtest::quote(dir.file("bar.ply")) + " --size 800x600", dir.file("log.txt"));
+  ASSERT_TRUE(v.ok()) << v.log();
+  ASSERT_TRUE(v.shot(dir.file("opening.png")));
+  v.move(400, 300);
+  v.xdo("mousedown 1");
+  for (int k = 1; k <= 8; ++k) v.move(400 + 20 * k, 300 + 12 * k);
+  v.xdo("mouseup 1");
+  ASSERT_TRUE(v.shot(dir.file("turned.png")));
+  v.key("r");
+  ASSERT_TRUE(v.shot(dir.file("back.png")));
+  const Image opening = readPng(dir.file("opening.png")), turned = readPng(dir.file("turned.png")),
+              back = readPng(dir.file("back.png"));
+  ASSERT_FALSE(opening.rgb.empty());
+  EXPECT_GT(countDifferent(opening, turned, 0, opening.height - 40), 500);
+  EXPECT_EQ(countDifferent(opening, back, 0, opening.height - 40), 0);
+}
+
+}  // namespace
+
+namespace {
+
+/// A bumpy square of side x side points in PATH (binary PLY).
+void writePlane(const std::string& path, int side) {
+  std::FILE* f = std::fopen(path.c_str(), "wb");
+  ASSERT_NE(f, nullptr);
+  std::fprintf(f,
+               "ply\nformat binary_little_endian 1.0\nelement vertex %d\nproperty float x\nproperty float "
+               "y\nproperty float z\nend_header\n",
+               side * side);
+  for (int i = 0; i < side; ++i)
+    for (int j = 0; j < side; ++j) {
+      const float x = static_cast<float>(i) / static_cast<float>(side - 1),
+                  y = static_cast<float>(j) / static_cast<float>(side - 1);
+      const float p[3] = {x, y, 0.03f * std::sin(20 * x) * std::cos(15 * y)};
+      std::fwrite(p, sizeof p, 1, f);
+    }
+  std::fclose(f);
+}
+
+// Item 11: marking the handles of a large cloud builds the deformer off the GUI thread: while it
+// builds, the status line says so, the view turns with the mouse and a screenshot is taken,
+// all before the build ends (the old viewer froze: the screenshot came after the build).
+TEST(ViewerX, DeformerBuildsWhileTheWindowResponds) {
+  REQUIRE_X();
+  hgdtest::TempDir dir;
+  writePlane(dir.file("plane.ply"), 700);  // 490,000 points
+  const ViewerWindow v(x, hgdtest::quote(dir.file("plane.ply")) + " --size 640x480", dir.file("log.txt"));
+  ASSERT_TRUE(v.ok()) << v.log();
+  const OpeningView view = openingView(dir.file("plane.ply"));
+  auto at = [&](double wx, double wy) { return view.at({wx, wy, 0.0}, v.width(), v.height()); };
+  auto band = [&](double x0, double x1) {
+    const Eigen::Vector2d a = at(x0, 1.05), b = at(x1, -0.05);
+    v.move(a.x(), a.y());
+    v.xdo("mousedown 1");
+    v.move(0.5 * (a.x() + b.x()), 0.5 * (a.y() + b.y()));
+    v.move(b.x(), b.y());
+    v.xdo("mouseup 1");
+  };
+  ASSERT_TRUE(v.shot(dir.file("before.png")));
+  v.key("x");
+  band(-0.05, 0.1);
+  ASSERT_TRUE(v.waitFor("selected ", 1, 60)) << v.log();
+  v.key("f");
+  ASSERT_TRUE(v.waitFor("still needed", 1, 60)) << v.log();
+  band(0.9, 1.05);
+  ASSERT_TRUE(v.waitFor("selected ", 2, 60)) << v.log();
+  v.key("m x");  // the build starts; back to pick mode: the mouse turns the view
+  v.move(320, 240);
+  v.xdo("mousedown 1");
+  for (int k = 1; k <= 6; ++k) v.move(320 + 25 * k, 240 + 10 * k);
+  v.xdo("mouseup 1");
+  ASSERT_TRUE(v.shot(dir.file("during.png")));
+  ASSERT_TRUE(v.waitFor("handles: 1 fixed", 1, 300)) << v.log();
+  const std::string log = v.log();
+  std::printf("%s", log.c_str());
+  const std::size_t building = log.find("building the deformer"),
+                    shot = log.find("screenshot /", log.find("still needed")),
+                    built = log.find("handles: 1 fixed");
+  ASSERT_NE(shot, std::string::npos) << log;
+  EXPECT_LT(shot, built) << "the screenshot waited for the build";
+  EXPECT_NE(building, std::string::npos) << "the status line did not say that the deformer builds";
+  EXPECT_LT(building, shot);
+  const Image before = readPng(dir.file("before.png")), during = readPng(dir.file("during.png"));
+  ASSERT_FALSE(before.rgb.empty());
+  EXPECT_GT(countDifferent(before, during, 90, before.height - 60), 2000) << "the view did not turn";
+  keep(dir.file("during.png"), "building.png");
+}
+
+}  // namespace
+
+namespace {
+
+// Item 1, the warnings: a drag that pulls the surface apart says so while the button is held
+// (on the frame shown), not only after the release. The bar's handles touch at x = 0.5; its far
+// end is lifted with the mouse and held; a screenshot taken while held comes after the warning.
+TEST(ViewerX, SurfacePulledApartIsSaidWhileTheDragIsHeld) {
+  REQUIRE_X();
+  hgdtest::TempDir dir;
+  hgd::writeShape(dir.file("bar.ply"), hgd::shapes::barBesideABox());
+  hgdtest::writeText(dir.file("s.json"), R"({
+    "fixed": [ { "box": { "min": [-1, -1, -1], "max": [0.5, 0.3, 1] } } ],
+    "manipulated": { "box": { "min": [0.5001, -1, -1], "max": [2, 0.3, 1] } } })");
+  const ViewerWindow v(
+      x,
+      hgdtest::quote(dir.file("bar.ply")) + " -s " + hgdtest::quote(dir.file("s.json")) + " --size 800x600",
+      dir.file("log.txt"));
+  ASSERT_TRUE(v.ok()) << v.log();
+  const OpeningView view = openingView(dir.file("bar.ply"));
+  const Eigen::Vector2d from = view.at({1.0, 0.0, 0.05}, v.width(), v.height()),
+                        to = view.at({1.0, 0.35, 0.05}, v.width(), v.height());
+  v.key("d");
+  ASSERT_TRUE(v.waitFor("drag mode")) << v.log();
+  v.move(from.x(), from.y());
+  v.xdo("mousedown 1");
+  for (int k = 1; k <= 6; ++k) {
+    const Eigen::Vector2d p = from + (to - from) * (k / 6.0);
+    v.move(p.x(), p.y());
+    std::this_thread::sleep_for(30ms);
+  }
+  std::this_thread::sleep_for(500ms);
+  v.key("k");
+  ASSERT_TRUE(v.waitFor("screenshot ")) << v.log();
+  v.xdo("mouseup 1");
+  const std::string log = v.log();
+  const std::size_t warned = log.find("pulled apart"), shot = log.find("screenshot ");
+  EXPECT_NE(warned, std::string::npos) << log;
+  EXPECT_LT(warned, shot) << "the warning came only after the release\n" << log;
+}
+
+}  // namespace
