@@ -1,7 +1,6 @@
 // Pictures a person can read (issue 29, items 8 and 13), from hgdeform-render and hgdeform-view
 // under a virtual display: clouds are shaded (by their normals, else eye-dome lighting) rather
 // than drawn as flat silhouettes.
-#include <png.h>
 
 #include <cmath>
 #include <cstdio>
@@ -11,33 +10,14 @@
 #include <vector>
 
 #include "hgdeform/io.h"
+#include "support/png_image.h"
 #include "support/shapes.h"
 #include "test_util.h"
 
 namespace {
 
-struct Image {
-  int width = 0, height = 0;
-  std::vector<unsigned char> rgb;
-  const unsigned char* at(int x, int y) const {
-    return rgb.data() +
-           3 * (static_cast<std::size_t>(y) * static_cast<std::size_t>(width) + static_cast<std::size_t>(x));
-  }
-};
-
-Image readPng(const std::string& path) {
-  Image img;
-  png_image png;
-  std::memset(&png, 0, sizeof png);
-  png.version = PNG_IMAGE_VERSION;
-  if (!png_image_begin_read_from_file(&png, path.c_str())) return img;
-  png.format = PNG_FORMAT_RGB;
-  img.width = static_cast<int>(png.width);
-  img.height = static_cast<int>(png.height);
-  img.rgb.resize(PNG_IMAGE_SIZE(png));
-  if (!png_image_finish_read(&png, nullptr, img.rgb.data(), 0, nullptr)) img.rgb.clear();
-  return img;
-}
+using hgdtest::Image;
+using hgdtest::readPng;
 
 /// The shape's pixels (not the white background) within rows [y0, y1) of the picture (rows
 /// from the top): how many, and the standard deviation of their brightness (0..255).

@@ -3,7 +3,6 @@
 #include <pcl/conversions.h>
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
-#include <png.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -22,32 +21,14 @@
 #include "hgdeform/geometry.h"
 #include "hgdeform/io.h"
 #include "hgdeform/scenario.h"
+#include "support/png_image.h"
 #include "support/shapes.h"
 #include "test_util.h"
 
 namespace {
 
-struct Image {
-  int width = 0, height = 0;
-  std::vector<unsigned char> rgb;
-  const unsigned char* at(int x, int y) const {
-    return rgb.data() + 3 * (static_cast<std::size_t>(y) * width + x);
-  }
-};
-
-Image readPng(const std::string& path) {
-  Image img;
-  png_image png;
-  std::memset(&png, 0, sizeof png);
-  png.version = PNG_IMAGE_VERSION;
-  if (!png_image_begin_read_from_file(&png, path.c_str())) return img;
-  png.format = PNG_FORMAT_RGB;
-  img.width = static_cast<int>(png.width);
-  img.height = static_cast<int>(png.height);
-  img.rgb.resize(PNG_IMAGE_SIZE(png));
-  if (!png_image_finish_read(&png, nullptr, img.rgb.data(), 0, nullptr)) img.rgb.clear();
-  return img;
-}
+using hgdtest::Image;
+using hgdtest::readPng;
 
 // Pixels within `tol` of a colour (0..255 per channel).
 int countNear(const Image& img, int r, int g, int b, int tol = 40) {

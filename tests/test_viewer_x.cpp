@@ -5,7 +5,6 @@
 //
 // HGD_VIEW_UNDER_TEST names another hgdeform-view to test (an older build, to show that a test
 // fails without its fix).
-#include <png.h>
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -22,6 +21,7 @@
 
 #include "hgdeform/geometry.h"
 #include "hgdeform/io.h"
+#include "support/png_image.h"
 #include "support/shapes.h"
 #include "test_util.h"
 
@@ -42,27 +42,8 @@ std::string viewerBinary() {
   return other && *other ? other : HGD_VIEW;
 }
 
-struct Image {
-  int width = 0, height = 0;
-  std::vector<unsigned char> rgb;
-  const unsigned char* at(int x, int y) const {
-    return rgb.data() + 3 * (static_cast<std::size_t>(y) * width + x);
-  }
-};
-
-Image readPng(const std::string& path) {
-  Image img;
-  png_image png;
-  std::memset(&png, 0, sizeof png);
-  png.version = PNG_IMAGE_VERSION;
-  if (!png_image_begin_read_from_file(&png, path.c_str())) return img;
-  png.format = PNG_FORMAT_RGB;
-  img.width = static_cast<int>(png.width);
-  img.height = static_cast<int>(png.height);
-  img.rgb.resize(PNG_IMAGE_SIZE(png));
-  if (!png_image_finish_read(&png, nullptr, img.rgb.data(), 0, nullptr)) img.rgb.clear();
-  return img;
-}
+using hgdtest::Image;
+using hgdtest::readPng;
 
 bool differ(const Image& a, const Image& b, int x, int y) {
   const unsigned char *p = a.at(x, y), *q = b.at(x, y);
