@@ -57,6 +57,7 @@ void ScenarioRunner::setScenario(const Scenario& scenario) {
   Stopwatch t;
   scenario_ = scenario;
   handles_ = resolveHandles(scenario_, *geometry_, shape_);
+  dropLive();  // a live frame's level of detail goes with it
   clearHistory();
   build(mergedOptions(options_, scenario_, shape_, *geometry_));
   build_ms_ += t.ms();
@@ -65,6 +66,7 @@ void ScenarioRunner::setScenario(const Scenario& scenario) {
 void ScenarioRunner::setHandles(const Handles& handles) {
   requireShape("setHandles");
   handles_ = handles;
+  dropLive();  // a live frame's level of detail goes with it
   clearHistory();
   if (handles_.fixed.empty() || handles_.manipulated.empty()) {
     deformer_.reset();
@@ -245,6 +247,7 @@ bool ScenarioRunner::redo() {
 }
 
 void ScenarioRunner::reset() {
+  dropLive();  // a live frame's level of detail goes with it (else only its points would reset)
   if (deformer_) deformer_->reset();
   clearHistory();
 }

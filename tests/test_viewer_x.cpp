@@ -693,3 +693,38 @@ TEST(ViewerX, SurfacePulledApartIsSaidWhileTheDragIsHeld) {
 }
 
 }  // namespace
+
+// Keys that would change the handles or the shape under a held drag (C clears the handles, n
+// resets, f marks one) wait for the release: before, C mid-drag removed the deformer and the
+// next pointer motion ended the viewer with an exception, losing the session.
+TEST(ViewerX, HandleKeysWaitWhileTheDragIsHeld) {
+  REQUIRE_X();
+  hgdtest::TempDir dir;
+  writeBar(dir);
+  const ViewerWindow v(
+      x,
+      hgdtest::quote(dir.file("bar.ply")) + " -s " + hgdtest::quote(dir.file("s.json")) + " --size 800x600",
+      dir.file("log.txt"));
+  ASSERT_TRUE(v.ok()) << v.log();
+  const OpeningView view = openingView(dir.file("bar.ply"));
+  const Eigen::Vector2d from = view.at({1.0, 0.0, 0.05}, v.width(), v.height()),
+                        to = view.at({0.75, 0.45, 0.05}, v.width(), v.height());
+  v.key("d");
+  ASSERT_TRUE(v.waitFor("drag mode")) << v.log();
+  v.move(from.x(), from.y());
+  v.xdo("mousedown 1");
+  v.move((from.x() + to.x()) / 2, (from.y() + to.y()) / 2);
+  std::this_thread::sleep_for(300ms);
+  v.key("shift+c n");
+  ASSERT_TRUE(v.waitFor("release the mouse button first", 2)) << v.log();
+  v.move(to.x(), to.y());
+  std::this_thread::sleep_for(300ms);
+  v.xdo("mouseup 1");
+  std::this_thread::sleep_for(300ms);
+  ASSERT_TRUE(v.alive()) << v.log();
+  v.key("s");
+  ASSERT_TRUE(v.waitFor("saved ")) << v.log();
+  EXPECT_FALSE(hgdtest::contains(v.log(), "handles cleared")) << v.log();
+  // The drag was kept: the bar's far end moved about as far as the cursor.
+  EXPECT_GT(maxDistance(dir.file("bar.ply"), v.named("saved ")), 0.3) << v.log();
+}

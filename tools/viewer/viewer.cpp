@@ -99,7 +99,7 @@ void Viewer::markSelection(int role) {
   h.joints.erase(std::remove_if(h.joints.begin(), h.joints.end(), [](const auto& v) { return v.empty(); }),
                  h.joints.end());
   handles_ = h;
-  unsaved_ = true;
+  markUnsaved();
   syncRegions();
   clearSelection(false);
   refreshRoles();
@@ -213,7 +213,7 @@ void Viewer::clearSelection(bool redraw) {
 
 void Viewer::clearHandles() {
   handles_ = hgd::Handles{};
-  unsaved_ = true;
+  markUnsaved();
   fixed_regions_.clear();
   joint_regions_.clear();
   run_.setHandles(handles_);
@@ -229,7 +229,7 @@ void Viewer::clearHandles() {
 // `live`: a drag's live frame, which is the move it will commit (the stretch is measured on it).
 void Viewer::updateAlerts(bool live) {
   alert_.clear();
-  if (!run_.ready()) return;
+  if (!ready()) return;
   const hgd::PieceReport& p = run_.deformer().pieces().report;
   std::vector<std::string> full = p.warnings();
   std::ostringstream s;
@@ -252,14 +252,14 @@ void Viewer::updateAlerts(bool live) {
 // Applies a move through the runner (as `hgdeform deform` does), recorded for undo and the
 // saved scenario.
 void Viewer::commit(const hgd::Move& m) {
-  if (!run_.ready()) return;
+  if (!ready()) return;
   run_.apply(m);
-  unsaved_ = true;
+  markUnsaved();
   updateAlerts();
 }
 
 void Viewer::frameMove(const Eigen::Vector3d& translate, const Eigen::Vector3d& axis, double degrees) {
-  if (!run_.ready()) return message("mark a fixed and a manipulated handle first");
+  if (!ready()) return message("mark a fixed and a manipulated handle first");
   hgd::Move m;
   m.kind = hgd::Move::Kind::Frame;
   m.frame.translate = translate;
@@ -278,25 +278,25 @@ void Viewer::frameMove(const Eigen::Vector3d& translate, const Eigen::Vector3d& 
 }
 
 void Viewer::undo() {
-  if (!run_.ready() || !run_.undo()) return message("nothing to undo");
-  unsaved_ = true;
+  if (!ready() || !run_.undo()) return message("nothing to undo");
+  markUnsaved();
   updateAlerts();
   message("undone");
   refresh();
 }
 
 void Viewer::redo() {
-  if (!run_.ready() || !run_.redo()) return message("nothing to redo");
-  unsaved_ = true;
+  if (!ready() || !run_.redo()) return message("nothing to redo");
+  markUnsaved();
   updateAlerts();
   message("redone");
   refresh();
 }
 
 void Viewer::resetShape() {
-  if (!run_.ready()) return;
+  if (!ready()) return;
   run_.reset();
-  unsaved_ = true;
+  markUnsaved();
   updateAlerts();
   message("rest shape");
   refresh();

@@ -83,7 +83,10 @@ class Style : public pcl::visualization::PCLVisualizerInteractorStyle {
   bool band = false;                                // a rubber band was started by this press
   bool picked = false;                              // this press was a shift+click pick
   vtkSmartPointer<vtkAbstractPicker> point_picker;  // kept while the area picker is in use
-  int caps_lock = -1;  // Caps Lock: -1 not known yet (read from X at the next key)
+  bool replaying = false;  // keys come from a replay: as written, whatever Caps Lock says
+  int caps_lock = -1;      // Caps Lock as the last Caps_Lock presses left it (-1: ask X)
+  std::chrono::steady_clock::time_point caps_time;  // the last Caps_Lock press
+  int askCapsLock();                                // Caps Lock as X has it now (0 or 1)
   void rubberBand(int& x0, int& y0, int& x1, int& y1) const {
     x0 = StartPosition[0];
     y0 = StartPosition[1];
@@ -144,6 +147,11 @@ class Viewer {
   void waitForBuild();
   /// The deformer is there and not being built.
   bool ready() const { return !building_ && run_.ready(); }
+  /// A change to save: a quit asked about before it must ask again.
+  void markUnsaved() {
+    unsaved_ = true;
+    quit_asked_ = false;
+  }
   void syncRegions();
   void clearSelection(bool redraw = true);
   void clearHandles();

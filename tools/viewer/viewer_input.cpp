@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <chrono>
 #include <cstdint>
 
 #include "viewer.h"
@@ -53,9 +54,16 @@ bool Viewer::key(const std::string& sym, char code) {
                  sym == "Caps_Lock"))
     return false;
   if (k != 'q' && k != 'e') quit_asked_ = false;
-  // While the deformer builds, keys that need it wait; the view, the selection, the help, the
-  // mode, screenshots and quitting do not.
-  if (building_ && k != 0 && std::string("hrxc+=-kqe<>").find(k) == std::string::npos) {
+  // While the mouse button holds a drag, only the help, screenshots, saving the shape shown and
+  // quitting: a key that changed the handles, the shape or the mode would pull the deformer
+  // from under the live frames.
+  if (dragging_ && (k == 0 || std::string("hksqe").find(k) == std::string::npos)) {
+    message("release the mouse button first");
+    return true;
+  }
+  // While the deformer builds, keys that need it wait (named keys too: the arrows move the
+  // handle); the view, the selection, the help, the mode, screenshots and quitting do not.
+  if (building_ && (k == 0 || std::string("hrxc+=-kqe<>").find(k) == std::string::npos)) {
     message("the deformer is still being built: this key waits for it");
     return true;
   }
@@ -186,6 +194,12 @@ bool Viewer::dragBegin(int x, int y) {
 // it). So the last frame shown while the button is held is, point for point, the shape kept.
 bool Viewer::dragMove(int x, int y) {
   if (!dragging_) return false;
+  if (!ready()) {  // the handles went (cannot happen through keys while dragging; kept safe)
+    dragging_ = false;
+    live_shown_ = false;
+    showLod(false);
+    return true;
+  }
   const Eigen::Vector3d to = fromDisplay(x, y, drag_depth_);
   if (live_shown_ && to == drag_last_) return true;  // nothing new to show
   hgd::Move m;
@@ -213,7 +227,7 @@ bool Viewer::dragEnd(int x, int y) {
   live_shown_ = false;
   // Keep what was shown: the runner records the move of the last live frame without solving
   // it again (the level of detail's other points are interpolated with the same transforms).
-  if (run_.commitLive()) unsaved_ = true;
+  if (run_.commitLive()) markUnsaved();
   updateAlerts();
   showLod(false);
   refresh();
@@ -230,19 +244,35 @@ char keyChar(char code, bool shift, bool caps_lock) {
 void Style::OnKeyDown() {
   const std::string sym = Interactor->GetKeySym() ? Interactor->GetKeySym() : "";
   // VTK hands a key over as its unshifted character and the shift flag, and says nothing of
-  // Caps Lock: the lock is read from X once, then toggled by the Caps_Lock presses that follow.
-  if (caps_lock < 0) {
-    vtkRenderWindow* w = Interactor->GetRenderWindow();
-    caps_lock = capsLockOn(w ? w->GetGenericDisplayId() : nullptr) ? 1 : 0;
-  }
+  // Caps Lock. Events are handled after X has moved on (xdotool's "Caps_Lock s Caps_Lock"
+  // arrives with the lock already off again), so the lock is tracked by the Caps_Lock presses
+  // and set again from X at any other key that comes more than half a second after one (a
+  // lock changed in another window is seen then), when the pointer enters the window, and at
+  // a Caps_Lock press while it is unknown (X has it as that press left it). A replay's keys are
+  // as written.
+  const auto now = std::chrono::steady_clock::now();
+  const bool burst = now - caps_time < std::chrono::milliseconds(500);
   if (sym == "Caps_Lock") {
-    caps_lock = caps_lock ? 0 : 1;
+    caps_lock = caps_lock < 0 ? askCapsLock() : 1 - caps_lock;
+    caps_time = now;
     return;
   }
-  const char code = keyChar(Interactor->GetKeyCode(), Interactor->GetShiftKey() != 0, caps_lock == 1);
+  if (caps_lock < 0 || !burst) caps_lock = askCapsLock();
+  const char code =
+      keyChar(Interactor->GetKeyCode(), Interactor->GetShiftKey() != 0, !replaying && caps_lock == 1);
   // Every key is ours (the help lists them): PCL's (u colour bar, g grid, j screenshot, e quit
   // at once, ...) and VTK's make no sense here and are off.
   if (viewer) viewer->key(sym, code);
+}
+
+int Style::askCapsLock() {
+  vtkRenderWindow* w = Interactor ? Interactor->GetRenderWindow() : nullptr;
+  return capsLockOn(w ? w->GetGenericDisplayId() : nullptr) ? 1 : 0;
+}
+
+void Style::OnEnter() {
+  caps_lock = askCapsLock();  // Caps Lock may have changed in another window
+  Superclass::OnEnter();
 }
 
 void Style::setSelecting(bool on) {
@@ -255,11 +285,6 @@ void Style::setSelecting(bool on) {
   } else if (point_picker) {
     Interactor->SetPicker(point_picker);
   }
-}
-
-void Style::OnEnter() {
-  caps_lock = -1;  // Caps Lock may have changed in another window: read it again
-  Superclass::OnEnter();
 }
 
 void Style::OnChar() {

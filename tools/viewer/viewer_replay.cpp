@@ -39,7 +39,9 @@ void Viewer::sendKey(vtkRenderWindowInteractor* iren, const std::string& key) {
   const bool named = key.size() > 1;
   const bool shift = !named && std::isupper(static_cast<unsigned char>(key[0]));
   iren->SetKeyEventInformation(0, shift ? 1 : 0, named ? 0 : key[0], 1, key.c_str());
+  if (style_) style_->replaying = true;
   iren->InvokeEvent(vtkCommand::KeyPressEvent, nullptr);
+  if (style_) style_->replaying = false;
   iren->InvokeEvent(vtkCommand::CharEvent, nullptr);
   iren->InvokeEvent(vtkCommand::KeyReleaseEvent, nullptr);
 }
