@@ -275,6 +275,22 @@ double maxDistance(const std::string& a, const std::string& b) {
   const Xvfb x;                                                      \
   if (x.display().empty()) GTEST_SKIP() << "Xvfb did not start";
 
+// Drag mode on, the button pressed at `from` and the pointer glided to `to` in `steps` motions
+// 30 ms apart; the button stays held.
+::testing::AssertionResult holdDrag(const ViewerWindow& v, const Eigen::Vector2d& from,
+                                    const Eigen::Vector2d& to, int steps) {
+  v.key("d");
+  if (!v.waitFor("drag mode")) return ::testing::AssertionFailure() << "no drag mode\n" << v.log();
+  v.move(from.x(), from.y());
+  v.xdo("mousedown 1");
+  for (int k = 1; k <= steps; ++k) {
+    const Eigen::Vector2d p = from + (to - from) * (static_cast<double>(k) / steps);
+    v.move(p.x(), p.y());
+    std::this_thread::sleep_for(30ms);
+  }
+  return ::testing::AssertionSuccess();
+}
+
 // Item 1: what you see is what you get. The far end of the bar dragged with the mouse and held
 // still: a screenshot and a save (`k`, `s`) while the button is held, the button released, the
 // same again. The release keeps exactly the last live frame: the pictures differ nowhere but in
@@ -291,15 +307,7 @@ TEST(ViewerX, ReleaseKeepsWhatTheLastLiveFrameShowed) {
   const OpeningView view = openingView(dir.file("bar.ply"));
   const Eigen::Vector2d from = view.at({1.0, 0.0, 0.05}, v.width(), v.height()),
                         to = view.at({0.75, 0.45, 0.05}, v.width(), v.height());
-  v.key("d");
-  ASSERT_TRUE(v.waitFor("drag mode")) << v.log();
-  v.move(from.x(), from.y());
-  v.xdo("mousedown 1");
-  for (int k = 1; k <= 12; ++k) {
-    const Eigen::Vector2d p = from + (to - from) * (k / 12.0);
-    v.move(p.x(), p.y());
-    std::this_thread::sleep_for(30ms);
-  }
+  ASSERT_TRUE(holdDrag(v, from, to, 12));
   std::this_thread::sleep_for(1500ms);  // held still
   v.key("k");
   ASSERT_TRUE(v.waitFor("screenshot ")) << v.log();
@@ -673,15 +681,7 @@ TEST(ViewerX, SurfacePulledApartIsSaidWhileTheDragIsHeld) {
   const OpeningView view = openingView(dir.file("bar.ply"));
   const Eigen::Vector2d from = view.at({1.0, 0.0, 0.05}, v.width(), v.height()),
                         to = view.at({1.0, 0.35, 0.05}, v.width(), v.height());
-  v.key("d");
-  ASSERT_TRUE(v.waitFor("drag mode")) << v.log();
-  v.move(from.x(), from.y());
-  v.xdo("mousedown 1");
-  for (int k = 1; k <= 6; ++k) {
-    const Eigen::Vector2d p = from + (to - from) * (k / 6.0);
-    v.move(p.x(), p.y());
-    std::this_thread::sleep_for(30ms);
-  }
+  ASSERT_TRUE(holdDrag(v, from, to, 6));
   std::this_thread::sleep_for(500ms);
   v.key("k");
   ASSERT_TRUE(v.waitFor("screenshot ")) << v.log();
@@ -709,11 +709,7 @@ TEST(ViewerX, HandleKeysWaitWhileTheDragIsHeld) {
   const OpeningView view = openingView(dir.file("bar.ply"));
   const Eigen::Vector2d from = view.at({1.0, 0.0, 0.05}, v.width(), v.height()),
                         to = view.at({0.75, 0.45, 0.05}, v.width(), v.height());
-  v.key("d");
-  ASSERT_TRUE(v.waitFor("drag mode")) << v.log();
-  v.move(from.x(), from.y());
-  v.xdo("mousedown 1");
-  v.move((from.x() + to.x()) / 2, (from.y() + to.y()) / 2);
+  ASSERT_TRUE(holdDrag(v, from, (from + to) / 2, 1));
   std::this_thread::sleep_for(300ms);
   v.key("shift+c n");
   ASSERT_TRUE(v.waitFor("release the mouse button first", 2)) << v.log();
