@@ -90,8 +90,7 @@ void HarmonicField::buildGraph() {
   } else {
     graph_ = knnGraph(knn_, options_.k_neighbors, options_.normal_filter ? normals_.get() : nullptr, &pts,
                       &dropped_);
-    // Mesh edges are never dropped: the mesh says those vertices are adjacent.
-    if (mesh) {
+    if (mesh && !dropped_.empty()) {
       // Mesh edges are never dropped: the mesh says those vertices are adjacent. Only the
       // dropped pairs that are mesh edges come back; the rest of the 1-ring is not added, as
       // its long edges would weigh as much as a kNN pair in the uniform Laplacian and bend

@@ -123,13 +123,7 @@ void ScenarioRunner::record(const Move& move, const MoveResult& result) {
 MoveResult ScenarioRunner::previewMove(const Move& move, const std::vector<int>* preview) {
   requireShape("previewMove");
   if (!deformer_) throw std::logic_error("ScenarioRunner::previewMove: no handles yet");
-  if (!live_) {
-    history_.push_back(deformer_->state());  // the last applied state, taken back by dropLive()
-    live_ = true;
-    if (preview) deformer_->setPreview(*preview);
-  } else {
-    deformer_->restore(history_.back());  // each preview starts where apply() would
-  }
+  if (!beginLive(preview)) deformer_->restore(history_.back());  // each preview starts where apply() would
   live_move_ = move;
   live_result_ = solveMove(move);
   return *live_result_;
@@ -202,14 +196,18 @@ SolveStats ScenarioRunner::liveDrag(const Eigen::Vector3d& from, const Eigen::Ve
                                     bool keep_orientation, const std::vector<int>* preview) {
   requireShape("liveDrag");
   if (!deformer_) throw std::logic_error("ScenarioRunner::liveDrag: no handles yet");
-  if (!live_) {
-    history_.push_back(deformer_->state());  // the last applied state, taken back by dropLive()
-    live_ = true;
-    if (preview) deformer_->setPreview(*preview);
-  }
+  beginLive(preview);
   live_move_.reset();  // incremental frames: no move to commit as shown
   live_result_.reset();
   return keep_orientation ? deformer_->translateHandle(from, to) : deformer_->drag(from, to);
+}
+
+bool ScenarioRunner::beginLive(const std::vector<int>* preview) {
+  if (live_) return false;
+  history_.push_back(deformer_->state());  // the last applied state, taken back by dropLive()
+  live_ = true;
+  if (preview) deformer_->setPreview(*preview);
+  return true;
 }
 
 void ScenarioRunner::dropLive() {

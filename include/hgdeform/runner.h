@@ -182,6 +182,9 @@ class ScenarioRunner {
                 bool release_shape);
   void noteWriteWarnings(const std::vector<std::string>& warnings);
   void clearHistory();
+  /// Enters live frames (the last applied state kept for dropLive(), `preview` set); false
+  /// when already in them.
+  bool beginLive(const std::vector<int>* preview);
   /// Solves `move` from the deformer's current state (apply()'s and previewMove()'s solve).
   MoveResult solveMove(const Move& move);
   /// Records an applied move and its result; the redo list is cleared.
