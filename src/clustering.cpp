@@ -154,4 +154,12 @@ std::vector<Band> Clustering::makeBands(const std::vector<float>& phi,
   return bands;
 }
 
+Clustering withoutPointLabels(Clustering clustering) {
+  clustering.lower = {};
+  clustering.upper = {};
+  clustering.alpha = {};
+  clustering.nearest = {};
+  return clustering;
+}
+
 }  // namespace hgd

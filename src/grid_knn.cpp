@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "radix_sort.h"
+#include "parallel.h"
 #include "timer.h"
 
 namespace hgd {

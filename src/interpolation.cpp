@@ -7,6 +7,7 @@
 
 #include "hgdeform/geometry.h"
 #include "table_build.h"
+#include "parallel.h"
 #include "timer.h"
 
 namespace hgd {

@@ -5,9 +5,11 @@
 #include <omp.h>
 #endif
 
-#include "timer.h"
-
 namespace hgd {
+
+/// Below this many items a loop runs on one thread: waking a team costs more than it saves
+/// (and on a loaded machine a sleeping thread can take a whole time slice to join).
+constexpr long long kParallelMin = 20000;
 
 /// One block per thread when n is large enough to share (kParallelMin), else one.
 inline int blockCount(long long n) {

@@ -281,13 +281,13 @@ DeformReport ScenarioRunner::report() const {
     rep.isovalues = mergedOptions(options_, scenario_, shape_, *geometry_).clusters.isovalues;
     rep.unreachable = d.unreachablePoints();
     rep.notes = d.clustering().notes;
-    if (d.harmonicField().normalsReoriented())
+    if (d.surfaceGraph().normalsReoriented())
       rep.notes.emplace_back(
           "the file's normals are not consistently oriented: the neighbour filter used re-oriented copies "
           "(the output keeps the file's signs)");
-    if (!d.harmonicField().rejoinedPairs().empty())
+    if (!d.surfaceGraph().rejoinedPairs().empty())
       rep.notes.push_back("the normal filter would have cut pieces without a handle off the surface: " +
-                          std::to_string(d.harmonicField().rejoinedPairs().size()) +
+                          std::to_string(d.surfaceGraph().rejoinedPairs().size()) +
                           " neighbour pairs across thin gaps were kept to join them back");
     rep.pieces = d.pieces().report;
     rep.warnings = rep.pieces.warnings();

@@ -55,4 +55,41 @@ std::string stretchWarning(const SurfaceStretch& s) {
   return buf;
 }
 
+SurfaceStretch measureSurfaceStretch(const Geometry& geometry, const std::vector<Eigen::Vector3f>& deformed,
+                                     const SurfaceGraph& graph, const CoarseLevel& coarse, double min_move) {
+  const auto& rest = *geometry.points;
+  // The scale of "grew by more than 2% of the move": the largest displacement of any point
+  // (the handle's own can be near zero when it turns about its centre while the limb beyond it
+  // swings).
+  double moved = min_move;
+  for (std::size_t u = 0; u < deformed.size(); ++u)
+    moved = std::max(moved, static_cast<double>((deformed[u] - rest[u].getVector3fMap()).norm()));
+  // Mesh edges where there are faces (what the user sees joined), else the neighbour graph.
+  if (!geometry.faces.empty())
+    return measureStretch(rest, deformed, ringGraph(geometry.size(), geometry.faces), moved);
+  // A stray's one pair to the surface point it hangs from is no surface pair (a stray inside
+  // the dragged handle moves with it, its anchor maybe not).
+  const std::vector<char>& strays = graph.outliers();
+  if (coarse.empty())
+    return measureStretch(rest, deformed, graph.graph(), moved, strays.empty() ? nullptr : &strays);
+  // The coarse graph's pairs, between the points that stand for their cells.
+  const NeighborGraph& g = graph.graph();
+  std::vector<std::pair<int, int>> pairs;
+  for (std::size_t a = 0; a < g.size(); ++a)
+    for (const int* j = g.begin(a); j != g.end(a); ++j)
+      if (static_cast<int>(a) < *j)
+        pairs.emplace_back(coarse.points[a], coarse.points[static_cast<std::size_t>(*j)]);
+  NeighborGraph none;
+  none.offsets.assign(geometry.size() + 1, 0);
+  std::vector<char> shape_strays;
+  if (!strays.empty() || !coarse.strays.empty()) {
+    shape_strays.assign(geometry.size(), 0);
+    for (std::size_t a = 0; a < strays.size(); ++a)
+      if (strays[a]) shape_strays[static_cast<std::size_t>(coarse.points[a])] = 1;
+    for (const int i : coarse.strays) shape_strays[static_cast<std::size_t>(i)] = 1;
+  }
+  return measureStretch(rest, deformed, addEdges(none, pairs), moved,
+                        shape_strays.empty() ? nullptr : &shape_strays);
+}
+
 }  // namespace hgd

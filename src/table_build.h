@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "hgdeform/interpolation.h"
+#include "parallel.h"
 #include "timer.h"
 
 namespace hgd::detail {

@@ -5,10 +5,6 @@
 
 namespace hgd {
 
-/// Below this many items a loop runs on one thread: waking a team costs more than it saves
-/// (and on a loaded machine a sleeping thread can take a whole time slice to join).
-constexpr long long kParallelMin = 20000;
-
 class Stopwatch {
  public:
   Stopwatch() : start_(std::chrono::steady_clock::now()) {}

@@ -263,11 +263,11 @@ TEST(Field, ReusesGraphWhenOnlyHandlesChange) {
   const hgd::Geometry g = hgd::extractGeometry(hgd::shapes::bar(1.0f, 0.1f, 0.01f));
   hgd::HarmonicField f;
   fieldOf(g, {pointsWhere(g, 0, -1, 0.0)}, pointsWhere(g, 0, 1.0, 2), {}, &f);
-  const int* adjacency_before = f.graph().adj.data();
+  const int* adjacency_before = f.surfaceGraph().graph().adj.data();
   f.setHandles({pointsWhere(g, 0, 0.45, 0.55)}, pointsWhere(g, 0, 1.0, 2));
   std::vector<float> phi;
   f.compute(phi);
-  EXPECT_EQ(f.graph().adj.data(), adjacency_before);  // the same graph, not rebuilt
+  EXPECT_EQ(f.surfaceGraph().graph().adj.data(), adjacency_before);  // the same graph, not rebuilt
   EXPECT_EQ(f.timings().knn_ms, 0.0);
   EXPECT_EQ(f.timings().normals_ms, 0.0);
   for (int i : pointsWhere(g, 0, 0.45, 0.55)) EXPECT_EQ(phi[static_cast<std::size_t>(i)], 0.0f);

@@ -142,8 +142,8 @@ TEST(Multires, FieldAndShapeMatchFullResolutionOnResampledForks) {
             other_multi,
             static_cast<double>((multi.deformedPoints()[i] - (*g.points)[i].getVector3fMap()).norm()));
       }
-    const auto rough_full = roughness(g, full, full.harmonicField().graph(), surface);
-    const auto rough_multi = roughness(g, multi, full.harmonicField().graph(), surface);
+    const auto rough_full = roughness(g, full, full.surfaceGraph().graph(), surface);
+    const auto rough_multi = roughness(g, multi, full.surfaceGraph().graph(), surface);
     std::printf("fork %s: roughness max %.3f / %.3f, 99.9%% %.3f / %.3f (full / multi)\n", k.name,
                 rough_full.first, rough_multi.first, rough_full.second, rough_multi.second);
     std::printf(
@@ -403,10 +403,10 @@ TEST(Multires, TableStraightFromTheCoarseLevelIsTheLabelledRoutes) {
   for (const auto& fixed : ch.fixed)
     for (const int a : fixed) constrained[static_cast<std::size_t>(a)] = 1;
   for (const int a : ch.manipulated) constrained[static_cast<std::size_t>(a)] = 1;
-  const std::vector<float> phi = hgd::prolongField(*g.points, level, field.graph(), coarse_phi, constrained);
+  const std::vector<float> phi = hgd::prolongField(*g.points, level, field.surfaceGraph().graph(), coarse_phi, constrained);
   const std::vector<int> sample = hgd::sampleSurface(*cloud, ch, 2000);
-  const hgd::Clustering c = hgd::buildClusters(*cloud, field.graph(), coarse_phi, ch, field.unreachable(),
-                                               sample, hgd::ClusterOptions{}, {}, field.outliers());
+  const hgd::Clustering c = hgd::buildClusters(*cloud, field.surfaceGraph().graph(), coarse_phi, ch, field.unreachable(),
+                                               sample, hgd::ClusterOptions{}, {}, field.surfaceGraph().outliers());
 
   const hgd::InterpolationTable straight = hgd::prolongInterpolation(c, level, coarse_phi, phi, h, *g.points);
   const hgd::InterpolationTable labelled =

@@ -977,8 +977,8 @@ TEST(Scans, SmallCloudKeepsStraysOutOfTheSample) {
   };
   std::size_t flagged = 0, sampled = 0, members = 0;
   for (std::size_t i = 0; i < g.size(); ++i)
-    flagged += stray(static_cast<int>(i)) && !d.harmonicField().outliers().empty() &&
-               d.harmonicField().outliers()[i];
+    flagged += stray(static_cast<int>(i)) && !d.surfaceGraph().outliers().empty() &&
+               d.surfaceGraph().outliers()[i];
   for (const int i : d.clustering().sample) sampled += stray(i);
   for (const auto& cl : d.clustering().clusters)
     for (const int i : cl.members) members += stray(i);

@@ -82,6 +82,10 @@ struct Clustering {
                                      std::vector<std::string>* notes = nullptr);
 };
 
+/// The clusters, bands and sample of `clustering` without its per-point labels (lower, upper,
+/// alpha, nearest): what a deformer keeps once an interpolation table holds the brackets.
+Clustering withoutPointLabels(Clustering clustering);
+
 /// Picks a roughly uniform sample of the points: a voxel grid whose cell size is tuned to the
 /// target count, one point per cell, taken separately inside each handle and outside them so
 /// that every handle is represented. Points marked in `exclude` (outliers) are never picked.

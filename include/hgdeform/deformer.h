@@ -1,6 +1,6 @@
 // The deformer façade, in libigl's precompute / solve style:
 //
-//   hgd::Deformer d(geometry, handles, options);   // field, sample, clusters, solver set-up
+//   hgd::Deformer d(geometry, handles, options);   // precompute() (precompute.h), solver set-up
 //   d.drag(from, to);                              // one interactive frame (direct manipulation)
 //   d.setHandleTransform(T);                       // or: frame metaphor, T given exactly
 //   d.deformedPoints();                            // #P deformed positions (geometry's local frame)
@@ -15,46 +15,11 @@
 #include <string>
 #include <vector>
 
-#include "hgdeform/clustering.h"
-#include "hgdeform/geometry.h"
-#include "hgdeform/harmonic_field.h"
-#include "hgdeform/interpolation.h"
-#include "hgdeform/multires.h"
-#include "hgdeform/pieces.h"
-#include "hgdeform/regions.h"
+#include "hgdeform/precompute.h"
 #include "hgdeform/scenario.h"
-#include "hgdeform/solver.h"
 #include "hgdeform/stretch.h"
 
 namespace hgd {
-
-class Stopwatch;
-
-struct DeformOptions {
-  FieldOptions field;
-  ClusterOptions clusters;
-  SolverWeights weights;
-  GaussNewtonOptions gauss_newton;
-  double drag_tolerance = 1e-4;   ///< dragTo(): stop when the picked point is this close (× diagonal)
-  double max_drag_step = 0.02;    ///< dragTo(): the cursor moves at most this much per frame (× diagonal)
-  int max_drag_frames = 3000;     ///< dragTo(): frames at most
-  Blend blend = Blend::Rotation;  ///< how points blend their two clusters' transforms
-  /// Rot(A) weight of range clusters (bones), times w_MHC: bones are meant to stay rigid (their
-  /// transforms are also projected onto the nearest rotation when applied).
-  double bone_rigidity = 10;
-  /// Multi-resolution build (docs/method.md §7): a shape with more points than this gets its
-  /// field, pieces and clusters on a voxel subsample of about `coarse_points` points, prolonged
-  /// to every point. 0: always at full resolution (every point in the neighbour graph).
-  std::size_t multires_above = 500000;
-  std::size_t coarse_points = 65536;
-};
-
-struct BuildTimings {
-  double field_ms = 0, sampling_ms = 0, clusters_ms = 0, setup_ms = 0;
-  double coarse_ms = 0;  ///< of field_ms: the coarse level and the prolongation (multi-resolution)
-  FieldTimings field;
-  double total() const { return field_ms + sampling_ms + clusters_ms + setup_ms; }
-};
 
 /// A snapshot of the deformation (see Deformer::state()).
 struct DeformerState {
@@ -166,44 +131,37 @@ class Deformer {
 
   const Geometry& geometry() const { return *geometry_; }
   const Handles& handles() const { return handles_; }
-  const std::vector<float>& field() const { return phi_; }
-  /// The field's stage: at full resolution over every point; on a multi-resolution build over
-  /// the coarse points (its indices are coarseLevel().points' positions).
-  const HarmonicField& harmonicField() const { return field_; }
+  const std::vector<float>& field() const { return data_.phi; }
+  /// The graph and field stages: at full resolution over every point; on a multi-resolution
+  /// build over the coarse points (their indices are coarseLevel().points' positions).
+  const SurfaceGraph& surfaceGraph() const { return *data_.graph; }
+  const HarmonicField& harmonicField() const { return data_.field; }
   /// The coarse level of a multi-resolution build; empty at full resolution.
-  const CoarseLevel& coarseLevel() const { return coarse_; }
+  const CoarseLevel& coarseLevel() const { return data_.coarse; }
   /// Points in parts that touch no handle (at any resolution, counted over every point).
-  std::size_t unreachablePoints() const { return unreachable_points_; }
+  std::size_t unreachablePoints() const { return data_.unreachable_points; }
   /// The clusters, bands and sample. Its per-point labels (lower, upper, alpha, nearest) are
   /// empty: a point's two clusters and blend factor are interpolationTable().bracket(i).
-  const Clustering& clustering() const { return clustering_; }
-  const InterpolationTable& interpolationTable() const { return table_; }
+  const Clustering& clustering() const { return data_.clustering; }
+  const InterpolationTable& interpolationTable() const { return data_.table; }
   /// The pieces the field did not reach, and what became of them (see pieces.h).
-  const PieceAnalysis& pieces() const { return pieces_; }
+  const PieceAnalysis& pieces() const { return data_.pieces; }
   /// Surface neighbour pairs (mesh edges, else the neighbour graph) measured on the current
   /// deformed shape, against the largest point displacement (at least 1e-4 of the diagonal).
   SurfaceStretch surfaceStretch() const;
   /// Cluster transforms in the solver's normalised frame (about each rest barycentre).
   const std::vector<NormalisedTransform>& clusterTransforms() const { return solver_.transforms(); }
   Energies energies() const { return solver_.energies(); }
-  const BuildTimings& buildTimings() const { return build_; }
+  const BuildTimings& buildTimings() const { return data_.timings; }
   double lastInterpolationMs() const { return interp_ms_; }
   int picked() const { return picked_; }
   double diagonal() const { return 1.0 / scale_; }
 
  private:
-  void setupSolver();
   /// A drag after frame moves: the manipulated cluster is freed for shape matching.
   void leaveFrameMode();
+  /// precompute(), then the preview table and the solver's set-up; the shape at rest.
   void rebuild();
-  /// rebuild()'s field, pieces and clusters on coarse_ (a multi-resolution build).
-  void buildCoarse(Stopwatch& sw);
-  /// The field's input: every point of the shape (its normals, its faces).
-  void fieldOnEveryPoint();
-  /// The sample, pieces_ and the clusters of `points` (the field's, which it has just solved
-  /// into `phi`); `weight`: the points each stands for in the pieces report (may be null).
-  Clustering clusterField(const pcl::PointCloud<pcl::PointXYZ>& points, const std::vector<float>& phi,
-                          const Handles& handles, const std::vector<std::uint32_t>* weight, Stopwatch& sw);
   SolveStats dragFrame(const Eigen::Vector3d& to);
   SolveStats solveHandle(const Eigen::Affine3d& transform);
   Eigen::Vector3d pickedWorld() const;
@@ -218,19 +176,12 @@ class Deformer {
   std::shared_ptr<const Geometry> geometry_;
   Handles handles_;
   DeformOptions options_;
-  HarmonicField field_;
-  bool multires_ = false;
-  CoarseLevel coarse_;
-  std::size_t unreachable_points_ = 0;
-  std::vector<float> phi_;
+  DeformationData data_;
   std::vector<int> preview_request_;  ///< setPreview's points (empty: all)
   std::vector<int> preview_;          ///< with the manipulated handle's, sorted
   InterpolationTable preview_table_;  ///< table_'s rows for them
   std::vector<Eigen::Vector3f> preview_points_;
   mutable std::vector<Eigen::Vector3f> preview_normals_;
-  PieceAnalysis pieces_;
-  Clustering clustering_;
-  InterpolationTable table_;
   ClusterSolver solver_;
   bool frame_mode_ = false;
   Eigen::Vector3d centre_ = Eigen::Vector3d::Zero();
@@ -254,7 +205,6 @@ class Deformer {
     Blend all_blend = Blend::Rotation;
   };
   mutable DueNormals normals_;
-  BuildTimings build_;
   double interp_ms_ = 0;
 };
 

@@ -1,23 +1,26 @@
-// The harmonic field φ on a point cloud or mesh (docs/method.md; its graph: docs/scans.md): 1 on the
-// manipulated handle, 0 on the fixed ones, harmonic for the uniform quasi-Laplacian elsewhere.
+// The harmonic field φ on a point cloud or mesh (docs/method.md): 1 on the manipulated handle, 0 on
+// the fixed ones, harmonic for the uniform quasi-Laplacian of a SurfaceGraph elsewhere.
 //
-// A PCL-style stage:
+// A PCL-style stage on a SurfaceGraph (surface_graph.h), which it owns unless given one:
 //   hgd::HarmonicField field;
-//   field.setInputCloud(points);            // #P points (finite)
+//   field.setInputCloud(points);            // #P points (finite): its surface graph's input
 //   field.setInputNormals(normals);         // optional: #P normals (else estimated)
 //   field.setHandles(fixed, manipulated);   // indices into points
 //   std::vector<float> phi;                 // out: #P values in [0, 1]
 //   field.compute(phi);
-// Normals, kNN and the neighbour graph are cached across compute() calls as long as the input
-// cloud, normals, polygons and neighbour options stay the same; new handles only re-solve.
+// or, on a graph built apart (shared with the stages after it):
+//   auto graph = std::make_shared<hgd::SurfaceGraph>(); ...; field.setSurfaceGraph(graph);
+// The graph is built once for its inputs and options; new handles only join its pieces and
+// re-solve.
 #pragma once
 
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
 
+#include <memory>
 #include <vector>
 
-#include "hgdeform/neighbors.h"
+#include "hgdeform/surface_graph.h"
 
 namespace hgd {
 
@@ -27,19 +30,15 @@ enum class FieldSolver {
   Multilevel,  ///< multigrid-preconditioned CG (Galerkin levels down to a small Cholesky solve)
 };
 
-struct FieldOptions {
-  int k_neighbors = 10;       ///< kNN for the Laplacian
-  int k_normals = 16;         ///< kNN for normal estimation (when normals are not given)
-  bool mesh_ring = false;     ///< on meshes, use the 1-ring from faces instead of kNN
-  bool normal_filter = true;  ///< drop kNN pairs across a thin gap (docs/scans.md); never mesh edges
+/// The field's options, its graph's among them (a field is solved on a surface graph).
+struct FieldOptions : GraphOptions {
   FieldSolver solver = FieldSolver::Auto;
   std::size_t exact_limit = 4000;
   double tolerance = 1e-3;   ///< multilevel: relative residual (tightened as 1/sqrt(n) above 1M unknowns)
   int max_iterations = 500;  ///< multilevel: CG cap
-  bool orient_to_viewpoint = false;  ///< orient estimated normals towards `viewpoint` (scans)
-  Eigen::Vector3f viewpoint = Eigen::Vector3f::Zero();
 };
 
+/// What compute() cost: its graph's build (0 when the graph was kept), the join, the solve.
 struct FieldTimings {
   double normals_ms = 0, knn_ms = 0, graph_ms = 0, laplacian_ms = 0, solve_ms = 0;
   int iterations = 0;  ///< multilevel CG iterations (0 for exact)
@@ -50,11 +49,15 @@ struct FieldTimings {
 class HarmonicField {
  public:
   HarmonicField() = default;
-  HarmonicField(const HarmonicField&) = delete;  // owns its graph and caches: moved, not copied
+  HarmonicField(const HarmonicField&) = delete;
   HarmonicField& operator=(const HarmonicField&) = delete;
   HarmonicField(HarmonicField&&) = default;
   HarmonicField& operator=(HarmonicField&&) = default;
 
+  /// The graph to solve on, built or not (compute() builds it when due); setOptions() sets its
+  /// options too. Without one the field makes its own.
+  void setSurfaceGraph(std::shared_ptr<SurfaceGraph> graph);
+  /// The surface graph's input (shorthands for surfaceGraph().setInputCloud() etc.).
   void setInputCloud(const pcl::PointCloud<pcl::PointXYZ>::ConstPtr& cloud);
   void setInputNormals(const pcl::PointCloud<pcl::Normal>::ConstPtr& normals);
   void setPolygons(const std::vector<pcl::Vertices>& polygons);
@@ -66,46 +69,21 @@ class HarmonicField {
   /// handle indices and std::runtime_error when the solver fails.
   void compute(std::vector<float>& phi);
 
-  /// The neighbour graph used (valid after compute()): the kNN graph less the pairs across a
-  /// thin gap (the normal filter), except, on meshes, mesh edges; then joined back through
-  /// the dropped pairs wherever the filter alone would cut a piece without a handle off.
-  const NeighborGraph& graph() const { return joined_.empty() ? graph_ : graph_joined_; }
-  /// The normals the filter used: the input's (re-oriented when their signs were not
-  /// consistent), the mesh's or estimated ones.
-  const pcl::PointCloud<pcl::Normal>& normals() const { return *normals_; }
-  const KnnTable& knn() const { return knn_; }
+  /// The graph stage: after compute(), its graph() is the one solved on (pieces joined back for
+  /// these handles), with its normals, kNN, strays and the filter's pairs.
+  const SurfaceGraph& surfaceGraph() const { return *graph_; }
+  SurfaceGraph& surfaceGraph() { return *graph_; }
   /// Points in components that touch no handle (they get φ = 0).
   const std::vector<int>& unreachable() const { return unreachable_; }
-  /// Connected-piece label of every point in graph() (0..count-1).
+  /// Connected-piece label of every point in surfaceGraph().graph() (0..count-1).
   const std::vector<int>& pieceLabels() const { return piece_; }
-  /// Pairs the normal filter dropped, and those of them put back to join pieces (i < j).
-  const std::vector<std::pair<int, int>>& droppedPairs() const { return dropped_; }
-  const std::vector<std::pair<int, int>>& rejoinedPairs() const { return joined_; }
-  /// Per point: a stray point of a cloud (findOutliers), a leaf of graph(); empty when there is
-  /// none.
-  const std::vector<char>& outliers() const { return outliers_; }
-  /// True when the input normals' signs were inconsistent and were re-oriented.
-  bool normalsReoriented() const { return reoriented_; }
   const FieldTimings& timings() const { return timings_; }
 
  private:
-  void buildGraph();
-  void joinPieces(const std::vector<char>& constrained);
-
-  pcl::PointCloud<pcl::PointXYZ>::ConstPtr cloud_;
-  pcl::PointCloud<pcl::Normal>::ConstPtr input_normals_;
-  pcl::PointCloud<pcl::Normal>::ConstPtr normals_{new pcl::PointCloud<pcl::Normal>};
-  std::vector<pcl::Vertices> polygons_;
+  std::shared_ptr<SurfaceGraph> graph_ = std::make_shared<SurfaceGraph>();
   std::vector<std::vector<int>> fixed_;
   std::vector<int> manipulated_;
   FieldOptions options_;
-  bool graph_valid_ = false;
-  KnnTable knn_;
-  NeighborGraph graph_, graph_joined_;
-  std::vector<std::pair<int, int>> dropped_, joined_;
-  std::vector<int> base_piece_;  ///< pieces of graph_ (when the filter dropped pairs)
-  std::vector<char> outliers_;
-  bool reoriented_ = false;
   std::vector<int> unreachable_, piece_;
   FieldTimings timings_;
 };

@@ -3,6 +3,8 @@
 // that name the file and the problem.
 #pragma once
 
+#include <Eigen/Geometry>
+#include <functional>
 #include <stdexcept>
 #include <string>
 #include <string_view>
@@ -89,5 +91,12 @@ void removeOutput(const std::string& path) noexcept;
 /// SIGINT/SIGTERM handler calls it before exiting so that an interrupted run leaves no
 /// partial file behind.
 void removeTemporaryFiles() noexcept;
+
+/// An OBJ's own normals ('vn', indexed apart from the vertices) turned with the shape: each by
+/// the rotation `turn` gives for the vertex a face pairs it with (FileExtras::obj_normal_vertex),
+/// into `extras.obj_normals_out`; those whose vertex `turn` declines (returns false), and all
+/// when `turn` is empty, are kept as read.
+void turnObjNormals(FileExtras& extras,
+                    const std::function<bool(int vertex, Eigen::Quaterniond& rotation)>& turn);
 
 }  // namespace hgd

@@ -10,7 +10,10 @@
 #include <string>
 #include <vector>
 
+#include "hgdeform/geometry.h"
+#include "hgdeform/multires.h"
 #include "hgdeform/neighbors.h"
+#include "hgdeform/surface_graph.h"
 
 namespace hgd {
 
@@ -30,6 +33,13 @@ struct SurfaceStretch {
 SurfaceStretch measureStretch(const pcl::PointCloud<pcl::PointXYZ>& rest,
                               const std::vector<Eigen::Vector3f>& deformed, const NeighborGraph& pairs,
                               double move_distance, const std::vector<char>* skip = nullptr);
+
+/// The surface of a deformed shape measured: its mesh edges where it has faces, else the pairs
+/// of its surface graph (on a multi-resolution build, `graph` is the coarse level's and its pairs
+/// join the points that stand for their cells), the graph's strays left out; the move distance
+/// is the largest point displacement, at least `min_move`.
+SurfaceStretch measureSurfaceStretch(const Geometry& geometry, const std::vector<Eigen::Vector3f>& deformed,
+                                     const SurfaceGraph& graph, const CoarseLevel& coarse, double min_move);
 
 /// The warning a front end prints when points are split ("" when none is).
 std::string stretchWarning(const SurfaceStretch& stretch);

@@ -273,3 +273,17 @@ void writeObj(const std::string& path, const Shape& shape) {
 }
 
 }  // namespace hgd::io_internal
+
+namespace hgd {
+
+void turnObjNormals(FileExtras& extras,
+                    const std::function<bool(int vertex, Eigen::Quaterniond& rotation)>& turn) {
+  extras.obj_normals_out = extras.obj_normals;
+  if (!turn) return;
+  Eigen::Quaterniond q;
+  for (std::size_t j = 0; j < extras.obj_normals.size() && j < extras.obj_normal_vertex.size(); ++j)
+    if (turn(extras.obj_normal_vertex[j], q))
+      extras.obj_normals_out[j] = (q * extras.obj_normals[j].cast<double>()).cast<float>();
+}
+
+}  // namespace hgd
