@@ -14,7 +14,7 @@
 #include <string>
 #include <system_error>
 
-#include "hgdeform/io.h"
+#include "hgdeform/io/io.h"
 
 #ifndef HGD_FUZZ_EXTENSION
 #error "define HGD_FUZZ_EXTENSION (\".ply\", \".pcd\", \".obj\", \".xyz\", \".off\" or \".stl\")"

@@ -29,8 +29,8 @@
 #include <string>
 #include <vector>
 
-#include "hgdeform/geometry.h"
-#include "hgdeform/io.h"
+#include "hgdeform/io/geometry.h"
+#include "hgdeform/io/io.h"
 #include "support/shapes.h"
 
 namespace {

@@ -14,10 +14,10 @@
 #include <string>
 #include <vector>
 
-#include "hgdeform/deformer.h"
-#include "hgdeform/io.h"
-#include "hgdeform/runner.h"
-#include "hgdeform/scenario.h"
+#include "hgdeform/app/runner.h"
+#include "hgdeform/app/scenario.h"
+#include "hgdeform/deformer/deformer.h"
+#include "hgdeform/io/io.h"
 #include "test_util.h"
 
 namespace {

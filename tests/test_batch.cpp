@@ -24,9 +24,9 @@
 #include <thread>
 #include <vector>
 
-#include "hgdeform/fields.h"
-#include "hgdeform/geometry.h"
-#include "hgdeform/io.h"
+#include "hgdeform/io/fields.h"
+#include "hgdeform/io/geometry.h"
+#include "hgdeform/io/io.h"
 #include "support/shapes.h"
 #include "test_util.h"
 

@@ -25,12 +25,12 @@
 #include <thread>
 #include <vector>
 
-#include "hgdeform/deformer.h"
-#include "hgdeform/fields.h"
-#include "hgdeform/geometry.h"
-#include "hgdeform/io.h"
-#include "hgdeform/runner.h"
-#include "hgdeform/scenario.h"
+#include "hgdeform/app/runner.h"
+#include "hgdeform/app/scenario.h"
+#include "hgdeform/deformer/deformer.h"
+#include "hgdeform/io/fields.h"
+#include "hgdeform/io/geometry.h"
+#include "hgdeform/io/io.h"
 #include "hgdeform/version.h"
 #include "support/shapes.h"
 #include "test_util.h"

@@ -7,11 +7,13 @@
 #include <random>
 #include <string>
 
-#include "hgdeform/deformer.h"
-#include "hgdeform/io.h"
-#include "hgdeform/neighbors.h"
-#include "hgdeform/regions.h"
-#include "hgdeform/scenario.h"
+#include "../src/solve/block_cholesky.h"  // tested apart from the solver
+#include "hgdeform/app/regions.h"
+#include "hgdeform/app/scenario.h"
+#include "hgdeform/deformer/deformer.h"
+#include "hgdeform/graph/knn.h"
+#include "hgdeform/graph/neighbor_graph.h"
+#include "hgdeform/io/io.h"
 #include "support/shapes.h"
 #include "test_util.h"
 

@@ -8,10 +8,12 @@
 #include <random>
 #include <string>
 
-#include "../src/grid_knn.h"  // the grid search itself: which clouds it keeps
-#include "hgdeform/geometry.h"
-#include "hgdeform/harmonic_field.h"
-#include "hgdeform/neighbors.h"
+#include "../src/graph/grid_knn.h"  // the grid search itself: which clouds it keeps
+#include "hgdeform/field/harmonic_field.h"
+#include "hgdeform/graph/knn.h"
+#include "hgdeform/graph/neighbor_graph.h"
+#include "hgdeform/graph/normal_filter.h"
+#include "hgdeform/io/geometry.h"
 #include "support/shapes.h"
 #include "test_util.h"
 

@@ -23,8 +23,8 @@
 #include <string>
 #include <vector>
 
-#include "hgdeform/fields.h"
-#include "hgdeform/io.h"
+#include "hgdeform/io/fields.h"
+#include "hgdeform/io/io.h"
 #include "test_util.h"
 
 namespace {

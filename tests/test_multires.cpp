@@ -9,10 +9,11 @@
 #include <cstdio>
 #include <memory>
 
-#include "hgdeform/deformer.h"
-#include "hgdeform/geometry.h"
-#include "hgdeform/harmonic_field.h"
-#include "hgdeform/multires.h"
+#include "../src/multires/prolong_labels.h"  // the route prolongInterpolation replaced
+#include "hgdeform/deformer/deformer.h"
+#include "hgdeform/field/harmonic_field.h"
+#include "hgdeform/io/geometry.h"
+#include "hgdeform/multires/multires.h"
 #include "support/shapes.h"
 #include "test_util.h"
 
@@ -403,10 +404,12 @@ TEST(Multires, TableStraightFromTheCoarseLevelIsTheLabelledRoutes) {
   for (const auto& fixed : ch.fixed)
     for (const int a : fixed) constrained[static_cast<std::size_t>(a)] = 1;
   for (const int a : ch.manipulated) constrained[static_cast<std::size_t>(a)] = 1;
-  const std::vector<float> phi = hgd::prolongField(*g.points, level, field.surfaceGraph().graph(), coarse_phi, constrained);
+  const std::vector<float> phi =
+      hgd::prolongField(*g.points, level, field.surfaceGraph().graph(), coarse_phi, constrained);
   const std::vector<int> sample = hgd::sampleSurface(*cloud, ch, 2000);
-  const hgd::Clustering c = hgd::buildClusters(*cloud, field.surfaceGraph().graph(), coarse_phi, ch, field.unreachable(),
-                                               sample, hgd::ClusterOptions{}, {}, field.surfaceGraph().outliers());
+  const hgd::Clustering c =
+      hgd::buildClusters(*cloud, field.surfaceGraph().graph(), coarse_phi, ch, field.unreachable(), sample,
+                         hgd::ClusterOptions{}, {}, field.surfaceGraph().outliers());
 
   const hgd::InterpolationTable straight = hgd::prolongInterpolation(c, level, coarse_phi, phi, h, *g.points);
   const hgd::InterpolationTable labelled =

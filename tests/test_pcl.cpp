@@ -13,9 +13,9 @@
 #include <string>
 #include <vector>
 
-#include "hgdeform/io.h"
-#include "hgdeform/pcl.h"
-#include "hgdeform/runner.h"
+#include "hgdeform/app/pcl.h"
+#include "hgdeform/app/runner.h"
+#include "hgdeform/io/io.h"
 #include "test_util.h"
 
 namespace {

@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "hgdeform/io.h"
+#include "hgdeform/io/io.h"
 #include "support/png_image.h"
 #include "support/shapes.h"
 #include "test_util.h"

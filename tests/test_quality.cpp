@@ -7,8 +7,8 @@
 #include <cstdio>
 #include <filesystem>
 
-#include "hgdeform/deformer.h"
-#include "hgdeform/io.h"
+#include "hgdeform/deformer/deformer.h"
+#include "hgdeform/io/io.h"
 #include "support/arap.h"
 #include "support/quality.h"
 #include "support/shapes.h"

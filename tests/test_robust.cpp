@@ -34,15 +34,15 @@
 #include <string>
 #include <vector>
 
-#include "hgdeform/deformer.h"
-#include "hgdeform/fields.h"
-#include "hgdeform/geometry.h"
-#include "hgdeform/harmonic_field.h"
-#include "hgdeform/io.h"
-#include "hgdeform/regions.h"
-#include "hgdeform/runner.h"
-#include "hgdeform/scenario.h"
-#include "hgdeform/solver.h"
+#include "hgdeform/app/regions.h"
+#include "hgdeform/app/runner.h"
+#include "hgdeform/app/scenario.h"
+#include "hgdeform/deformer/deformer.h"
+#include "hgdeform/field/harmonic_field.h"
+#include "hgdeform/io/fields.h"
+#include "hgdeform/io/geometry.h"
+#include "hgdeform/io/io.h"
+#include "hgdeform/solve/solver.h"
 #include "support/shapes.h"
 #include "test_util.h"
 

@@ -9,9 +9,9 @@
 #include <string>
 #include <vector>
 
-#include "hgdeform/io.h"
-#include "hgdeform/runner.h"
-#include "hgdeform/scenario.h"
+#include "hgdeform/app/runner.h"
+#include "hgdeform/app/scenario.h"
+#include "hgdeform/io/io.h"
 #include "support/shapes.h"
 #include "test_util.h"
 

@@ -21,9 +21,9 @@
 #include <string>
 #include <vector>
 
-#include "hgdeform/deformer.h"
-#include "hgdeform/harmonic_field.h"
-#include "hgdeform/runner.h"
+#include "hgdeform/app/runner.h"
+#include "hgdeform/deformer/deformer.h"
+#include "hgdeform/field/harmonic_field.h"
 #include "support/shapes.h"
 #include "test_util.h"
 
@@ -977,8 +977,8 @@ TEST(Scans, SmallCloudKeepsStraysOutOfTheSample) {
   };
   std::size_t flagged = 0, sampled = 0, members = 0;
   for (std::size_t i = 0; i < g.size(); ++i)
-    flagged += stray(static_cast<int>(i)) && !d.surfaceGraph().outliers().empty() &&
-               d.surfaceGraph().outliers()[i];
+    flagged +=
+        stray(static_cast<int>(i)) && !d.surfaceGraph().outliers().empty() && d.surfaceGraph().outliers()[i];
   for (const int i : d.clustering().sample) sampled += stray(i);
   for (const auto& cl : d.clustering().clusters)
     for (const int i : cl.members) members += stray(i);

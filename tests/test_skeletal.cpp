@@ -5,8 +5,8 @@
 #include <cmath>
 #include <memory>
 
-#include "hgdeform/deformer.h"
-#include "hgdeform/neighbors.h"
+#include "hgdeform/deformer/deformer.h"
+#include "hgdeform/graph/knn.h"
 #include "support/shapes.h"
 #include "test_util.h"
 

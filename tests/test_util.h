@@ -15,9 +15,9 @@
 #include <string>
 #include <vector>
 
-#include "hgdeform/geometry.h"
-#include "hgdeform/regions.h"
-#include "hgdeform/shape.h"
+#include "hgdeform/app/regions.h"
+#include "hgdeform/io/geometry.h"
+#include "hgdeform/io/shape.h"
 
 // Built with AddressSanitizer: `ulimit -v` cannot apply (its shadow memory needs terabytes of
 // address space), so tests that set one skip that part.

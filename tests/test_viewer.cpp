@@ -17,10 +17,10 @@
 #include <string>
 #include <thread>
 
-#include "hgdeform/fields.h"
-#include "hgdeform/geometry.h"
-#include "hgdeform/io.h"
-#include "hgdeform/scenario.h"
+#include "hgdeform/app/scenario.h"
+#include "hgdeform/io/fields.h"
+#include "hgdeform/io/geometry.h"
+#include "hgdeform/io/io.h"
 #include "support/png_image.h"
 #include "support/shapes.h"
 #include "test_util.h"

@@ -19,8 +19,8 @@
 #include <thread>
 #include <vector>
 
-#include "hgdeform/geometry.h"
-#include "hgdeform/io.h"
+#include "hgdeform/io/geometry.h"
+#include "hgdeform/io/io.h"
 #include "support/png_image.h"
 #include "support/shapes.h"
 #include "test_util.h"

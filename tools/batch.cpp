@@ -21,10 +21,10 @@
 #include "batch_provenance.h"
 #include "batch_report.h"
 #include "cli_common.h"
-#include "hgdeform/io.h"
-#include "hgdeform/scenario.h"
+#include "hgdeform/app/scenario.h"
+#include "hgdeform/io/io.h"
 #ifdef HGD_HAVE_RENDER
-#include "hgdeform/render.h"
+#include "hgdeform/render/render.h"
 #endif
 #ifdef HGD_HAVE_MPI
 #include <mpi.h>

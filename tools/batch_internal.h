@@ -20,7 +20,7 @@
 #include <vector>
 
 #include "batch_report.h"
-#include "hgdeform/scenario.h"
+#include "hgdeform/app/scenario.h"
 
 namespace hgdcli {
 namespace batch {

@@ -16,8 +16,8 @@
 #include <system_error>
 
 #include "batch_internal.h"
-#include "hgdeform/cleanup.h"
-#include "hgdeform/io.h"
+#include "hgdeform/app/cleanup.h"
+#include "hgdeform/io/io.h"
 
 namespace hgdcli {
 namespace batch {

@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "hgdeform/runner.h"
+#include "hgdeform/app/runner.h"
 
 namespace hgdcli {
 namespace batch {

@@ -13,7 +13,7 @@
 #include <vector>
 
 #include "batch_internal.h"
-#include "hgdeform/io.h"
+#include "hgdeform/io/io.h"
 
 namespace hgdcli {
 namespace batch {

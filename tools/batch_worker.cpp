@@ -15,13 +15,13 @@
 
 #include "batch_internal.h"
 #include "batch_provenance.h"
-#include "hgdeform/geometry.h"
-#include "hgdeform/io.h"
-#include "hgdeform/regions.h"
-#include "hgdeform/runner.h"
-#include "hgdeform/scenario.h"
+#include "hgdeform/app/regions.h"
+#include "hgdeform/app/runner.h"
+#include "hgdeform/app/scenario.h"
+#include "hgdeform/io/geometry.h"
+#include "hgdeform/io/io.h"
 #ifdef HGD_HAVE_RENDER
-#include "hgdeform/render.h"
+#include "hgdeform/render/render.h"
 #endif
 
 namespace hgdcli {

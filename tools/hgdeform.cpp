@@ -13,16 +13,16 @@
 
 #include "blas_guard.h"
 #include "cli_common.h"
-#include "hgdeform/cleanup.h"
-#include "hgdeform/deformer.h"
-#include "hgdeform/fields.h"
-#include "hgdeform/geometry.h"
-#include "hgdeform/harmonic_field.h"
-#include "hgdeform/io.h"
-#include "hgdeform/regions.h"
-#include "hgdeform/report.h"
-#include "hgdeform/runner.h"
-#include "hgdeform/scenario.h"
+#include "hgdeform/app/cleanup.h"
+#include "hgdeform/app/regions.h"
+#include "hgdeform/app/report.h"
+#include "hgdeform/app/runner.h"
+#include "hgdeform/app/scenario.h"
+#include "hgdeform/deformer/deformer.h"
+#include "hgdeform/field/harmonic_field.h"
+#include "hgdeform/io/fields.h"
+#include "hgdeform/io/geometry.h"
+#include "hgdeform/io/io.h"
 
 namespace hgdcli {
 /// `hgdeform batch` (tools/batch.cpp); argv[0] is "batch", the options follow.

@@ -19,12 +19,12 @@
 #include <vector>
 
 #include "cli_common.h"
-#include "hgdeform/cleanup.h"
-#include "hgdeform/geometry.h"
-#include "hgdeform/io.h"
-#include "hgdeform/regions.h"
-#include "hgdeform/render.h"
-#include "hgdeform/scenario.h"
+#include "hgdeform/app/cleanup.h"
+#include "hgdeform/app/regions.h"
+#include "hgdeform/app/scenario.h"
+#include "hgdeform/io/geometry.h"
+#include "hgdeform/io/io.h"
+#include "hgdeform/render/render.h"
 
 int main(int argc, char** argv) {
   hgd::removeTemporaryFilesOnSignals();  // no partial picture left by an interrupted run

@@ -9,8 +9,8 @@
 #include <string>
 
 #include "cli_common.h"
-#include "hgdeform/cleanup.h"
-#include "hgdeform/io.h"
+#include "hgdeform/app/cleanup.h"
+#include "hgdeform/io/io.h"
 #include "support/shapes.h"
 
 int main(int argc, char** argv) {

@@ -11,7 +11,7 @@
 #include <filesystem>
 #include <random>
 
-#include "hgdeform/cleanup.h"
+#include "hgdeform/app/cleanup.h"
 #include "internal.h"
 
 namespace hgd {

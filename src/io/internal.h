@@ -20,8 +20,8 @@
 #include <vector>
 
 #include "field_codec.h"
-#include "hgdeform/fields.h"
-#include "hgdeform/io.h"
+#include "hgdeform/io/fields.h"
+#include "hgdeform/io/io.h"
 
 namespace hgd::io_internal {
 

@@ -1,4 +1,4 @@
-#include "hgdeform/render.h"
+#include "hgdeform/render/render.h"
 
 #include <pcl/conversions.h>
 #include <pcl/visualization/pcl_visualizer.h>
@@ -45,10 +45,10 @@
 #include <stdexcept>
 #include <string_view>
 
-#include "hgdeform/colormap.h"
-#include "hgdeform/fields.h"
-#include "hgdeform/geometry.h"
-#include "hgdeform/io.h"
+#include "hgdeform/io/colormap.h"
+#include "hgdeform/io/fields.h"
+#include "hgdeform/io/geometry.h"
+#include "hgdeform/io/io.h"
 
 namespace hgd {
 

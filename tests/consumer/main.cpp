@@ -1,6 +1,6 @@
 // A downstream program built against the installed hgdeform: a PCL cloud deformed through
 // <hgdeform/pcl.h>, once with a scenario built in code and once with the interactive stage.
-#include <hgdeform/pcl.h>
+#include <hgdeform/app/pcl.h>
 
 #include <cmath>
 #include <cstdio>

@@ -9,7 +9,7 @@
 #include <random>
 #include <tuple>
 
-#include "hgdeform/geometry.h"
+#include "hgdeform/io/geometry.h"
 
 namespace hgd {
 namespace shapes {

@@ -5,7 +5,7 @@
 #include <Eigen/Core>
 #include <vector>
 
-#include "hgdeform/shape.h"
+#include "hgdeform/io/shape.h"
 
 namespace hgd {
 namespace shapes {

@@ -39,9 +39,9 @@
 
 #include "blas_guard.h"
 #include "cli_common.h"
-#include "hgdeform/cleanup.h"
-#include "hgdeform/io.h"
-#include "hgdeform/render.h"
+#include "hgdeform/app/cleanup.h"
+#include "hgdeform/io/io.h"
+#include "hgdeform/render/render.h"
 #include "replay.h"
 #include "viewer.h"
 

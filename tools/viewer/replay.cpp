@@ -13,8 +13,8 @@
 #include <nlohmann/json.hpp>
 #include <set>
 
-#include "hgdeform/io.h"
-#include "hgdeform/scenario.h"
+#include "hgdeform/app/scenario.h"
+#include "hgdeform/io/io.h"
 
 namespace hgdview {
 

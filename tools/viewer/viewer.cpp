@@ -14,9 +14,9 @@
 #include <sstream>
 #include <thread>
 
-#include "hgdeform/deformer.h"
-#include "hgdeform/geometry.h"
-#include "hgdeform/io.h"
+#include "hgdeform/deformer/deformer.h"
+#include "hgdeform/io/geometry.h"
+#include "hgdeform/io/io.h"
 
 namespace hgdview {
 

@@ -24,9 +24,9 @@
 #include <thread>
 #include <vector>
 
-#include "hgdeform/regions.h"
-#include "hgdeform/runner.h"
-#include "hgdeform/scenario.h"
+#include "hgdeform/app/regions.h"
+#include "hgdeform/app/runner.h"
+#include "hgdeform/app/scenario.h"
 #include "replay.h"
 
 class vtkAbstractPicker;

@@ -24,9 +24,9 @@
 #include <map>
 #include <sstream>
 
-#include "hgdeform/colormap.h"
-#include "hgdeform/fields.h"
-#include "hgdeform/render.h"
+#include "hgdeform/io/colormap.h"
+#include "hgdeform/io/fields.h"
+#include "hgdeform/render/render.h"
 #include "viewer.h"
 
 namespace hgdview {

@@ -1,0 +1,84 @@
+// The deformer's build stage, in libigl's precompute / solve style: the surface graph, the field,
+// the pieces, the clusters and the interpolation table for a set of handles, at full resolution or
+// on a coarse level prolonged to every point (docs/method.md §7). Deformer keeps a
+// DeformationData and solves and interpolates with it.
+//
+//   hgd::DeformationData data;
+//   hgd::precompute(geometry, handles, options, data);   // again for new handles: the graph is kept
+#pragma once
+
+#include <cstddef>
+#include <memory>
+#include <vector>
+
+#include "hgdeform/cluster/clustering.h"
+#include "hgdeform/cluster/pieces.h"
+#include "hgdeform/field/harmonic_field.h"
+#include "hgdeform/interp/blend.h"
+#include "hgdeform/interp/interpolation.h"
+#include "hgdeform/io/geometry.h"
+#include "hgdeform/multires/multires.h"
+#include "hgdeform/solve/solver.h"
+
+namespace hgd {
+
+struct DeformOptions {
+  FieldOptions field;
+  ClusterOptions clusters;
+  SolverWeights weights;
+  GaussNewtonOptions gauss_newton;
+  double drag_tolerance = 1e-4;   ///< dragTo(): stop when the picked point is this close (× diagonal)
+  double max_drag_step = 0.02;    ///< dragTo(): the cursor moves at most this much per frame (× diagonal)
+  int max_drag_frames = 3000;     ///< dragTo(): frames at most
+  Blend blend = Blend::Rotation;  ///< how points blend their two clusters' transforms
+  /// Rot(A) weight of range clusters (bones), times w_MHC: bones are meant to stay rigid (their
+  /// transforms are also projected onto the nearest rotation when applied).
+  double bone_rigidity = 10;
+  /// Multi-resolution build (docs/method.md §7): a shape with more points than this gets its
+  /// field, pieces and clusters on a voxel subsample of about `coarse_points` points, prolonged
+  /// to every point. 0: always at full resolution (every point in the neighbour graph).
+  std::size_t multires_above = 500000;
+  std::size_t coarse_points = 65536;
+};
+
+struct BuildTimings {
+  double field_ms = 0, sampling_ms = 0, clusters_ms = 0, setup_ms = 0;
+  double coarse_ms = 0;  ///< of field_ms: the coarse level and the prolongation (multi-resolution)
+  FieldTimings field;
+  double total() const { return field_ms + sampling_ms + clusters_ms + setup_ms; }
+};
+
+/// What precompute() builds, for the resolution it chose.
+struct DeformationData {
+  /// The graph stage and the field on it: over every point, or over coarse.points' positions
+  /// on a multi-resolution build. Kept across precompute() calls on the same geometry (new
+  /// handles at full resolution only re-solve).
+  std::shared_ptr<SurfaceGraph> graph;
+  HarmonicField field;
+  bool multires = false;
+  CoarseLevel coarse;                  ///< empty at full resolution
+  std::vector<float> phi;              ///< φ at every point of the shape
+  std::size_t unreachable_points = 0;  ///< points in parts that touch no handle (all resolutions)
+  PieceAnalysis pieces;
+  /// The clusters, bands and sample, without per-point labels: a point's two clusters and blend
+  /// factor are table.bracket(i).
+  Clustering clustering;
+  InterpolationTable table;
+  BuildTimings timings;  ///< field_ms, sampling_ms, coarse_ms, field; clusters_ms so far
+};
+
+/// Builds `data` for `handles` (valid indices, checked: std::invalid_argument) on `geometry`,
+/// whose clouds must stay as they are while `data` lives. The resolution is chosen on the first
+/// call (options.multires_above, coarse_points) and kept.
+void precompute(const Geometry& geometry, const Handles& handles, const DeformOptions& options,
+                DeformationData& data);
+
+/// The solver's view of the clusters: members and barycentres through `normalise` (the
+/// deformer's frame), handles constant or free, and each cluster's Rot(A) weight (w_MHC on the
+/// manipulated cluster, bone_rigidity x w_MHC on bones).
+std::vector<SolverCluster> solverClusters(const Clustering& clustering,
+                                          const pcl::PointCloud<pcl::PointXYZ>& points,
+                                          const DeformOptions& options, const Eigen::Vector3d& centre,
+                                          double scale);
+
+}  // namespace hgd

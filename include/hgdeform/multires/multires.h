@@ -1,0 +1,62 @@
+// The multi-resolution build (docs/method.md §7): the field, the pieces and the clusters
+// on a voxel subsample, prolonged to every point.
+#pragma once
+
+#include <pcl/point_cloud.h>
+#include <pcl/point_types.h>
+
+#include <cstdint>
+#include <vector>
+
+#include "hgdeform/cluster/clustering.h"
+#include "hgdeform/cluster/handles.h"
+#include "hgdeform/graph/neighbor_graph.h"
+#include "hgdeform/interp/interpolation.h"
+
+namespace hgd {
+
+/// A voxel subsample: one point per occupied (cell, handle) pair, the one nearest the cell's
+/// centre, so that every handle keeps points of its own. Every shape point has an anchor: the
+/// coarse point of its cell (or, for a stray, the nearest one).
+struct CoarseLevel {
+  std::vector<int> points;            ///< coarse point -> shape point (its cell's representative)
+  std::vector<std::uint32_t> anchor;  ///< shape point -> coarse point (its cell's)
+  std::vector<std::uint32_t> weight;  ///< coarse point -> shape points it stands for
+  /// Shape points alone in their block of cells (strays of a scan): no coarse point; each hangs
+  /// from the nearest coarse point (its anchor) and takes its values.
+  std::vector<int> strays;
+  float cell = 0;  ///< the voxel side
+  bool empty() const { return points.empty(); }
+};
+
+/// About `target` coarse points (within ±15% where the cloud allows). Empty when the handles
+/// are too many to key the cells by (thousands): the caller stays at full resolution. Handle
+/// indices must be valid. `find_strays`: a cloud's (a mesh has none).
+CoarseLevel coarsen(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles& handles, std::size_t target,
+                    bool find_strays = true);
+
+/// The handles (and joints) of the coarse level: the anchors of their points.
+Handles coarseHandles(const Handles& handles, const CoarseLevel& level);
+
+/// φ at every shape point from φ at the coarse points (`coarse_phi`, solved on `graph`, the
+/// coarse points' neighbour graph; `constrained`: coarse handle points). A point takes its
+/// anchor's value moved along the anchor's gradient (least squares over its graph neighbours),
+/// limited to the range of values around the anchor; a handle's points take its value exactly.
+std::vector<float> prolongField(const pcl::PointCloud<pcl::PointXYZ>& points, const CoarseLevel& level,
+                                const NeighborGraph& graph, const std::vector<float>& coarse_phi,
+                                const std::vector<char>& constrained);
+
+/// The interpolation table of every shape point from the coarse level's clustering: each point
+/// takes its anchor's two clusters, and its blend factor from its own φ where the anchor's came
+/// from φ (else the anchor's). What building the table from per-point labels gave,
+/// straight from the coarse level's clustering, with no per-point labels in between (16 bytes
+/// a point fewer at the peak). `handles`: the shape's; normals are left to the caller.
+InterpolationTable prolongInterpolation(const Clustering& coarse, const CoarseLevel& level,
+                                        const std::vector<float>& coarse_phi, const std::vector<float>& phi,
+                                        const Handles& handles, const pcl::PointCloud<pcl::PointXYZ>& points);
+
+/// The clusters of the shape from the coarse level's: member and sample indices become shape
+/// indices; no per-point labels (lower, upper, alpha and nearest are left empty).
+Clustering prolongClusters(Clustering coarse, const CoarseLevel& level);
+
+}  // namespace hgd

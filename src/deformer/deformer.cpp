@@ -1,0 +1,400 @@
+#include "hgdeform/deformer/deformer.h"
+
+#include <omp.h>
+
+#include <Eigen/SVD>
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <stdexcept>
+
+#include "hgdeform/io/fields.h"
+#include "util/timer.h"
+
+namespace hgd {
+
+namespace {
+constexpr std::size_t kMaxMatchPoints = 32;  // shape-matching points besides the picked one
+constexpr double kPinWeight = 1e4;           // relative weight of the barycentre pin
+}  // namespace
+
+Deformer::Deformer(const Geometry& geometry, const Handles& handles, const DeformOptions& options)
+    : Deformer(std::make_shared<const Geometry>(geometry), handles, options) {}
+
+Deformer::Deformer(std::shared_ptr<const Geometry> geometry, const Handles& handles,
+                   const DeformOptions& options)
+    : geometry_(std::move(geometry)), handles_(handles), options_(options) {
+  if (!geometry_) throw std::invalid_argument("Deformer: no geometry");
+  if (geometry_->hasFileNormals() && geometry_->file_normals->size() != geometry_->size())
+    throw std::invalid_argument("Deformer: the geometry has " +
+                                std::to_string(geometry_->file_normals->size()) + " normals for " +
+                                std::to_string(geometry_->size()) + " points");
+  // The body's box: a far stray does not coarsen tolerances and steps (nor the normalised frame).
+  const Eigen::AlignedBox3f box = bodyBox(*geometry_);
+  const Eigen::Vector3d lo = box.min().cast<double>(), hi = box.max().cast<double>();
+  centre_ = 0.5 * (lo + hi);
+  const double diag = (hi - lo).norm();
+  scale_ = diag > 0 ? 1.0 / diag : 1.0;
+  positions_.resize(geometry_->size());  // (normals are sized when first derived)
+  rebuild();
+}
+
+void Deformer::setHandles(const Handles& handles) {
+  handles_ = handles;
+  rebuild();
+}
+
+void Deformer::rebuild() {
+  // The tables change: normals due on points a preview frame will leave alone, now; without a
+  // preview the first frame derives them all again.
+  if (!preview_.empty()) updateNormals();
+  normals_.all_due = normals_.preview_due = false;
+  precompute(*geometry_, handles_, options_, data_);
+  Stopwatch sw;
+  buildPreviewTable();
+  data_.timings.clusters_ms += sw.lap();
+  solver_.setup(solverClusters(data_.clustering, *geometry_->points, options_, centre_, scale_),
+                data_.clustering.adjacency, data_.clustering.manipulated, options_.weights);
+  frame_mode_ = false;
+  local_.resize(data_.clustering.clusters.size());
+  exact_.assign(data_.clustering.clusters.size(), ExactTransform{});
+  picked_ = -1;
+  updateShape();
+  data_.timings.setup_ms = sw.lap();
+}
+
+DeformerState Deformer::state() const {
+  return {solver_.transforms(), frame_mode_};
+}
+
+void Deformer::restore(const DeformerState& state) {
+  if (state.transforms.size() != data_.clustering.clusters.size())
+    throw std::invalid_argument("Deformer::restore: the state belongs to other clusters");
+  solver_.setTransforms(state.transforms);
+  const int mc = data_.clustering.manipulated;
+  if (state.frame_mode)
+    solver_.hold(mc, state.transforms[static_cast<std::size_t>(mc)]);
+  else
+    solver_.release();
+  frame_mode_ = state.frame_mode;
+  picked_ = -1;
+  updateShape();
+}
+
+void Deformer::leaveFrameMode() {
+  if (!frame_mode_) return;
+  solver_.release();
+  frame_mode_ = false;
+  picked_ = -1;
+}
+
+Eigen::Vector3d Deformer::currentNormalised(int cluster, const Eigen::Vector3d& rest) const {
+  const NormalisedTransform& t = solver_.transforms()[static_cast<std::size_t>(cluster)];
+  const Eigen::Vector3d g =
+      normalise(data_.clustering.clusters[static_cast<std::size_t>(cluster)].barycentre);
+  return t.A * (rest - g) + g + t.t;
+}
+
+void Deformer::pick(const Eigen::Vector3d& world) {
+  const Eigen::Vector3f local = (world - geometry_->origin).cast<float>();
+  float best = INFINITY;
+  picked_ = handles_.manipulated.front();
+  for (int i : handles_.manipulated) {
+    const float d = (positions_[static_cast<std::size_t>(i)] - local).squaredNorm();
+    if (d < best) {
+      best = d;
+      picked_ = i;
+    }
+  }
+  // Shape matching on (a subsample of) the handle's cluster points plus the picked point.
+  const auto& members =
+      data_.clustering.clusters[static_cast<std::size_t>(data_.clustering.manipulated)].members;
+  const std::size_t stride =
+      std::max<std::size_t>(1, (members.size() + kMaxMatchPoints - 1) / kMaxMatchPoints);
+  manip_rest_.clear();
+  manip_weight_.clear();
+  for (std::size_t k = 0; k < members.size(); k += stride) {
+    if (members[k] == picked_) continue;
+    manip_rest_.push_back(normalise(
+        (*geometry_->points)[static_cast<std::size_t>(members[k])].getVector3fMap().cast<double>()));
+    manip_weight_.push_back(1.0);
+  }
+  manip_rest_.push_back(
+      normalise((*geometry_->points)[static_cast<std::size_t>(picked_)].getVector3fMap().cast<double>()));
+  manip_weight_.push_back(options_.weights.picked);
+  // The paper's t_MC = c - c0: the handle's weighted barycentre goes exactly to the targets'
+  // weighted barycentre. Imposed as one extra matching point of overwhelming weight, so that
+  // only A_MC is left to the energy.
+  double wsum = 0;
+  Eigen::Vector3d c0 = Eigen::Vector3d::Zero();
+  for (std::size_t k = 0; k < manip_rest_.size(); ++k) {
+    c0 += manip_weight_[k] * manip_rest_[k];
+    wsum += manip_weight_[k];
+  }
+  manip_rest_.push_back(c0 / wsum);
+  manip_weight_.push_back(kPinWeight * wsum);
+  manip_target_.resize(manip_rest_.size());
+}
+
+SolveStats Deformer::drag(const Eigen::Vector3d& from, const Eigen::Vector3d& to) {
+  if (!to.allFinite() || !from.allFinite()) throw std::invalid_argument("drag: target is not finite");
+  leaveFrameMode();
+  if (picked_ < 0 || from != last_to_) pick(from);
+  const SolveStats st = dragFrame(to);
+  updateShape();
+  return st;
+}
+
+SolveStats Deformer::dragFrame(const Eigen::Vector3d& to) {
+  const int mc = data_.clustering.manipulated;
+  // Targets: the picked point at the cursor, the other points where they are now, and the
+  // pin at the weighted barycentre of those targets.
+  const std::size_t picked_slot = manip_rest_.size() - 2, pin = manip_rest_.size() - 1;
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  double wsum = 0;
+  for (std::size_t k = 0; k < pin; ++k) {
+    manip_target_[k] =
+        k == picked_slot ? normalise(to - geometry_->origin) : currentNormalised(mc, manip_rest_[k]);
+    c += manip_weight_[k] * manip_target_[k];
+    wsum += manip_weight_[k];
+  }
+  manip_target_[pin] = c / wsum;
+  solver_.setManipulation(manip_rest_, manip_target_, manip_weight_);
+  const SolveStats st = solver_.solve(options_.gauss_newton);
+  last_to_ = to;
+  return st;
+}
+
+SolveStats Deformer::translateHandle(const Eigen::Vector3d& from, const Eigen::Vector3d& to) {
+  if (!to.allFinite() || !from.allFinite()) throw std::invalid_argument("drag: target is not finite");
+  if (picked_ < 0 || from != last_to_) pick(from);
+  const SolveStats st = moveHandle(Eigen::Affine3d(Eigen::Translation3d(to - pickedWorld())));
+  last_to_ = to;
+  return st;
+}
+
+Eigen::Vector3d Deformer::pickedWorld() const {
+  const Eigen::Vector3d rest =
+      normalise((*geometry_->points)[static_cast<std::size_t>(picked_)].getVector3fMap().cast<double>());
+  return currentNormalised(data_.clustering.manipulated, rest) / scale_ + centre_ + geometry_->origin;
+}
+
+DragResult Deformer::dragTo(const Eigen::Vector3d& from, const Eigen::Vector3d& to) {
+  DragResult r;
+  if (!to.allFinite() || !from.allFinite()) throw std::invalid_argument("drag: target is not finite");
+  leaveFrameMode();
+  pick(from);
+  const Eigen::Vector3d start = deformedWorld(static_cast<std::size_t>(picked_));
+  last_to_ = from;
+  const double diag = 1.0 / scale_;
+  // The cursor's path in frames of at most max_drag_step; a target absurdly far away gets at
+  // most half the frame budget for the path (longer steps) instead of running for ever.
+  const double steps = std::ceil((to - start).norm() / (options_.max_drag_step * diag));
+  const int path_frames =
+      static_cast<int>(std::clamp(steps, 1.0, std::max(1.0, 0.5 * options_.max_drag_frames)));
+  // Frames between the first and the last change only the solver's state: the shape is
+  // interpolated once at the end (the result is the same; the replay is faster).
+  auto frame = [&](const Eigen::Vector3d& next) {
+    const SolveStats st = dragFrame(next);
+    ++r.frames;
+    r.iterations += st.iterations;
+    r.max_frame_iterations = std::max(r.max_frame_iterations, st.iterations);
+    r.solve_ms += st.ms;
+    r.last = st;
+  };
+  for (int f = 1; f <= path_frames; ++f) frame(start + (to - start) * (static_cast<double>(f) / path_frames));
+  const double tol = options_.drag_tolerance * diag;
+  while (r.frames < options_.max_drag_frames && (pickedWorld() - to).norm() > tol) frame(to);
+  updateShape();
+  r.interpolation_ms = interp_ms_;
+  r.error = (deformedWorld(static_cast<std::size_t>(picked_)) - to).norm();
+  r.reached = r.error <= tol;
+  return r;
+}
+
+SolveStats Deformer::setHandleTransform(const Eigen::Affine3d& transform) {
+  if (!transform.matrix().allFinite())
+    throw std::invalid_argument("setHandleTransform: transform is not finite");
+  return moveHandle(transform * handleTransform().inverse());
+}
+
+Eigen::Vector3d Deformer::handleCentre() const {
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  for (int i : handles_.manipulated) c += deformedWorld(static_cast<std::size_t>(i));
+  return c / static_cast<double>(handles_.manipulated.size());
+}
+
+SolveStats Deformer::moveHandle(const Eigen::Affine3d& motion) {
+  if (!motion.matrix().allFinite()) throw std::invalid_argument("moveHandle: motion is not finite");
+  // A large jump (a half turn given at once) has no preferred way round for the clusters in
+  // between: Gauss-Newton from the old pose would sit at the saddle and collapse them. So the
+  // handle travels there as a user would move it: in steps of at most 20 degrees and a tenth
+  // of the diagonal, each solve warm-starting the next.
+  const Eigen::Affine3d current = handleTransform();
+  const Eigen::Matrix3d rot = nearestRotation<double>(motion.linear());
+  const Eigen::Matrix3d stretch = rot.transpose() * motion.linear();
+  const Eigen::Vector3d c = handleCentre();  // the pivot
+  const double angle = Eigen::AngleAxisd(rot).angle();
+  const double travel = (motion * c - c).norm() * scale_;
+  // (At most 200 steps: a handle sent absurdly far still ends, in longer steps.)
+  const double wanted = std::max({1.0, std::ceil(angle / (20.0 * M_PI / 180.0)), std::ceil(travel / 0.1)});
+  const int steps = static_cast<int>(std::min(wanted, 200.0));
+  SolveStats total;
+  const Eigen::Quaterniond q0 = Eigen::Quaterniond::Identity(), q1(rot);
+  for (int k = 1; k <= steps; ++k) {
+    const double s = static_cast<double>(k) / steps;
+    Eigen::Affine3d step = Eigen::Affine3d::Identity();
+    if (k == steps) {
+      step = motion;
+    } else {
+      const Eigen::Matrix3d lin =
+          q0.slerp(s, q1).toRotationMatrix() * ((1 - s) * Eigen::Matrix3d::Identity() + s * stretch);
+      step.linear() = lin;
+      step.translation() = c + s * (motion * c - c) - lin * c;
+    }
+    const SolveStats st = solveHandle(step * current);
+    total.iterations += st.iterations;
+    total.ms += st.ms;
+    total.converged = st.converged;
+    total.decreased = total.decreased && st.decreased;
+    total.energy = st.energy;
+  }
+  updateShape();
+  return total;
+}
+
+SolveStats Deformer::solveHandle(const Eigen::Affine3d& transform) {
+  if (!frame_mode_) picked_ = -1;  // a drag after the frame move picks again
+  frame_mode_ = true;
+  const Eigen::Matrix3d a = transform.linear();
+  const Eigen::Vector3d o = geometry_->origin;
+  // The world transform in the solver's normalised frame, about the cluster's barycentre.
+  const Eigen::Vector3d shift = scale_ * (a * (centre_ + o) + transform.translation() - o - centre_);
+  const int mc = data_.clustering.manipulated;
+  const Eigen::Vector3d g = normalise(data_.clustering.clusters[static_cast<std::size_t>(mc)].barycentre);
+  solver_.hold(mc, NormalisedTransform{a, a * g + shift - g});
+  return solver_.solve(options_.gauss_newton);
+}
+
+Eigen::Affine3d Deformer::handleTransform() const {
+  const int mc = data_.clustering.manipulated;
+  const NormalisedTransform& t = solver_.transforms()[static_cast<std::size_t>(mc)];
+  const Eigen::Vector3d g = normalise(data_.clustering.clusters[static_cast<std::size_t>(mc)].barycentre);
+  const Eigen::Vector3d shift = t.t + g - t.A * g;  // normalised: x -> A x + shift
+  const Eigen::Vector3d o = geometry_->origin;
+  Eigen::Affine3d w = Eigen::Affine3d::Identity();
+  w.linear() = t.A;
+  w.translation() = shift / scale_ - t.A * (centre_ + o) + o + centre_;
+  return w;
+}
+
+void Deformer::reset() {
+  leaveFrameMode();
+  solver_.reset();
+  picked_ = -1;
+  updateShape();
+}
+
+void Deformer::setPreview(std::vector<int> points) {
+  for (const int i : points)
+    if (i < 0 || static_cast<std::size_t>(i) >= geometry_->size())
+      throw std::invalid_argument("Deformer::setPreview: point index out of range");
+  const bool was = !preview_.empty();
+  // The old preview's normals, if due, before its table goes (a full frame's keep: they are
+  // computed from its own transforms whenever asked for).
+  if (normals_.preview_due) updateNormals();
+  preview_request_ = std::move(points);
+  buildPreviewTable();
+  if (was && preview_.empty()) updateShape();  // the points left behind catch up
+}
+
+void Deformer::buildPreviewTable() {
+  preview_table_ = InterpolationTable{};
+  preview_.clear();
+  if (preview_request_.empty()) return;
+  // The manipulated handle's points too: picking reads their positions.
+  preview_ = preview_request_;
+  preview_.insert(preview_.end(), handles_.manipulated.begin(), handles_.manipulated.end());
+  std::sort(preview_.begin(), preview_.end());
+  preview_.erase(std::unique(preview_.begin(), preview_.end()), preview_.end());
+  preview_table_.has_normals = data_.table.has_normals;
+  if (data_.table.has_normals)
+    for (const int i : preview_)
+      preview_table_.normals.push_back(data_.table.restNormal(static_cast<std::size_t>(i)));
+  preview_table_.pairs = data_.table.pairs;
+  preview_table_.pair_centre = data_.table.pair_centre;
+  preview_table_.points.reserve(preview_.size());
+  for (const int i : preview_)
+    preview_table_.points.push_back(data_.table.points[static_cast<std::size_t>(i)]);
+  preview_points_.resize(preview_.size());
+  preview_normals_.resize(preview_.size());
+}
+
+void Deformer::setBlend(Blend blend) {
+  options_.blend = blend;
+  updateShape();
+}
+
+void Deformer::updateShape() {
+  Stopwatch sw;
+  const auto& tr = solver_.transforms();
+  for (std::size_t c = 0; c < tr.size(); ++c) {
+    const Cluster& cl = data_.clustering.clusters[c];
+    const Eigen::Vector3d g = normalise(cl.barycentre);
+    Eigen::Matrix3d a = tr[c].A;
+    // The barycentre's image, g + t in the normalised frame, back in the local frame.
+    const Eigen::Vector3d image = (g + tr[c].t) / scale_ + centre_;
+    const bool identity = tr[c].A == Eigen::Matrix3d::Identity() && tr[c].t.isZero(0);
+    if (cl.kind == ClusterKind::Range && !identity) a = nearestRotation(a);  // bones move rigidly
+    ExactTransform& e = exact_[c];
+    e.identity = identity;
+    e.A = identity ? Eigen::Matrix3d::Identity() : a;
+    e.b = identity ? Eigen::Vector3d::Zero() : Eigen::Vector3d(image - a * cl.barycentre);
+    local_[c].set(e.A.cast<float>(), e.b.cast<float>(), cl.barycentre.cast<float>());
+  }
+  if (preview_.empty()) {
+    interpolatePositions(data_.table, local_, positions_, options_.blend);
+    const std::lock_guard<std::mutex> lock(normals_.mutex);
+    normals_.all_due = true;
+    normals_.all_transforms = local_;
+    normals_.all_blend = options_.blend;
+    normals_.preview_due = false;
+  } else {
+    interpolatePositions(preview_table_, local_, preview_points_, options_.blend);
+    for (std::size_t k = 0; k < preview_.size(); ++k)
+      positions_[static_cast<std::size_t>(preview_[k])] = preview_points_[k];
+    const std::lock_guard<std::mutex> lock(normals_.mutex);
+    normals_.preview_due = true;
+  }
+  interp_ms_ = sw.ms();
+}
+
+SurfaceStretch Deformer::surfaceStretch() const {
+  // (Never under 1e-4 of the diagonal: a move and back, float noise on near-duplicate points
+  // must not count as a split.)
+  return measureSurfaceStretch(*geometry_, positions_, *data_.graph, data_.coarse, 1e-4 / scale_);
+}
+
+void Deformer::updateNormals() const {
+  const std::lock_guard<std::mutex> lock(normals_.mutex);
+  out_normals_.resize(geometry_->size());
+  // The last full frame's (the points a preview frame left alone keep those), then the preview's.
+  if (normals_.all_due) {
+    interpolateNormals(data_.table, normals_.all_transforms, out_normals_, normals_.all_blend);
+    normals_.all_due = false;
+  }
+  if (normals_.preview_due && data_.table.has_normals) {
+    interpolateNormals(preview_table_, local_, preview_normals_, options_.blend);
+    for (std::size_t k = 0; k < preview_.size(); ++k)
+      out_normals_[static_cast<std::size_t>(preview_[k])] = preview_normals_[k];
+  }
+  normals_.preview_due = false;
+}
+
+const std::vector<Eigen::Vector3f>& Deformer::deformedNormals() const {
+  updateNormals();
+  return out_normals_;
+}
+
+}  // namespace hgd

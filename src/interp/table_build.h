@@ -1,0 +1,74 @@
+// One way to fill an interpolation table from per-point brackets, for buildInterpolation (a
+// clustering's per-point labels) and for the multi-resolution build (each point's anchor's,
+// without per-point labels in between): the pairs, the records and the handle pins.
+#pragma once
+
+#include <algorithm>
+#include <cstdint>
+#include <utility>
+#include <vector>
+
+#include "hgdeform/interp/interpolation.h"
+#include "util/parallel.h"
+#include "util/timer.h"
+
+namespace hgd::detail {
+
+/// The table of `points` under the clusters of `c` (their barycentres and kinds; not its per-point
+/// labels). `candidates`: every (lower, upper) pair a point may take, in any order, repeats
+/// allowed. `bracket(i, lower, upper, alpha)` gives point i's; it is called in parallel. Then
+/// `adjust(table)` may change records, before handle points are pinned to their handle's cluster
+/// (so that the pins hold whatever it does). Normals are left to the caller.
+template <class Bracket, class Adjust>
+InterpolationTable buildTable(const Handles& handles, const Clustering& c,
+                              const pcl::PointCloud<pcl::PointXYZ>& points,
+                              std::vector<std::pair<int, int>> candidates, Bracket&& bracket,
+                              Adjust&& adjust) {
+  const std::size_t n = points.size();
+  InterpolationTable t;
+  std::vector<int> fixed_cluster(handles.fixed.size(), -1);
+  for (const auto& cl : c.clusters)
+    if (cl.kind == ClusterKind::Fixed) fixed_cluster[static_cast<std::size_t>(cl.handle)] = cl.id;
+  // Pairs: sorted unique (lower, upper), looked up by binary search.
+  t.pairs = std::move(candidates);
+  for (std::size_t k = 0; k < handles.fixed.size(); ++k)
+    if (!handles.fixed[k].empty()) t.pairs.emplace_back(fixed_cluster[k], fixed_cluster[k]);
+  if (!handles.manipulated.empty()) t.pairs.emplace_back(c.manipulated, c.manipulated);
+  std::sort(t.pairs.begin(), t.pairs.end());
+  t.pairs.erase(std::unique(t.pairs.begin(), t.pairs.end()), t.pairs.end());
+  auto pairOf = [&](int lo, int hi) {
+    return static_cast<std::uint32_t>(
+        std::lower_bound(t.pairs.begin(), t.pairs.end(), std::make_pair(lo, hi)) - t.pairs.begin());
+  };
+  t.points.resize(n);
+  const long long nn = static_cast<long long>(n);
+#pragma omp parallel for schedule(static) if (nn > kParallelMin)
+  for (long long ii = 0; ii < nn; ++ii) {
+    const auto i = static_cast<std::size_t>(ii);
+    InterpolationTable::Point& r = t.points[i];
+    for (int a = 0; a < 3; ++a) r.p[a] = points[i].data[a];
+    int lo = -1, hi = -1;
+    float alpha = 0;
+    bracket(i, lo, hi, alpha);
+    r.pair = pairOf(lo, hi);
+    r.alpha = alpha;
+  }
+  adjust(t);
+  // Handle points take their handle's transform exactly.
+  auto pin = [&](const std::vector<int>& idx, int cluster) {
+    const std::uint32_t pair = pairOf(cluster, cluster);
+    for (const int i : idx) {
+      t.points[static_cast<std::size_t>(i)].pair = pair;
+      t.points[static_cast<std::size_t>(i)].alpha = 0.0f;
+    }
+  };
+  for (std::size_t k = 0; k < handles.fixed.size(); ++k) pin(handles.fixed[k], fixed_cluster[k]);
+  pin(handles.manipulated, c.manipulated);  // last: a point in both keeps the manipulated one
+  for (const auto& [a, b] : t.pairs)
+    t.pair_centre.push_back((0.5 * (c.clusters[static_cast<std::size_t>(a)].barycentre +
+                                    c.clusters[static_cast<std::size_t>(b)].barycentre))
+                                .cast<float>());
+  return t;
+}
+
+}  // namespace hgd::detail
