@@ -25,7 +25,7 @@
 #include "hgdeform/scenario.h"
 
 namespace hgdcli {
-/// `hgdeform batch` (tools/batch.cpp); argv[0] is "batch", the options follow.
+/// `hgdeform batch` (tools/batch/batch.cpp); argv[0] is "batch", the options follow.
 int runBatch(int argc, char** argv);
 }  // namespace hgdcli
 
