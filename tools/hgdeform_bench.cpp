@@ -637,6 +637,6 @@ int main(int argc, char** argv) {
       all.push_back({{"arap", a}});
     }
   }
-  if (!json_path.empty()) hgd::writeTextAtomically(json_path, all.dump(2) + "\n");
+  if (!json_path.empty()) hgd::writeFileAtomically(json_path, all.dump(2) + "\n");
   return 0;
 }
