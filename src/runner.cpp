@@ -63,6 +63,23 @@ void ScenarioRunner::setScenario(const Scenario& scenario) {
   build_ms_ += t.ms();
 }
 
+FieldResult ScenarioRunner::field(const Scenario& scenario) const {
+  requireShape("field");
+  FieldResult r;
+  r.handles = resolveHandles(scenario, *geometry_, shape_);
+  const Handles& handles = r.handles;
+  HarmonicField field;
+  field.setInputCloud(geometry_->points);
+  if (geometry_->hasFileNormals()) field.setInputNormals(geometry_->file_normals);
+  if (!geometry_->faces.empty()) field.setPolygons(geometry_->faces);
+  field.setOptions(mergedOptions(options_, scenario, shape_, *geometry_).field);
+  field.setHandles(handles.fixed, handles.manipulated);
+  field.compute(r.values);
+  r.timings = field.timings();
+  r.unreachable = field.unreachable().size();
+  return r;
+}
+
 void ScenarioRunner::setHandles(const Handles& handles) {
   requireShape("setHandles");
   handles_ = handles;

@@ -177,36 +177,29 @@ int runField(const FieldArgs& a) {
   hgd::formatFromPath(output);  // fail on a bad extension before any work
   hgd::refuseInputs(output, {input, scenario_path});
 
-  hgd::FieldOptions opt;
-  opt.k_neighbors = a.k;
-  opt.solver = fieldSolver(a.solver);
-  opt.mesh_ring = a.mesh_ring;
+  hgd::RunOptions ro;
+  ro.deform.field.k_neighbors = a.k;
+  ro.deform.field.solver = fieldSolver(a.solver);
+  ro.deform.field.mesh_ring = a.mesh_ring;
 
   const auto t0 = std::chrono::steady_clock::now();
   const hgd::Scenario scenario = hgd::readScenario(scenario_path);
-  hgd::Shape shape = hgd::readShape(input);
-  for (const std::string& w : shape.warnings) std::fprintf(stderr, "hgdeform: warning: %s\n", w.c_str());
-  const hgd::Geometry geometry = hgd::extractGeometry(shape);
-  const hgd::Handles handles = hgd::resolveHandles(scenario, geometry, shape);
+  hgd::Shape read = hgd::readShape(input);
+  for (const std::string& w : read.warnings) std::fprintf(stderr, "hgdeform: warning: %s\n", w.c_str());
+  hgd::ScenarioRunner run(std::move(read), ro);
   const double read_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-
-  hgd::HarmonicField field;
-  field.setInputCloud(geometry.points);
-  if (geometry.hasFileNormals()) field.setInputNormals(geometry.file_normals);
-  if (!geometry.faces.empty()) field.setPolygons(geometry.faces);
-  opt.orient_to_viewpoint = shape.isOrganized();
-  opt.viewpoint = (shape.sensor_origin.head<3>().cast<double>() - geometry.origin).cast<float>();
-  field.setOptions(opt);
-  field.setHandles(handles.fixed, handles.manipulated);
-  std::vector<float> phi;
-  field.compute(phi);
+  // The field alone, as `hgdeform deform` builds it at full resolution (the runner's rule for
+  // the sensor viewpoint of scans), stored into the rest shape.
+  const hgd::FieldResult field = run.field(scenario);
+  const hgd::Geometry& geometry = run.geometry();
+  hgd::Shape shape = run.release(false);
 
   // What the new field replaces is said, never done in silence.
   for (const std::string& replaced : replacedFields(shape, a.colour))
     std::fprintf(stderr, "hgdeform: warning: %s: its %s replaced in %s\n", input.c_str(), replaced.c_str(),
                  output.c_str());
-  hgd::storeField(shape, geometry, phi, "harmonic", a.colour);
+  hgd::storeField(shape, geometry, field.values, "harmonic", a.colour);
   if (const std::string lost = hgd::extrasLost(shape, hgd::formatFromPath(output)); !lost.empty())
     std::fprintf(stderr, "hgdeform: warning: %s: %s\n", output.c_str(), lost.c_str());
   hgd::WriteOptions wo;
@@ -214,7 +207,8 @@ int runField(const FieldArgs& a) {
   hgd::writeShape(output, shape, wo);
 
   if (!a.quiet) {
-    const auto& t = field.timings();
+    const hgd::FieldTimings& t = field.timings;
+    const hgd::Handles& handles = field.handles;
     std::size_t fixed_points = 0;
     for (const auto& f : handles.fixed) fixed_points += f.size();
     std::printf(
@@ -223,14 +217,14 @@ int runField(const FieldArgs& a) {
         "field "
         "%.0f ms -> %s\n",
         input.c_str(), geometry.size(), handles.fixed.size(), fixed_points, handles.manipulated.size(),
-        field.unreachable().size(), read_ms, t.knn_ms, t.normals_ms, t.graph_ms, t.laplacian_ms, t.solve_ms,
+        field.unreachable, read_ms, t.knn_ms, t.normals_ms, t.graph_ms, t.laplacian_ms, t.solve_ms,
         t.exact ? "exact" : ("multilevel, " + std::to_string(t.iterations) + " iterations").c_str(),
         t.total(), output.c_str());
   }
-  if (!field.unreachable().empty())
+  if (field.unreachable > 0)
     std::fprintf(stderr,
                  "hgdeform: warning: %zu points lie in parts that touch no handle; their field is 0\n",
-                 field.unreachable().size());
+                 field.unreachable);
   return 0;
 }
 
