@@ -251,6 +251,19 @@ TEST(Viewer, BadInputGivesAClearError) {
   EXPECT_NE(out.find("display"), std::string::npos) << out;
 }
 
+// The keys are one table: --help lists each key the help overlay shows ('l' was missing from the
+// list written by hand), without a display.
+TEST(Viewer, HelpListsEveryKey) {
+  std::string out;
+  ASSERT_EQ(hgdtest::run(std::string(HGD_VIEW) + " --help", out), 0) << out;
+  for (const char* line :
+       {"  x            area select", "  shift+click  select around a point", "  +/-          radius",
+        "  C            clear all handles", "  l            drags keep orientation",
+        "  < >          point size", "  z/y          undo/redo", "  S            save scenario",
+        "  k            screenshot", "  h            help", "  q/e          quit"})
+    EXPECT_NE(out.find(line), std::string::npos) << line << "\n" << out;
+}
+
 // No output of the viewer or the renderer replaces an input: --screenshot, and the replay
 // events screenshot, save and save_scenario, named as the shape, the scenario or the replay.
 TEST(Viewer, NoOutputReplacesAnInput) {
