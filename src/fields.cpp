@@ -75,13 +75,10 @@ int addFloatField(pcl::PCLPointCloud2& cloud, const std::string& name) {
 
 void retypeFields(pcl::PCLPointCloud2& cloud, const std::vector<int>& fields, std::uint8_t datatype) {
   const std::size_t n = static_cast<std::size_t>(cloud.width) * cloud.height;
-  pcl::PCLPointCloud2 out;  // the header alone: the data is repacked, not copied first
-  out.header = cloud.header;
-  out.height = cloud.height;
-  out.width = cloud.width;
-  out.fields = cloud.fields;
-  out.is_bigendian = cloud.is_bigendian;
-  out.is_dense = cloud.is_dense;
+  // The header alone: the data is repacked, not copied first.
+  std::vector<std::uint8_t> data = std::move(cloud.data);
+  pcl::PCLPointCloud2 out = cloud;
+  cloud.data = std::move(data);
   std::uint32_t offset = 0;  // repacked in field order, each field at its (new) size
   for (std::size_t k = 0; k < out.fields.size(); ++k) {
     auto& f = out.fields[k];

@@ -164,13 +164,8 @@ MoveResult ScenarioRunner::solveMove(const Move& move) {
   MoveResult r;
   if (move.kind == Move::Kind::Drag && !move.drag.keep_orientation) {
     const DragResult dr = d.dragTo(move.drag.from, move.drag.to);
-    r.frames = dr.frames;
-    r.iterations = dr.iterations;
-    r.max_frame_iterations = dr.max_frame_iterations;
-    r.reached = dr.reached;
-    r.handle_error = dr.error;
-    r.solve_ms = dr.solve_ms;
-    r.interpolation_ms = dr.interpolation_ms;
+    r = MoveResult{dr.frames, dr.iterations, dr.max_frame_iterations, dr.reached,
+                   dr.error,  dr.solve_ms,   dr.interpolation_ms,     {}};
     if (!dr.reached) {
       char buf[320];
       std::snprintf(buf, sizeof buf,

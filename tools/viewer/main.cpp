@@ -62,22 +62,7 @@ int parseArgs(int argc, char** argv, ViewArgs& a) {
       ->type_name("EVENTS.json");
   app.add_option("--screenshot", a.shot, "save a PNG (after the replay, if any) and exit")
       ->type_name("OUT.png");
-  std::string size;
-  app.add_option("--size", size, "window size (default 1100x800)")
-      ->check(CLI::Validator(
-          [&a](std::string& text) -> std::string {
-            int w = 0, h = 0;
-            char rest = 0;
-            if (std::sscanf(text.c_str(), "%6dx%6d%c", &w, &h, &rest) != 2 || w < 64 || h < 64 ||
-                w > hgd::kMaxPictureSide || h > hgd::kMaxPictureSide)
-              return "must be WIDTHxHEIGHT, each from 64 to " + std::to_string(hgd::kMaxPictureSide) +
-                     " (got '" + text + "')";
-            a.width = w;
-            a.height = h;
-            return {};
-          },
-          "", "size"))
-      ->type_name("WxH");
+  hgdcli::addSizeOption(app, "window size (default 1100x800)", 64, hgd::kMaxPictureSide, a.width, a.height);
   app.add_flag("--stats", a.stats, "print frame timings");
   app.add_option("--lod", a.lod,
                  "while dragging a larger point cloud, draw and interpolate only this many of its points "

@@ -151,6 +151,8 @@ class Viewer {
   void frameMove(const Eigen::Vector3d& translate, const Eigen::Vector3d& axis, double degrees);
   void undo();
   void redo();
+  /// Unsaved, alerts, `what` on the status line, redrawn: after undo, redo and resetShape.
+  void shapeChanged(const std::string& what);
   void resetShape();
   void saveShape(const std::string& path);
   void saveScenario(const std::string& path);
