@@ -45,8 +45,8 @@ int main(int argc, char** argv) {
   app.add_option("-o,--output", output, "the PNG to write; never an input")->required()->type_name("OUT.png");
   app.add_option("--field", opt.field, "colour by this per-point scalar (e.g. harmonic)")->type_name("NAME");
   std::string view;
-  hgdcli::addSizeOption(app, "picture size, 16x16 to 16384x16384 (default 1200x600)", 16, hgd::kMaxPictureSide,
-                        opt.width, opt.height);
+  hgdcli::addSizeOption(app, "picture size, 16x16 to 16384x16384 (default 1200x600)", 16,
+                        hgd::kMaxPictureSide, opt.width, opt.height);
   app.add_option("--view", view,
                  "direction from the target to the eye (default: 1,0.6,1.4 turned with --up; with --up auto "
                  "across the shape's broad side; with --displacement the side where the motion shows best)")
