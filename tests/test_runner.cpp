@@ -253,6 +253,27 @@ TEST(ScenarioRunner, ResolutionKeyKeepsEveryPointInTheField) {
   }
 }
 
+// `hgdeform field` goes through ScenarioRunner::field(): the field a full-resolution deformer
+// builds, value for value, and the runner itself left as it was (no deformer built, even for a
+// shape the deformer would build on a coarse level).
+TEST(ScenarioRunner, FieldAloneIsTheFullResolutionDeformersField) {
+  hgd::RunOptions o;
+  o.deform.multires_above = 1;  // a deformer of this bar would be built on a coarse level...
+  o.deform.coarse_points = 500;
+  hgd::ScenarioRunner alone(hgd::shapes::bar(1.0f, 0.1f, 0.01f), o);
+  const hgd::FieldResult f = alone.field(barScenario());
+  EXPECT_FALSE(alone.ready());
+  hgd::Scenario s = barScenario();
+  s.full_resolution = true;  // ...the field alone is the full resolution's
+  const hgd::ScenarioRunner full = bar(s, o);
+  ASSERT_EQ(f.values.size(), full.geometry().size());
+  EXPECT_EQ(f.values, full.deformer().field());
+  EXPECT_EQ(f.handles.manipulated, full.handles().manipulated);
+  EXPECT_EQ(f.handles.fixed, full.handles().fixed);
+  EXPECT_EQ(f.unreachable, full.deformer().unreachablePoints());
+  EXPECT_GT(f.timings.total(), 0.0);
+}
+
 TEST(ScenarioRunner, TheSavedScenarioReplaysWhatWasDone) {
   hgd::ScenarioRunner a = bar();
   a.apply(dragMove(kTip, kTip + Eigen::Vector3d(0, 0, 0.25)));

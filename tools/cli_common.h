@@ -81,6 +81,34 @@ inline CLI::Validator integerFrom(long lo, long hi) {
       "", "integer");
 }
 
+/// A picture or window size option, --size WxH with each side from `min_side` to `max_side`
+/// (hgd::kMaxPictureSide for pictures): the sides go to `width` and `height` once valid.
+inline CLI::Option* addSizeOption(CLI::App& app, const std::string& help, int min_side, int max_side,
+                                  int& width, int& height) {
+  return app.add_option("--size", help)
+      ->check(CLI::Validator(
+          [min_side, max_side, &width, &height](std::string& s) -> std::string {
+            int w = 0, h = 0;
+            char rest = 0;
+            if (std::sscanf(s.c_str(), "%6dx%6d%c", &w, &h, &rest) != 2 || w < min_side || h < min_side ||
+                w > max_side || h > max_side)
+              return "must be WIDTHxHEIGHT, each from " + std::to_string(min_side) + " to " +
+                     std::to_string(max_side) + " (got '" + s + "')";
+            width = w;
+            height = h;
+            return {};
+          },
+          "", "size"))
+      ->type_name("WxH");
+}
+
+/// An integer option from `lo` to `hi`, shown as "N" in the help.
+template <class Int>
+CLI::Option* addCount(CLI::App& app, const std::string& name, Int& value, const std::string& help, long lo,
+                      long hi) {
+  return app.add_option(name, value, help)->check(integerFrom(lo, hi))->type_name("N");
+}
+
 /// A validator for words from a fixed list.
 inline CLI::Validator oneOf(const std::vector<std::string>& words) {
   std::string list;

@@ -25,7 +25,7 @@
 #include "hgdeform/io/io.h"
 
 namespace hgdcli {
-/// `hgdeform batch` (tools/batch.cpp); argv[0] is "batch", the options follow.
+/// `hgdeform batch` (tools/batch/batch.cpp); argv[0] is "batch", the options follow.
 int runBatch(int argc, char** argv);
 }  // namespace hgdcli
 
@@ -70,8 +70,10 @@ struct DeformArgs {
   bool mesh_ring = false, full_field = false, ascii = false, quiet = false;
 };
 
-void addInputOutput(CLI::App& app, std::string& input, std::string& scenario, std::string& output,
-                    const std::string& scenario_help) {
+/// A command's conventions (hgdcli::configureApp) and the options every command has.
+void setUpCommand(CLI::App& app, const std::string& tool, std::string& input, std::string& scenario,
+                  std::string& output, const std::string& scenario_help) {
+  hgdcli::configureApp(app, tool);
   app.add_option("INPUT", input, "the shape: PLY, PCD, OBJ, XYZ/TXT, OFF or STL (read by its content)")
       ->required()
       ->type_name("");
@@ -80,6 +82,15 @@ void addInputOutput(CLI::App& app, std::string& input, std::string& scenario, st
                  "output file (.ply, .pcd, .obj, .xyz, .txt, .off, .stl); required; never the input")
       ->required()
       ->type_name("FILE");
+}
+
+void addNeighbours(CLI::App& app, int& k) {
+  hgdcli::addCount(app, "-k,--k", k, "neighbours per point for the Laplacian (default 10)", 2, 100);
+}
+
+void addOutputFlags(CLI::App& app, bool& ascii, bool& quiet) {
+  app.add_flag("--ascii", ascii, "write ascii instead of binary");
+  app.add_flag("-q,--quiet", quiet, "no summary line");
 }
 
 void addSolver(CLI::App& app, std::string& solver, const std::string& what) {
@@ -93,16 +104,12 @@ int parseField(int argc, const char* const* argv, FieldArgs& a) {
   CLI::App app(
       "Computes the harmonic field (1 on the manipulated handle, 0 on the fixed handles) and writes\n"
       "the shape with it as the per-point scalar 'harmonic' (all other fields kept).");
-  hgdcli::configureApp(app, "hgdeform field");
-  addInputOutput(app, a.input, a.scenario, a.output, "handles (docs/scenario.md); required");
-  app.add_option("-k,--k", a.k, "neighbours per point for the Laplacian (default 10)")
-      ->check(hgdcli::integerFrom(2, 100))
-      ->type_name("N");
+  setUpCommand(app, "hgdeform field", a.input, a.scenario, a.output, "handles (docs/scenario.md); required");
+  addNeighbours(app, a.k);
   addSolver(app, a.solver, "");
   app.add_flag("--mesh-ring", a.mesh_ring, "on meshes, use the faces' 1-ring instead of kNN");
   app.add_flag("--colour,--color", a.colour, "also write the field as a colour map (red/green/blue or rgb)");
-  app.add_flag("--ascii", a.ascii, "write ascii instead of binary");
-  app.add_flag("-q,--quiet", a.quiet, "no summary line");
+  addOutputFlags(app, a.ascii, a.quiet);
   return hgdcli::parse(app, argc, argv);
 }
 
@@ -111,37 +118,29 @@ int parseDeform(int argc, const char* const* argv, DeformArgs& a) {
   CLI::App app(
       "Replays the scenario's move(s) (drag or frame) and writes the deformed shape: positions and\n"
       "normals change, every other field and the mesh faces are kept.");
-  hgdcli::configureApp(app, "hgdeform deform");
-  addInputOutput(app, a.input, a.scenario, a.output, "handles and moves (docs/scenario.md); required");
+  setUpCommand(app, "hgdeform deform", a.input, a.scenario, a.output,
+               "handles and moves (docs/scenario.md); required");
   app.add_option("-r,--report", a.report,
                  "write a JSON report (version, points, clusters, iterations, energy, ms);\n"
                  "- for stdout; a link is followed, a FIFO or device written to")
       ->type_name("FILE");
-  app.add_option("-c,--clusters", a.clusters,
-                 "isovalue count: isoclusters per branch (default: the scenario's, else 16)")
-      ->check(hgdcli::integerFrom(1, 1000))
-      ->type_name("N");
-  app.add_option("-k,--k", a.k, "neighbours per point for the Laplacian (default 10)")
-      ->check(hgdcli::integerFrom(2, 100))
-      ->type_name("N");
-  app.add_option("--samples", a.samples, "surface sample size for clustering (default 4000)")
-      ->check(hgdcli::integerFrom(10, 10000000))
-      ->type_name("N");
+  hgdcli::addCount(app, "-c,--clusters", a.clusters,
+                   "isovalue count: isoclusters per branch (default: the scenario's, else 16)", 1, 1000);
+  addNeighbours(app, a.k);
+  hgdcli::addCount(app, "--samples", a.samples, "surface sample size for clustering (default 4000)", 10,
+                   10000000);
   app.add_option("--blend", a.blend, "rotation (default) | linear: how points blend cluster transforms")
       ->check(hgdcli::oneOf({"linear", "rotation"}))
       ->type_name("MODE");
-  app.add_option("--joint-clusters", a.joint_clusters,
-                 "skeletal mode: isovalues inside each joint (default 3)")
-      ->check(hgdcli::integerFrom(1, 100))
-      ->type_name("N");
+  hgdcli::addCount(app, "--joint-clusters", a.joint_clusters,
+                   "skeletal mode: isovalues inside each joint (default 3)", 1, 100);
   addSolver(app, a.solver, "field solver: ");
   app.add_flag("--mesh-ring", a.mesh_ring,
                "on meshes, the field's graph is the faces' 1-ring instead of kNN (at full resolution)");
   app.add_flag("--full-field", a.full_field,
                "the field, pieces and clusters over every point, however many (default: above 500,000\n"
                "points, on a subsample of about 65,536, prolonged to every point)");
-  app.add_flag("--ascii", a.ascii, "write ascii instead of binary");
-  app.add_flag("-q,--quiet", a.quiet, "no summary line");
+  addOutputFlags(app, a.ascii, a.quiet);
   return hgdcli::parse(app, argc, argv);
 }
 
@@ -177,36 +176,29 @@ int runField(const FieldArgs& a) {
   hgd::formatFromPath(output);  // fail on a bad extension before any work
   hgd::refuseInputs(output, {input, scenario_path});
 
-  hgd::FieldOptions opt;
-  opt.k_neighbors = a.k;
-  opt.solver = fieldSolver(a.solver);
-  opt.mesh_ring = a.mesh_ring;
+  hgd::RunOptions ro;
+  ro.deform.field.k_neighbors = a.k;
+  ro.deform.field.solver = fieldSolver(a.solver);
+  ro.deform.field.mesh_ring = a.mesh_ring;
 
   const auto t0 = std::chrono::steady_clock::now();
   const hgd::Scenario scenario = hgd::readScenario(scenario_path);
-  hgd::Shape shape = hgd::readShape(input);
-  for (const std::string& w : shape.warnings) std::fprintf(stderr, "hgdeform: warning: %s\n", w.c_str());
-  const hgd::Geometry geometry = hgd::extractGeometry(shape);
-  const hgd::Handles handles = hgd::resolveHandles(scenario, geometry, shape);
+  hgd::Shape read = hgd::readShape(input);
+  for (const std::string& w : read.warnings) std::fprintf(stderr, "hgdeform: warning: %s\n", w.c_str());
+  hgd::ScenarioRunner run(std::move(read), ro);
   const double read_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-
-  hgd::HarmonicField field;
-  field.setInputCloud(geometry.points);
-  if (geometry.hasFileNormals()) field.setInputNormals(geometry.file_normals);
-  if (!geometry.faces.empty()) field.setPolygons(geometry.faces);
-  opt.orient_to_viewpoint = shape.isOrganized();
-  opt.viewpoint = (shape.sensor_origin.head<3>().cast<double>() - geometry.origin).cast<float>();
-  field.setOptions(opt);
-  field.setHandles(handles.fixed, handles.manipulated);
-  std::vector<float> phi;
-  field.compute(phi);
+  // The field alone, as `hgdeform deform` builds it at full resolution (the runner's rule for
+  // the sensor viewpoint of scans), stored into the rest shape.
+  const hgd::FieldResult field = run.field(scenario);
+  const hgd::Geometry& geometry = run.geometry();
+  hgd::Shape shape = run.release(false);
 
   // What the new field replaces is said, never done in silence.
   for (const std::string& replaced : replacedFields(shape, a.colour))
     std::fprintf(stderr, "hgdeform: warning: %s: its %s replaced in %s\n", input.c_str(), replaced.c_str(),
                  output.c_str());
-  hgd::storeField(shape, geometry, phi, "harmonic", a.colour);
+  hgd::storeField(shape, geometry, field.values, "harmonic", a.colour);
   if (const std::string lost = hgd::extrasLost(shape, hgd::formatFromPath(output)); !lost.empty())
     std::fprintf(stderr, "hgdeform: warning: %s: %s\n", output.c_str(), lost.c_str());
   hgd::WriteOptions wo;
@@ -214,7 +206,8 @@ int runField(const FieldArgs& a) {
   hgd::writeShape(output, shape, wo);
 
   if (!a.quiet) {
-    const auto& t = field.timings();
+    const hgd::FieldTimings& t = field.timings;
+    const hgd::Handles& handles = field.handles;
     std::size_t fixed_points = 0;
     for (const auto& f : handles.fixed) fixed_points += f.size();
     std::printf(
@@ -223,14 +216,14 @@ int runField(const FieldArgs& a) {
         "field "
         "%.0f ms -> %s\n",
         input.c_str(), geometry.size(), handles.fixed.size(), fixed_points, handles.manipulated.size(),
-        field.unreachable().size(), read_ms, t.knn_ms, t.normals_ms, t.graph_ms, t.laplacian_ms, t.solve_ms,
+        field.unreachable, read_ms, t.knn_ms, t.normals_ms, t.graph_ms, t.laplacian_ms, t.solve_ms,
         t.exact ? "exact" : ("multilevel, " + std::to_string(t.iterations) + " iterations").c_str(),
         t.total(), output.c_str());
   }
-  if (!field.unreachable().empty())
+  if (field.unreachable > 0)
     std::fprintf(stderr,
                  "hgdeform: warning: %zu points lie in parts that touch no handle; their field is 0\n",
-                 field.unreachable().size());
+                 field.unreachable);
   return 0;
 }
 

@@ -44,22 +44,9 @@ int main(int argc, char** argv) {
       ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
   app.add_option("-o,--output", output, "the PNG to write; never an input")->required()->type_name("OUT.png");
   app.add_option("--field", opt.field, "colour by this per-point scalar (e.g. harmonic)")->type_name("NAME");
-  std::string size, view;
-  app.add_option("--size", size, "picture size, 16x16 to 16384x16384 (default 1200x600)")
-      ->check(CLI::Validator(
-          [&opt](std::string& s) -> std::string {
-            int w = 0, h = 0;
-            char rest = 0;
-            if (std::sscanf(s.c_str(), "%6dx%6d%c", &w, &h, &rest) != 2 || w < 16 || h < 16 ||
-                w > hgd::kMaxPictureSide || h > hgd::kMaxPictureSide)
-              return "must be WIDTHxHEIGHT, each from 16 to " + std::to_string(hgd::kMaxPictureSide) +
-                     " (got '" + s + "')";
-            opt.width = w;
-            opt.height = h;
-            return {};
-          },
-          "", "size"))
-      ->type_name("WxH");
+  std::string view;
+  hgdcli::addSizeOption(app, "picture size, 16x16 to 16384x16384 (default 1200x600)", 16,
+                        hgd::kMaxPictureSide, opt.width, opt.height);
   app.add_option("--view", view,
                  "direction from the target to the eye (default: 1,0.6,1.4 turned with --up; with --up auto "
                  "across the shape's broad side; with --displacement the side where the motion shows best)")

@@ -1,79 +1,59 @@
 #include "hgdeform/app/report.h"
 
-#include <algorithm>
-#include <cmath>
 #include <cstdio>
-#include <cstring>
-#include <nlohmann/json.hpp>
 
-#include "hgdeform/io/colormap.h"
-#include "hgdeform/io/fields.h"
+#include "hgdeform/app/report_json.h"
 #include "hgdeform/io/io.h"
 #include "hgdeform/version.h"
 
 namespace hgd {
 
-namespace {}  // namespace
+namespace {
 
-void storeField(Shape& shape, const Geometry& geometry, const std::vector<float>& values,
-                const std::string& name, bool colour) {
-  const int fi = addFloatField(shape.cloud, name);
-  const std::size_t n = shape.size();
-  for (std::size_t i = 0; i < n; ++i) {
-    const int k = geometry.finite_index[i];
-    writeValue(shape.cloud, i, shape.cloud.fields[static_cast<std::size_t>(fi)],
-               k >= 0 ? values[static_cast<std::size_t>(k)] : std::numeric_limits<float>::quiet_NaN());
-  }
-  if (!colour) return;
-  if (shape.format == FileFormat::Pcd || findField(shape.cloud, "rgb") >= 0) {
-    const int ci = addFloatField(shape.cloud, "rgb");
-    for (std::size_t i = 0; i < n; ++i) {
-      const int k = geometry.finite_index[i];
-      const Eigen::Vector3f c = colourMap(k >= 0 ? values[static_cast<std::size_t>(k)] : 0.0f) * 255.0f;
-      const std::uint32_t packed = (static_cast<std::uint32_t>(c.x()) << 16) |
-                                   (static_cast<std::uint32_t>(c.y()) << 8) |
-                                   static_cast<std::uint32_t>(c.z());
-      std::memcpy(shape.cloud.data.data() + i * shape.cloud.point_step +
-                      shape.cloud.fields[static_cast<std::size_t>(ci)].offset,
-                  &packed, 4);
-    }
-    return;
-  }
-  // PLY/OBJ: red/green/blue as uchar (reusing existing fields of those names, whatever their type).
-  const char* names[3] = {"red", "green", "blue"};
-  int idx[3];
-  for (int c = 0; c < 3; ++c) {
-    idx[c] = findField(shape.cloud, names[c]);
-    if (idx[c] < 0) {
-      idx[c] = addFloatField(shape.cloud, names[c]);
-      shape.cloud.fields[static_cast<std::size_t>(idx[c])].datatype =
-          pcl::PCLPointField::UINT8;  // first byte used
-    }
-  }
-  const bool float_colour =
-      shape.cloud.fields[static_cast<std::size_t>(idx[0])].datatype == pcl::PCLPointField::FLOAT32;
-  for (std::size_t i = 0; i < n; ++i) {
-    const int k = geometry.finite_index[i];
-    const Eigen::Vector3f c = colourMap(k >= 0 ? values[static_cast<std::size_t>(k)] : 0.0f);
-    for (int ch = 0; ch < 3; ++ch)
-      writeValue(shape.cloud, i, shape.cloud.fields[static_cast<std::size_t>(idx[ch])],
-                 float_colour ? c[ch] : c[ch] * 255.0f);
-  }
+/// The timings reportFigures() keeps, by key.
+struct Timing {
+  const char* key;
+  double DeformReport::*ms;
+};
+const Timing kFigureTimings[] = {
+    {"read", &DeformReport::read_ms},
+    {"build", &DeformReport::build_ms},
+    {"field", &DeformReport::field_ms},
+    {"sampling", &DeformReport::sampling_ms},
+    {"clusters", &DeformReport::clusters_ms},
+    {"solve", &DeformReport::solve_ms},
+    {"interpolation", &DeformReport::interpolation_ms},
+    {"write", &DeformReport::write_ms},
+    {"total", &DeformReport::total_ms},
+};
+
+}  // namespace
+
+nlohmann::json reportFigures(const DeformReport& r) {
+  nlohmann::json ms = nlohmann::json::object();
+  for (const Timing& t : kFigureTimings) ms[t.key] = r.*t.ms;
+  return {{"points", r.points}, {"clusters", r.clusters},         {"iterations", r.iterations},
+          {"frames", r.frames}, {"handle_error", r.handle_error}, {"ms", ms}};
 }
 
-std::string reportJson(const DeformReport& r) {
-  nlohmann::json j;
+void readReportFigures(const nlohmann::json& j, DeformReport& r) {
+  r.points = j.at("points").get<std::size_t>();
+  r.clusters = j.at("clusters").get<std::size_t>();
+  r.iterations = j.at("iterations").get<int>();
+  r.frames = j.at("frames").get<int>();
+  r.handle_error = j.at("handle_error").get<double>();
+  const nlohmann::json& ms = j.at("ms");
+  for (const Timing& t : kFigureTimings) r.*t.ms = ms.at(t.key).get<double>();
+}
+
+nlohmann::json reportToJson(const DeformReport& r) {
+  nlohmann::json j = reportFigures(r);
   j["version"] = version();
-  j["points"] = r.points;
   j["sample"] = r.sample;
-  j["clusters"] = r.clusters;
   j["isovalues"] = r.isovalues;
   j["isoclusters"] = r.isovalues;  // the key before 0.2 (docs/changes.md)
   j["unreachable"] = r.unreachable;
-  j["iterations"] = r.iterations;
-  j["frames"] = r.frames;
   j["max_frame_iterations"] = r.max_frame_iterations;
-  j["handle_error"] = r.handle_error;
   j["reached"] = r.reached;
   j["notes"] = r.notes;
   j["warnings"] = r.warnings;
@@ -92,29 +72,21 @@ std::string reportJson(const DeformReport& r) {
                  {"manip", r.energy.manip},
                  {"length", r.energy.length},
                  {"total", r.energy.total()}};
-  j["ms"] = {{"read", r.read_ms},
-             {"build", r.build_ms},
-             {"field", r.field_ms},
-             {"normals", r.build.field.normals_ms},
-             {"knn", r.build.field.knn_ms},
-             {"laplacian", r.build.field.graph_ms + r.build.field.laplacian_ms},
-             {"field_solve", r.build.field.solve_ms},
-             {"sampling", r.sampling_ms},
-             {"clusters", r.clusters_ms},
-             {"solve", r.solve_ms},
-             {"solve_per_iteration", r.solve_per_iteration_ms},
-             {"interpolation", r.interpolation_ms},
-             {"write", r.write_ms},
-             {"total", r.total_ms}};
-  return j.dump(2) + "\n";
+  nlohmann::json& ms = j["ms"];
+  ms["normals"] = r.build.field.normals_ms;
+  ms["knn"] = r.build.field.knn_ms;
+  ms["laplacian"] = r.build.field.graph_ms + r.build.field.laplacian_ms;
+  ms["field_solve"] = r.build.field.solve_ms;
+  ms["solve_per_iteration"] = r.solve_per_iteration_ms;
+  return j;
 }
 
-void writeTextAtomically(const std::string& path, const std::string& text) {
-  writeFileAtomically(path, text);
+std::string reportJson(const DeformReport& r) {
+  return reportToJson(r).dump(2) + "\n";
 }
 
 void writeReportJson(const std::string& path, const DeformReport& report) {
-  writeTextAtomically(path, reportJson(report));
+  writeFileAtomically(path, reportJson(report));
 }
 
 std::string summaryLine(const DeformReport& r) {

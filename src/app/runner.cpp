@@ -63,6 +63,21 @@ void ScenarioRunner::setScenario(const Scenario& scenario) {
   build_ms_ += t.ms();
 }
 
+FieldResult ScenarioRunner::field(const Scenario& scenario) const {
+  requireShape("field");
+  FieldResult r;
+  r.handles = resolveHandles(scenario, *geometry_, shape_);
+  const Handles& handles = r.handles;
+  HarmonicField field;  // at full resolution, as Deformer's on a shape below multires_above
+  setGraphInput(field.surfaceGraph(), *geometry_);
+  field.setOptions(mergedOptions(options_, scenario, shape_, *geometry_).field);
+  field.setHandles(handles.fixed, handles.manipulated);
+  field.compute(r.values);
+  r.timings = field.timings();
+  r.unreachable = field.unreachable().size();
+  return r;
+}
+
 void ScenarioRunner::setHandles(const Handles& handles) {
   requireShape("setHandles");
   handles_ = handles;
@@ -147,13 +162,8 @@ MoveResult ScenarioRunner::solveMove(const Move& move) {
   MoveResult r;
   if (move.kind == Move::Kind::Drag && !move.drag.keep_orientation) {
     const DragResult dr = d.dragTo(move.drag.from, move.drag.to);
-    r.frames = dr.frames;
-    r.iterations = dr.iterations;
-    r.max_frame_iterations = dr.max_frame_iterations;
-    r.reached = dr.reached;
-    r.handle_error = dr.error;
-    r.solve_ms = dr.solve_ms;
-    r.interpolation_ms = dr.interpolation_ms;
+    r = MoveResult{dr.frames, dr.iterations, dr.max_frame_iterations, dr.reached,
+                   dr.error,  dr.solve_ms,   dr.interpolation_ms,     {}};
     if (!dr.reached) {
       char buf[320];
       std::snprintf(buf, sizeof buf,

@@ -1,69 +1,65 @@
 #include "hgdeform/app/scenario.h"
 
-#include <fcntl.h>
-#include <sys/stat.h>
-#include <unistd.h>
-
-#include <cerrno>
 #include <cfloat>
 #include <climits>
 #include <cmath>
-#include <cstdio>
-#include <cstring>
 #include <limits>
-#include <memory>
 #include <nlohmann/json.hpp>
-#include <set>
+
+#include "hgdeform/app/json_reader.h"
 
 namespace hgd {
 
-Region Region::sphere(const Eigen::Vector3d& c, double r) {
+namespace {
+/// A region of `kind` with what `set` gives it.
+template <class Set>
+Region makeRegion(Region::Kind kind, const Set& set) {
   Region reg;
-  reg.kind = Kind::Sphere;
-  reg.centre = c;
-  reg.radius = r;
+  reg.kind = kind;
+  set(reg);
   return reg;
+}
+}  // namespace
+
+Region Region::sphere(const Eigen::Vector3d& c, double r) {
+  return makeRegion(Kind::Sphere, [&](Region& g) {
+    g.centre = c;
+    g.radius = r;
+  });
 }
 
 Region Region::box(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi) {
-  Region reg;
-  reg.kind = Kind::Box;
-  reg.min = lo;
-  reg.max = hi;
-  return reg;
+  return makeRegion(Kind::Box, [&](Region& g) {
+    g.min = lo;
+    g.max = hi;
+  });
 }
 
 Region Region::fromIndices(std::vector<long long> idx) {
-  Region reg;
-  reg.kind = Kind::Indices;
-  reg.indices = std::move(idx);
-  return reg;
+  return makeRegion(Kind::Indices, [&](Region& g) { g.indices = std::move(idx); });
 }
 
 Region Region::cylinder(const Eigen::Vector3d& start, const Eigen::Vector3d& end, double r) {
-  Region reg;
-  reg.kind = Kind::Cylinder;
-  reg.start = start;
-  reg.end = end;
-  reg.radius = r;
-  return reg;
+  return makeRegion(Kind::Cylinder, [&](Region& g) {
+    g.start = start;
+    g.end = end;
+    g.radius = r;
+  });
 }
 
 Region Region::field(const std::string& name, double value) {
-  Region reg;
-  reg.kind = Kind::Field;
-  reg.field_name = name;
-  reg.equals = value;
-  return reg;
+  return makeRegion(Kind::Field, [&](Region& g) {
+    g.field_name = name;
+    g.equals = value;
+  });
 }
 
 Region Region::fieldRange(const std::string& name, double lo, double hi) {
-  Region reg;
-  reg.kind = Kind::Field;
-  reg.field_name = name;
-  reg.field_min = lo;
-  reg.field_max = hi;
-  return reg;
+  return makeRegion(Kind::Field, [&](Region& g) {
+    g.field_name = name;
+    g.field_min = lo;
+    g.field_max = hi;
+  });
 }
 
 const char* blendName(Blend blend) {
@@ -117,25 +113,6 @@ Scenario& Scenario::frame(const FrameMove& move) {
   return *this;
 }
 
-std::string jsonPointerStep(const std::string& key) {
-  std::string out = "/";
-  for (const char ch : key) {
-    const auto c = static_cast<unsigned char>(ch);
-    if (ch == '~') {
-      out += "~0";
-    } else if (ch == '/') {
-      out += "~1";
-    } else if (c < 0x20 || c == 0x7f) {
-      char buf[8];
-      std::snprintf(buf, sizeof buf, "\\u%04x", c);
-      out += buf;
-    } else {
-      out += ch;
-    }
-  }
-  return out;
-}
-
 namespace {
 
 using nlohmann::json;
@@ -149,82 +126,12 @@ constexpr double kMaxCoordinate = 1e15;
 constexpr double kMaxDegrees = 1e6;
 constexpr std::uintmax_t kMaxScenarioBytes = std::uintmax_t{1} << 30;
 
-/// Rejects duplicated keys while parsing (the last one would silently win otherwise), naming
-/// the JSON path of the second occurrence.
-class DuplicateKeyCheck {
- public:
-  explicit DuplicateKeyCheck(std::string name) : name_(std::move(name)) {}
+[[noreturn]] void raiseScenarioError(const std::string& message) {
+  throw ScenarioError(message);
+}
 
-  bool operator()(int /*depth*/, nlohmann::json::parse_event_t event, nlohmann::json& parsed) {
-    using E = nlohmann::json::parse_event_t;
-    switch (event) {
-      case E::object_start: frames_.push_back({false, 0, {}, {}}); break;
-      case E::array_start: frames_.push_back({true, 0, {}, {}}); break;
-      case E::key: {
-        Frame& f = frames_.back();
-        f.key = parsed.get<std::string>();
-        if (!f.keys.insert(f.key).second) throw ScenarioError(name_ + ": " + path() + ": duplicate key");
-        break;
-      }
-      case E::object_end:
-      case E::array_end:
-        frames_.pop_back();
-        completed();
-        break;
-      case E::value: completed(); break;
-    }
-    return true;
-  }
-
- private:
-  struct Frame {
-    bool array;
-    std::size_t index;
-    std::string key;
-    std::set<std::string> keys;
-  };
-  void completed() {
-    if (!frames_.empty() && frames_.back().array) ++frames_.back().index;
-  }
-  std::string path() const {
-    std::string p;
-    for (const Frame& f : frames_) p += f.array ? "/" + std::to_string(f.index) : jsonPointerStep(f.key);
-    return p;
-  }
-  std::string name_;
-  std::vector<Frame> frames_;
-};
-
-struct Parser {
-  std::string name;
-
-  [[noreturn]] void fail(const std::string& path, const std::string& what) const {
-    throw ScenarioError(name + ": " + (path.empty() ? "/" : path) + ": " + what);
-  }
-
-  void onlyKeys(const json& j, const std::string& path, std::initializer_list<const char*> keys) const {
-    for (auto it = j.begin(); it != j.end(); ++it) {
-      bool known = false;
-      for (const char* k : keys) known = known || it.key() == k;
-      if (!known) {
-        std::string list;
-        for (const char* k : keys) list += std::string(list.empty() ? "" : ", ") + k;
-        fail(path + jsonPointerStep(it.key()), "unknown key (expected one of: " + list + ")");
-      }
-    }
-  }
-
-  const json& object(const json& j, const std::string& path) const {
-    if (!j.is_object()) fail(path, "must be an object");
-    return j;
-  }
-
-  double number(const json& j, const std::string& path) const {
-    if (!j.is_number()) fail(path, "must be a number");
-    const double v = j.get<double>();
-    if (!std::isfinite(v)) fail(path, "must be a finite number");
-    return v;
-  }
+struct Parser : JsonReader {
+  using JsonReader::JsonReader;
 
   Eigen::Vector3d vec3(const json& j, const std::string& path) const {
     if (!j.is_array() || j.size() != 3) fail(path, "must be an array of 3 numbers");
@@ -242,37 +149,29 @@ struct Parser {
     return v;
   }
 
-  const json& member(const json& j, const std::string& path, const char* key) const {
-    auto it = j.find(key);
-    if (it == j.end()) fail(path + jsonPointerStep(key), "is required");
-    return *it;
-  }
-
   Region region(const json& j, const std::string& path) const {
     object(j, path);
     if (j.size() != 1) fail(path, "a region must have exactly one of: sphere, box, cylinder, field, indices");
     Region r;
     r.json_path = path;
-    if (j.contains("sphere")) {
-      const std::string p = path + "/sphere";
-      const json& s = object(j["sphere"], p);
-      onlyKeys(s, p, {"center", "radius"});
+    // The one key names the kind; its value is the region's body.
+    const std::string kind = j.begin().key(), p = path + jsonPointerStep(kind);
+    const json& v = j.begin().value();
+    if (kind == "sphere") {
+      const json& s = objectWith(v, p, {"center", "radius"});
       r.kind = Region::Kind::Sphere;
       r.centre = vec3(member(s, p, "center"), p + "/center");
       r.radius = number(member(s, p, "radius"), p + "/radius");
       if (!(r.radius > 0)) fail(p + "/radius", "must be a positive number");
-    } else if (j.contains("box")) {
-      const std::string p = path + "/box";
-      const json& b = object(j["box"], p);
-      onlyKeys(b, p, {"min", "max"});
+    } else if (kind == "box") {
+      const json& b = objectWith(v, p, {"min", "max"});
       r.kind = Region::Kind::Box;
       r.min = vec3(member(b, p, "min"), p + "/min");
       r.max = vec3(member(b, p, "max"), p + "/max");
       for (int i = 0; i < 3; ++i)
         if (r.min[i] > r.max[i]) fail(p + "/min/" + std::to_string(i), "must not exceed max");
-    } else if (j.contains("indices")) {
-      const std::string p = path + "/indices";
-      const json& a = j["indices"];
+    } else if (kind == "indices") {
+      const json& a = v;  // an array
       if (!a.is_array() || a.empty()) fail(p, "must be a non-empty array of point indices");
       r.kind = Region::Kind::Indices;
       r.indices.reserve(a.size());
@@ -284,10 +183,8 @@ struct Parser {
           fail(p + "/" + std::to_string(i), "must be a non-negative integer (a point index)");
         r.indices.push_back(a[i].get<long long>());
       }
-    } else if (j.contains("cylinder")) {
-      const std::string p = path + "/cylinder";
-      const json& c = object(j["cylinder"], p);
-      onlyKeys(c, p, {"start", "end", "radius"});
+    } else if (kind == "cylinder") {
+      const json& c = objectWith(v, p, {"start", "end", "radius"});
       r.kind = Region::Kind::Cylinder;
       r.start = vec3(member(c, p, "start"), p + "/start");
       r.end = vec3(member(c, p, "end"), p + "/end");
@@ -295,10 +192,8 @@ struct Parser {
       if (!(r.radius > 0)) fail(p + "/radius", "must be a positive number");
       // Too short an axis has no direction (its squared length underflows): as good as none.
       if (!((r.end - r.start).squaredNorm() >= DBL_MIN)) fail(p + "/end", "must differ from start");
-    } else if (j.contains("field")) {
-      const std::string p = path + "/field";
-      const json& f = object(j["field"], p);
-      onlyKeys(f, p, {"name", "equals", "min", "max"});
+    } else if (kind == "field") {
+      const json& f = objectWith(v, p, {"name", "equals", "min", "max"});
       r.kind = Region::Kind::Field;
       const json& n = member(f, p, "name");
       if (!n.is_string() || n.get<std::string>().empty()) fail(p + "/name", "must be a field name");
@@ -323,8 +218,7 @@ struct Parser {
       if (f.contains("max")) r.field_max = number(f["max"], p + "/max");
       if (r.field_min > r.field_max) fail(p + "/min", "must not exceed max");
     } else {
-      fail(path + jsonPointerStep(j.begin().key()),
-           "unknown region kind (expected sphere, box, cylinder, field or indices)");
+      fail(p, "unknown region kind (expected sphere, box, cylinder, field or indices)");
     }
     return r;
   }
@@ -340,10 +234,10 @@ struct Parser {
     object(j, path);
     if (j.size() != 1) fail(path, "a move must have exactly one of: drag, frame");
     Move m;
-    if (j.contains("drag")) {
-      const std::string p = path + "/drag";
-      const json& d = object(j["drag"], p);
-      onlyKeys(d, p, {"from", "to", "keep_orientation"});
+    const std::string kind = j.begin().key(), p = path + jsonPointerStep(kind);
+    const json& v = j.begin().value();
+    if (kind == "drag") {
+      const json& d = objectWith(v, p, {"from", "to", "keep_orientation"});
       m.kind = Move::Kind::Drag;
       m.drag.from = coordinates(member(d, p, "from"), p + "/from");
       m.drag.to = coordinates(member(d, p, "to"), p + "/to");
@@ -351,16 +245,13 @@ struct Parser {
         if (!d["keep_orientation"].is_boolean()) fail(p + "/keep_orientation", "must be true or false");
         m.drag.keep_orientation = d["keep_orientation"].get<bool>();
       }
-    } else if (j.contains("frame")) {
-      const std::string p = path + "/frame";
-      const json& f = object(j["frame"], p);
-      onlyKeys(f, p, {"translate", "rotate"});
+    } else if (kind == "frame") {
+      const json& f = objectWith(v, p, {"translate", "rotate"});
       m.kind = Move::Kind::Frame;
       if (f.contains("translate")) m.frame.translate = coordinates(f["translate"], p + "/translate");
       if (f.contains("rotate")) {
         const std::string q = p + "/rotate";
-        const json& r = object(f["rotate"], q);
-        onlyKeys(r, q, {"axis", "degrees", "center"});
+        const json& r = objectWith(f["rotate"], q, {"axis", "degrees", "center"});
         m.frame.axis = vec3(member(r, q, "axis"), q + "/axis");
         // Zero, or so small or large that its length under- or overflows: no direction.
         const double sq = m.frame.axis.squaredNorm();
@@ -375,7 +266,7 @@ struct Parser {
       }
       if (!f.contains("translate") && !f.contains("rotate")) fail(p, "needs translate and/or rotate");
     } else {
-      fail(path + jsonPointerStep(j.begin().key()), "unknown move (expected drag or frame)");
+      fail(p, "unknown move (expected drag or frame)");
     }
     out.push_back(m);
   }
@@ -386,15 +277,8 @@ struct Parser {
 Scenario parseScenario(const std::string& json_text, const std::string& file_name) {
   // Text with no file behind it is named "scenario" in messages, never "": /clusters: ...".
   const std::string name = file_name.empty() ? "scenario" : file_name;
-  Parser p{name};
-  json j;
-  try {
-    j = json::parse(json_text, DuplicateKeyCheck(name));
-  } catch (const json::exception& e) {
-    // Syntax errors and numbers out of range (1e400). nlohmann's message includes the byte
-    // position; keep it.
-    throw ScenarioError(name + ": invalid JSON: " + e.what());
-  }
+  const Parser p(name, raiseScenarioError);
+  json j = p.parse(json_text);
   p.object(j, "");
   p.onlyKeys(j, "", {"format", "fixed", "manipulated", "joints", "clusters", "blend", "resolution", "move"});
   Scenario s;
@@ -438,34 +322,7 @@ Scenario parseScenario(const std::string& json_text, const std::string& file_nam
 }
 
 Scenario readScenario(const std::string& path) {
-  struct Closer {
-    void operator()(std::FILE* f) const { std::fclose(f); }
-  };
-  // Non-blocking, so that a FIFO given as the scenario is refused instead of waiting for a writer.
-  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);
-  if (fd < 0) throw ScenarioError(path + ": cannot open scenario file: " + std::strerror(errno));
-  std::unique_ptr<std::FILE, Closer> file(::fdopen(fd, "rb"));
-  if (!file) {
-    const int e = errno;
-    ::close(fd);
-    throw ScenarioError(path + ": cannot open scenario file: " + std::strerror(e));
-  }
-  struct stat st {};
-  if (::fstat(::fileno(file.get()), &st) != 0)
-    throw ScenarioError(path + ": cannot open scenario file: " + std::strerror(errno));
-  if (S_ISDIR(st.st_mode))
-    throw ScenarioError(path + ": cannot open scenario file: " + std::strerror(EISDIR));
-  if (!S_ISREG(st.st_mode)) throw ScenarioError(path + ": cannot open scenario file: not a regular file");
-  if (st.st_size == 0) throw ScenarioError(path + ": empty file");
-  const auto size = static_cast<std::uintmax_t>(st.st_size);
-  if (size > kMaxScenarioBytes)
-    throw ScenarioError(path + ": file too large for a scenario (" + std::to_string(size) + " bytes)");
-  std::string text(static_cast<std::size_t>(size), '\0');
-  if (std::fread(text.data(), 1, text.size(), file.get()) != text.size())
-    throw ScenarioError(
-        path + ": cannot read scenario file: " +
-        (std::ferror(file.get()) ? std::strerror(errno) : "the file shrank while being read"));
-  return parseScenario(text, path);
+  return parseScenario(readJsonFile(path, "scenario", kMaxScenarioBytes, raiseScenarioError), path);
 }
 
 namespace {

@@ -23,13 +23,6 @@ void checkHandles(const Geometry& geometry, const Handles& handles) {
   for (const auto& j : handles.joints) check(j);
 }
 
-/// The graph's input: every point of the shape (its normals, its faces).
-void graphOnEveryPoint(const Geometry& geometry, SurfaceGraph& graph) {
-  graph.setInputCloud(geometry.points);
-  graph.setInputNormals(geometry.hasFileNormals() ? geometry.file_normals : nullptr);
-  if (!geometry.faces.empty()) graph.setPolygons(geometry.faces);
-}
-
 /// The sample, the pieces and the clusters of `points` (the field's, which has just solved
 /// `phi`); `weight`: the points each stands for in the pieces report (may be null).
 Clustering clusterField(const pcl::PointCloud<pcl::PointXYZ>& points, const std::vector<float>& phi,
@@ -153,6 +146,12 @@ void coarseResolution(const Geometry& geometry, const Handles& handles, const De
 
 }  // namespace
 
+void setGraphInput(SurfaceGraph& graph, const Geometry& geometry) {
+  graph.setInputCloud(geometry.points);
+  graph.setInputNormals(geometry.hasFileNormals() ? geometry.file_normals : nullptr);
+  if (!geometry.faces.empty()) graph.setPolygons(geometry.faces);
+}
+
 void precompute(const Geometry& geometry, const Handles& handles, const DeformOptions& options,
                 DeformationData& data) {
   if (handles.manipulated.empty()) throw std::invalid_argument("Deformer: the manipulated handle is empty");
@@ -165,7 +164,7 @@ void precompute(const Geometry& geometry, const Handles& handles, const DeformOp
     data.multires = options.multires_above > 0 && geometry.size() > options.multires_above &&
                     options.coarse_points > 0 && options.coarse_points < geometry.size() &&
                     !(options.field.mesh_ring && !geometry.faces.empty());
-    if (!data.multires) graphOnEveryPoint(geometry, *data.graph);  // else the handles' coarse level
+    if (!data.multires) setGraphInput(*data.graph, geometry);  // else the handles' coarse level
     data.field.setOptions(options.field);
   }
   if (data.multires) {
@@ -173,7 +172,7 @@ void precompute(const Geometry& geometry, const Handles& handles, const DeformOp
     data.coarse = coarsen(*geometry.points, handles, options.coarse_points, geometry.faces.empty());
     if (data.coarse.empty()) {  // thousands of handles: no cell key holds them all
       data.multires = false;
-      graphOnEveryPoint(geometry, *data.graph);
+      setGraphInput(*data.graph, geometry);
     }
   }
   if (data.multires)

@@ -12,7 +12,7 @@
 #include <random>
 
 #include "hgdeform/app/cleanup.h"
-#include "internal.h"
+#include "io/internal.h"
 
 namespace hgd {
 namespace io_internal {

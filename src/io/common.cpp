@@ -10,7 +10,7 @@
 #include <limits>
 #include <unordered_map>
 
-#include "internal.h"
+#include "io/internal.h"
 
 namespace hgd::io_internal {
 
@@ -44,22 +44,12 @@ bool isSpace(char c) {
   return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f';
 }
 
-std::vector<std::string_view> splitWords(std::string_view s) {
+namespace {
+/// The runs of `s` between separators.
+template <class Separator>
+std::vector<std::string_view> splitAt(std::string_view s, Separator sep) {
   std::vector<std::string_view> words;
   std::size_t i = 0;
-  while (i < s.size()) {
-    while (i < s.size() && isSpace(s[i])) ++i;
-    const std::size_t b = i;
-    while (i < s.size() && !isSpace(s[i])) ++i;
-    if (i > b) words.push_back(s.substr(b, i - b));
-  }
-  return words;
-}
-
-std::vector<std::string_view> splitColumns(std::string_view s) {
-  std::vector<std::string_view> words;
-  std::size_t i = 0;
-  const auto sep = [](char c) { return isSpace(c) || c == ','; };
   while (i < s.size()) {
     while (i < s.size() && sep(s[i])) ++i;
     const std::size_t b = i;
@@ -67,6 +57,15 @@ std::vector<std::string_view> splitColumns(std::string_view s) {
     if (i > b) words.push_back(s.substr(b, i - b));
   }
   return words;
+}
+}  // namespace
+
+std::vector<std::string_view> splitWords(std::string_view s) {
+  return splitAt(s, isSpace);
+}
+
+std::vector<std::string_view> splitColumns(std::string_view s) {
+  return splitAt(s, [](char c) { return isSpace(c) || c == ','; });
 }
 
 std::string lower(std::string_view s) {
@@ -475,7 +474,7 @@ void appendFaceLines(AtomicWriter& w, std::string& buf, const std::vector<pcl::V
 
 void writeAsciiPoints(AtomicWriter& w, const pcl::PCLPointCloud2& c, std::size_t n,
                       const std::vector<const Field*>& fields, bool colour_bits,
-                      const std::vector<FileExtras::TextColumn>& decimals) {
+                      const std::vector<FileExtras::TextColumn>& decimals, std::string_view separator) {
   std::string buf;
   buf.reserve(kFlushBytes + 1024);
   for (std::size_t i = 0; i < n; ++i) {
@@ -487,7 +486,7 @@ void writeAsciiPoints(AtomicWriter& w, const pcl::PCLPointCloud2& c, std::size_t
       const std::uint8_t type = colour_bits && packedColour(*f) ? std::uint8_t{Field::UINT32} : f->datatype;
       const FileExtras::TextColumn d = fi < decimals.size() ? decimals[fi] : FileExtras::TextColumn{};
       for (std::size_t k = 0; k < fieldCount(*f); ++k) {
-        if (!first) buf += ' ';
+        if (!first) buf += separator;
         first = false;
         appendValue(buf, pt + f->offset + k * sz, type, d.decimals, d.exponents);
       }

@@ -1,5 +1,5 @@
 // The one codec of pcl::PCLPointField datatypes (see field_codec.h).
-#include "field_codec.h"
+#include "io/field_codec.h"
 
 #include <pcl/PCLPointCloud2.h>
 
@@ -8,7 +8,7 @@
 #include <cstring>
 #include <limits>
 
-#include "internal.h"
+#include "io/internal.h"
 
 namespace hgd {
 

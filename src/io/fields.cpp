@@ -5,6 +5,9 @@
 #include <cstring>
 #include <limits>
 
+#include "hgdeform/io/colormap.h"
+#include "hgdeform/io/geometry.h"
+#include "hgdeform/io/shape.h"
 #include "io/field_codec.h"
 
 namespace hgd {
@@ -72,13 +75,10 @@ int addFloatField(pcl::PCLPointCloud2& cloud, const std::string& name) {
 
 void retypeFields(pcl::PCLPointCloud2& cloud, const std::vector<int>& fields, std::uint8_t datatype) {
   const std::size_t n = static_cast<std::size_t>(cloud.width) * cloud.height;
-  pcl::PCLPointCloud2 out;  // the header alone: the data is repacked, not copied first
-  out.header = cloud.header;
-  out.height = cloud.height;
-  out.width = cloud.width;
-  out.fields = cloud.fields;
-  out.is_bigendian = cloud.is_bigendian;
-  out.is_dense = cloud.is_dense;
+  // The header alone: the data is repacked, not copied first.
+  std::vector<std::uint8_t> data = std::move(cloud.data);
+  pcl::PCLPointCloud2 out = cloud;
+  cloud.data = std::move(data);
   std::uint32_t offset = 0;  // repacked in field order, each field at its (new) size
   for (std::size_t k = 0; k < out.fields.size(); ++k) {
     auto& f = out.fields[k];
@@ -184,6 +184,52 @@ Eigen::Vector3f readColour(const pcl::PCLPointCloud2& cloud, std::size_t point, 
            255.0f;
   }
   return Eigen::Vector3f(0.75f, 0.75f, 0.72f);
+}
+
+void storeField(Shape& shape, const Geometry& geometry, const std::vector<float>& values,
+                const std::string& name, bool colour) {
+  const int fi = addFloatField(shape.cloud, name);
+  const std::size_t n = shape.size();
+  for (std::size_t i = 0; i < n; ++i) {
+    const int k = geometry.finite_index[i];
+    writeValue(shape.cloud, i, shape.cloud.fields[static_cast<std::size_t>(fi)],
+               k >= 0 ? values[static_cast<std::size_t>(k)] : std::numeric_limits<float>::quiet_NaN());
+  }
+  if (!colour) return;
+  if (shape.format == FileFormat::Pcd || findField(shape.cloud, "rgb") >= 0) {
+    const int ci = addFloatField(shape.cloud, "rgb");
+    for (std::size_t i = 0; i < n; ++i) {
+      const int k = geometry.finite_index[i];
+      const Eigen::Vector3f c = colourMap(k >= 0 ? values[static_cast<std::size_t>(k)] : 0.0f) * 255.0f;
+      const std::uint32_t packed = (static_cast<std::uint32_t>(c.x()) << 16) |
+                                   (static_cast<std::uint32_t>(c.y()) << 8) |
+                                   static_cast<std::uint32_t>(c.z());
+      std::memcpy(shape.cloud.data.data() + i * shape.cloud.point_step +
+                      shape.cloud.fields[static_cast<std::size_t>(ci)].offset,
+                  &packed, 4);
+    }
+    return;
+  }
+  // PLY/OBJ: red/green/blue as uchar (reusing existing fields of those names, whatever their type).
+  const char* names[3] = {"red", "green", "blue"};
+  int idx[3];
+  for (int c = 0; c < 3; ++c) {
+    idx[c] = findField(shape.cloud, names[c]);
+    if (idx[c] < 0) {
+      idx[c] = addFloatField(shape.cloud, names[c]);
+      shape.cloud.fields[static_cast<std::size_t>(idx[c])].datatype =
+          pcl::PCLPointField::UINT8;  // first byte used
+    }
+  }
+  const bool float_colour =
+      shape.cloud.fields[static_cast<std::size_t>(idx[0])].datatype == pcl::PCLPointField::FLOAT32;
+  for (std::size_t i = 0; i < n; ++i) {
+    const int k = geometry.finite_index[i];
+    const Eigen::Vector3f c = colourMap(k >= 0 ? values[static_cast<std::size_t>(k)] : 0.0f);
+    for (int ch = 0; ch < 3; ++ch)
+      writeValue(shape.cloud, i, shape.cloud.fields[static_cast<std::size_t>(idx[ch])],
+                 float_colour ? c[ch] : c[ch] * 255.0f);
+  }
 }
 
 }  // namespace hgd

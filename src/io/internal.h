@@ -19,9 +19,9 @@
 #include <utility>
 #include <vector>
 
-#include "field_codec.h"
 #include "hgdeform/io/fields.h"
 #include "hgdeform/io/io.h"
+#include "io/field_codec.h"
 
 namespace hgd::io_internal {
 
@@ -272,6 +272,13 @@ class Lexer {
   std::size_t line_;
 };
 
+/// A whole text file lexed line by line from its start (the OFF and XYZ readers).
+struct TextFile {
+  explicit TextFile(const std::string& path) : in(path), lex(in.rest(), 0) {}
+  InputFile in;
+  Lexer lex;
+};
+
 // ------------------------------------------------------------------------------------------
 // Output
 
@@ -333,9 +340,11 @@ void writePackedBinary(AtomicWriter& w, const pcl::PCLPointCloud2& c, std::size_
 /// packed colour declared float (see packedColour) is written as its bits, an unsigned integer,
 /// as PCL's ascii PCD writer does: fully opaque colours are NaNs as floats, and "nan" loses them.
 /// `decimals`: per field, the decimals to pad floating values to (decimalsOf), or empty.
+/// `separator` goes between values (an XYZ file's own, e.g. ", ").
 void writeAsciiPoints(AtomicWriter& w, const pcl::PCLPointCloud2& c, std::size_t n,
                       const std::vector<const Field*>& fields, bool colour_bits = false,
-                      const std::vector<FileExtras::TextColumn>& decimals = {});
+                      const std::vector<FileExtras::TextColumn>& decimals = {},
+                      std::string_view separator = " ");
 
 /// A FLOAT32 field called rgb or rgba: a colour packed into a float's bytes, which PCL's ascii
 /// PCD writer stores as an unsigned integer (the bits), not as a float.

@@ -5,7 +5,7 @@
 #include <filesystem>
 #include <optional>
 
-#include "internal.h"
+#include "io/internal.h"
 
 namespace hgd {
 
@@ -223,17 +223,12 @@ void writeShape(const std::string& path, const Shape& shape, const WriteOptions&
   const bool ascii = options.encoding == Encoding::Ascii;
   // Read from another format: the fields under the names the target format's readers know.
   pcl::PCLPointCloud2 converted;
-  Shape renamed;
   const bool convert = conventionalCloud(shape, format, &converted);
-  if (convert) {
-    renamed.cloud = std::move(converted);
-    renamed.polygons = shape.polygons;
-    renamed.sensor_origin = shape.sensor_origin;
-    renamed.sensor_orientation = shape.sensor_orientation;
-    renamed.path = shape.path;
-    renamed.format = shape.format;
-    renamed.extras = shape.extras;
-  }
+  // The shape with the converted cloud, all else as it was (reading's warnings are not written).
+  const Shape renamed =
+      convert ? Shape{std::move(converted), shape.polygons, shape.sensor_origin, shape.sensor_orientation,
+                      shape.path,           shape.format,   shape.extras,        {}}
+              : Shape{};
   const Shape& s = convert ? renamed : shape;
   switch (format) {
     case FileFormat::Ply: writePly(path, s, ascii); break;

@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "internal.h"
+#include "io/internal.h"
 
 namespace hgd::io_internal {
 
@@ -120,42 +120,22 @@ Shape readObj(const std::string& path) {
   if (shape.polygons.empty() && normals.size() == nverts)
     for (std::size_t k = 0; k < nverts; ++k) normal_vertex[k] = static_cast<int>(k);
 
-  pcl::PCLPointCloud2& cloud = shape.cloud;
+  // x/y/z as doubles (as written), colours as floats.
   const bool colour = all_rgb && rgb.size() == xyz.size();
-  std::uint32_t step = 0;
-  const auto add = [&](const char* name, std::uint8_t type) {
-    Field f;
-    f.name = name;
-    f.offset = step;
-    f.datatype = type;
-    f.count = 1;
-    step += static_cast<std::uint32_t>(datatypeSize(type));
-    cloud.fields.push_back(f);
-  };
-  add("x", Field::FLOAT64);
-  add("y", Field::FLOAT64);
-  add("z", Field::FLOAT64);
-  if (colour) {
-    add("red", Field::FLOAT32);
-    add("green", Field::FLOAT32);
-    add("blue", Field::FLOAT32);
+  std::vector<std::pair<std::string, std::uint8_t>> fields = {
+      {"x", Field::FLOAT64}, {"y", Field::FLOAT64}, {"z", Field::FLOAT64}};
+  if (!colour) {
+    shape.cloud = makeCloud(nverts, fields, xyz);
+  } else {
+    for (const char* c : {"red", "green", "blue"}) fields.emplace_back(c, Field::FLOAT32);
+    std::vector<double> values(nverts * 6);
+    for (std::size_t i = 0; i < nverts; ++i)
+      for (std::size_t a = 0; a < 3; ++a) {
+        values[6 * i + a] = xyz[3 * i + a];
+        values[6 * i + 3 + a] = rgb[3 * i + a];
+      }
+    shape.cloud = makeCloud(nverts, fields, values);
   }
-  cloud.width = static_cast<std::uint32_t>(nverts);
-  cloud.height = 1;
-  cloud.point_step = step;
-  cloud.row_step = step * cloud.width;
-  cloud.is_bigendian = false;
-  cloud.data.resize(nverts * step);
-  for (std::size_t i = 0; i < nverts; ++i) {
-    std::uint8_t* pt = cloud.data.data() + i * step;
-    std::memcpy(pt, &xyz[3 * i], 3 * sizeof(double));
-    if (colour) {
-      const float c[3] = {static_cast<float>(rgb[3 * i]), static_cast<float>(rgb[3 * i + 1]),
-                          static_cast<float>(rgb[3 * i + 2])};
-      std::memcpy(pt + 24, c, sizeof c);
-    }
-  }
-  cloud.is_dense = computeDense(cloud);
   decimals.store(shape.extras, {"x", "y", "z"});
   if (extras) {
     shape.extras.obj_lines.assign(lines.begin(), lines.end());

@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "internal.h"
+#include "io/internal.h"
 
 namespace hgd::io_internal {
 namespace {
@@ -27,30 +27,29 @@ bool nextWords(Lexer& lex, std::vector<std::string_view>* words) {
 }  // namespace
 
 Shape readOff(const std::string& path) {
-  InputFile in(path);
-  Lexer lex(in.rest(), 0);
+  TextFile off(path);
   std::vector<std::string_view> w;
-  if (!nextWords(lex, &w)) fail(path, "malformed header: no OFF line");
+  if (!nextWords(off.lex, &w)) fail(path, "malformed header: no OFF line");
   const std::string_view kw = w[0];
   if (kw != "OFF" && kw != "COFF" && kw != "NOFF" && kw != "CNOFF" && kw != "NCOFF")
-    fail(path, "malformed header: line " + num(lex.line()) + " is " + excerpt(lex.lineText()) +
+    fail(path, "malformed header: line " + num(off.lex.line()) + " is " + excerpt(off.lex.lineText()) +
                    ", expected OFF, COFF, NOFF or CNOFF");
   const bool colour = kw.find('C') != std::string_view::npos,
              normals = kw.find('N') != std::string_view::npos;
   std::vector<std::string_view> counts(w.begin() + 1, w.end());
   if (counts.empty()) {
-    if (!nextWords(lex, &w)) fail(path, "malformed header: no vertex and face counts");
+    if (!nextWords(off.lex, &w)) fail(path, "malformed header: no vertex and face counts");
     counts = w;
   }
   std::uint64_t nv = 0, nf = 0, ne = 0;
   if (counts.size() < 2 || counts.size() > 3 || !parseU64(counts[0], &nv) || !parseU64(counts[1], &nf) ||
       (counts.size() == 3 && !parseU64(counts[2], &ne)))
-    fail(path, "malformed header: line " + num(lex.line()) + ": expected '<vertices> <faces> <edges>'");
+    fail(path, "malformed header: line " + num(off.lex.line()) + ": expected '<vertices> <faces> <edges>'");
   if (nv == 0) fail(path, "no points: the header declares 0 vertices");
   // Each vertex line holds at least "0 0 0\n", each face line "3 0 1 2\n": checked before allocating.
-  if (nv > in.remaining() / 6 || nf > in.remaining() / 8 || nv * 6 + nf * 8 > in.remaining())
+  if (nv > off.in.remaining() / 6 || nf > off.in.remaining() / 8 || nv * 6 + nf * 8 > off.in.remaining())
     fail(path, "truncated data: the header declares " + num(nv) + " vertices and " + num(nf) +
-                   " faces, more than the file's " + num(in.remaining()) + " bytes hold");
+                   " faces, more than the file's " + num(off.in.remaining()) + " bytes hold");
   if (nv > std::numeric_limits<std::int32_t>::max()) fail(path, "unsupported: more than 2147483647 vertices");
 
   const std::size_t base = 3 + (normals ? 3 : 0);
@@ -59,7 +58,7 @@ Shape readOff(const std::string& path) {
   bool colour_bytes = false, colour_integral = true;
   DecimalsSeen decimals;  // per column, for writing the values back as spelt
   for (std::uint64_t i = 0; i < nv; ++i) {
-    if (!nextWords(lex, &w))
+    if (!nextWords(off.lex, &w))
       fail(path, "truncated data: the header declares " + num(nv) + " vertices, the file holds " + num(i));
     std::size_t want = base;
     if (colour) {
@@ -67,12 +66,12 @@ Shape readOff(const std::string& path) {
       want += ncolour;
     }
     if (w.size() < want)
-      fail(path, "malformed data: line " + num(lex.line()) + ": a vertex needs " + num(want) +
+      fail(path, "malformed data: line " + num(off.lex.line()) + ": a vertex needs " + num(want) +
                      " values, found " + num(w.size()));
     for (std::size_t k = 0; k < want; ++k) {
       double d = 0;
       if (!parseFloating(w[k], &d))
-        fail(path, "non-numeric value " + excerpt(w[k]) + " at line " + num(lex.line()));
+        fail(path, "non-numeric value " + excerpt(w[k]) + " at line " + num(off.lex.line()));
       decimals.see(k, w[k]);
       if (k >= base) {
         colour_integral = colour_integral && d == std::floor(d) && d >= 0 && d <= 255;
@@ -84,17 +83,17 @@ Shape readOff(const std::string& path) {
   Shape shape;
   bool face_colours = false;
   for (std::uint64_t f = 0; f < nf; ++f) {
-    if (!nextWords(lex, &w))
+    if (!nextWords(off.lex, &w))
       fail(path, "truncated data: the header declares " + num(nf) + " faces, the file holds " + num(f));
     std::uint64_t k = 0;
     if (!parseU64(w[0], &k) || k < 3 || k >= w.size())  // (k + 1 would wrap at 2^64 - 1)
-      fail(path, "bad face: line " + num(lex.line()) + " " + excerpt(lex.lineText()) +
+      fail(path, "bad face: line " + num(off.lex.line()) + " " + excerpt(off.lex.lineText()) +
                      " (expected '<k> <i1> ... <ik>', k at least 3)");
     pcl::Vertices poly;
     for (std::uint64_t j = 1; j <= k; ++j) {
       std::uint64_t idx = 0;
       if (!parseU64(w[j], &idx) || idx >= nv)
-        fail(path, "bad face index " + excerpt(w[j]) + " at line " + num(lex.line()) + " (" + num(nv) +
+        fail(path, "bad face index " + excerpt(w[j]) + " at line " + num(off.lex.line()) + " (" + num(nv) +
                        " vertices)");
       poly.vertices.push_back(static_cast<pcl::index_t>(idx));
     }
@@ -103,8 +102,8 @@ Shape readOff(const std::string& path) {
   }
   // More lines than the header declares: its counts are wrong, and reading on would silently
   // drop faces (as PLY, an error).
-  if (nextWords(lex, &w))
-    fail(path, "malformed data: line " + num(lex.line()) + " " + excerpt(lex.lineText()) +
+  if (nextWords(off.lex, &w))
+    fail(path, "malformed data: line " + num(off.lex.line()) + " " + excerpt(off.lex.lineText()) +
                    ": more lines than the header declares (" + num(nv) + " vertices, " + num(nf) + " faces)");
   std::vector<std::pair<std::string, std::uint8_t>> fields = {
       {"x", Field::FLOAT64}, {"y", Field::FLOAT64}, {"z", Field::FLOAT64}};

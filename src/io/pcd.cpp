@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "internal.h"
+#include "io/internal.h"
 
 namespace hgd::io_internal {
 
@@ -70,15 +70,11 @@ Shape readPcd(const std::string& path) {
     } else if (kw == "count") {
       once(&have_count);
       numbers(&counts);
-    } else if (kw == "width") {
-      once(&have_width);
-      single(&width);
-    } else if (kw == "height") {
-      once(&have_height);
-      single(&height);
-    } else if (kw == "points") {
-      once(&have_points);
-      single(&points);
+    } else if (kw == "width" || kw == "height" || kw == "points") {
+      // One number each, once.
+      const bool w = kw == "width", h = kw == "height";
+      once(w ? &have_width : h ? &have_height : &have_points);
+      single(w ? &width : h ? &height : &points);
     } else if (kw == "viewpoint") {
       once(&have_viewpoint);
       if (words.size() != 8) bad("expected 7 numbers");

@@ -10,7 +10,7 @@
 #include <unordered_map>
 #include <vector>
 
-#include "internal.h"
+#include "io/internal.h"
 
 namespace hgd::io_internal {
 namespace {

@@ -19,7 +19,7 @@
 #include <unordered_set>
 #include <vector>
 
-#include "internal.h"
+#include "io/internal.h"
 
 namespace hgd::io_internal {
 namespace {
@@ -52,16 +52,15 @@ std::vector<std::pair<std::string, std::uint8_t>> inferColumns(std::size_t cols,
 }  // namespace
 
 Shape readXyz(const std::string& path) {
-  InputFile in(path);
-  Lexer lex(in.rest(), 0);
+  TextFile xyz(path);
   std::vector<std::string> names;
   std::vector<double> values;
   DecimalsSeen decimals;  // per column, for writing the values back as spelt
   std::size_t cols = 0, first_row = 0;
   std::string separator = " ", header;
-  while (lex.nextLine()) {
-    if (lex.peek() == '#') continue;
-    const std::string_view text = lex.lineText();
+  while (xyz.lex.nextLine()) {
+    if (xyz.lex.peek() == '#') continue;
+    const std::string_view text = xyz.lex.lineText();
     std::string_view line = text.substr(0, xyzCommentStart(text));  // "1 2 3 # a note"
     const std::vector<std::string_view> words = splitColumns(line);
     if (words.empty()) continue;
@@ -87,23 +86,23 @@ Shape readXyz(const std::string& path) {
       std::unordered_set<std::string_view> seen;
       for (const auto w : splitColumns(line)) {
         if (!seen.insert(w).second)
-          fail(path,
-               "malformed header: line " + num(lex.line()) + " names column '" + std::string(w) + "' twice");
+          fail(path, "malformed header: line " + num(xyz.lex.line()) + " names column '" + std::string(w) +
+                         "' twice");
         names.emplace_back(w);
       }
       if (names.size() < 3)
-        fail(path, "malformed header: line " + num(lex.line()) + " names " + num(names.size()) +
+        fail(path, "malformed header: line " + num(xyz.lex.line()) + " names " + num(names.size()) +
                        " columns, at least 3 (x y z) needed");
       cols = names.size();
-      first_row = lex.line();
+      first_row = xyz.lex.line();
       continue;
     }
     if (values.empty()) {
       if (cols == 0) {
         cols = words.size();
-        first_row = lex.line();
+        first_row = xyz.lex.line();
         if (cols < 3)
-          fail(path, "malformed data: line " + num(lex.line()) + ": a point needs 3 coordinates, found " +
+          fail(path, "malformed data: line " + num(xyz.lex.line()) + ": a point needs 3 coordinates, found " +
                          num(cols));
       }
       if (words.size() >= 2)  // what lies between the first two values, kept for writing back
@@ -112,13 +111,13 @@ Shape readXyz(const std::string& path) {
                         static_cast<std::size_t>(words[1].data() - words[0].data()) - words[0].size()));
     }
     if (words.size() != cols)
-      fail(path, "malformed data: line " + num(lex.line()) + " has " + num(words.size()) +
+      fail(path, "malformed data: line " + num(xyz.lex.line()) + " has " + num(words.size()) +
                      " values, expected " + num(cols) +
                      (names.empty() ? " (as line " : " (as named on line ") + num(first_row) + ")");
     if (bad < words.size()) {
       const std::string_view w = words[bad];
       const bool hex = w.find("0x") != std::string_view::npos || w.find("0X") != std::string_view::npos;
-      fail(path, "non-numeric value " + excerpt(w) + " at line " + num(lex.line()) + " (column " +
+      fail(path, "non-numeric value " + excerpt(w) + " at line " + num(xyz.lex.line()) + " (column " +
                      num(bad + 1) + (hex ? "; hexadecimal numbers are not read" : "") + ")");
     }
     for (std::size_t k = 0; k < words.size(); ++k) {
@@ -192,24 +191,8 @@ void writeXyz(const std::string& path, const Shape& shape) {
     buf += '\n';
   }
   AtomicWriter w(path);
-  const std::size_t n = shape.size();
-  const std::vector<FileExtras::TextColumn> decimals = decimalsOf(shape.extras, fields);
-  for (std::size_t i = 0; i < n; ++i) {
-    const std::uint8_t* pt = c.data.data() + i * c.point_step;
-    bool first = true;
-    for (std::size_t fi = 0; fi < fields.size(); ++fi) {
-      const Field* f = fields[fi];
-      const std::size_t sz = datatypeSize(f->datatype);
-      for (std::size_t k = 0; k < fieldCount(*f); ++k) {
-        if (!first) buf += sep;
-        first = false;
-        appendValue(buf, pt + f->offset + k * sz, f->datatype, decimals[fi].decimals, decimals[fi].exponents);
-      }
-    }
-    buf += '\n';
-    flushIfFull(w, buf);
-  }
   w.write(buf);
+  writeAsciiPoints(w, c, shape.size(), fields, false, decimalsOf(shape.extras, fields), sep);
   w.commit();
 }
 

@@ -4,23 +4,9 @@
 //                 [--size WxH] [--stats] [--lod N]
 //
 // One mode at a time, shown at the start of the status line: pick (the mouse turns the view),
-// area, drag or frame. Keys (also shown by 'h'; kHelp in viewer.h and README.md's viewer
-// section say the same):
-//   x / d / t  area (rubber band) / drag (left-drag the manipulated handle) / frame mode (arrows
-//              move the handle in the view plane, [ ] turn it about the view direction, , .
-//              about the view's vertical); the same key again: pick mode
-//   shift+click  selects a point and everything within the radius, in any mode
-//   + / -      selection radius up / down;  c  clear the selection
-//   f / m / j  the selection becomes a fixed handle / the manipulated handle / a joint
-//   C          clear all handles;  l  drags keep the handle's orientation
-//   < / >      point size smaller / larger (clouds)
-//   v          view: original colours / harmonic field / clusters;  o  rest shape overlay
-//   r          the opening view;  z / y  undo / redo;  n  back to the rest shape
-//   s / S      save the deformed shape / the session as a scenario (beside the input, numbered:
-//              never replacing an earlier file)
-//   k          screenshot (PNG, numbered likewise);  h  this help
-//   q / e      quit (pressed twice with unsaved changes)
-// Shift and Caps Lock make capitals as on any keyboard. PCL's and VTK's own keys are off.
+// area, drag or frame. The keys, and what each does when, are one table (keys.cpp): the help
+// overlay ('h'), --help and the input handling are made of it. Shift and Caps Lock make capitals
+// as on any keyboard. PCL's and VTK's own keys are off.
 //
 // --replay plays a script of events (picks, keys, drags in screen or world coordinates) and
 // exits; with --screenshot it saves a picture at the end. The replay format, checked as a whole
@@ -42,6 +28,7 @@
 #include "hgdeform/app/cleanup.h"
 #include "hgdeform/io/io.h"
 #include "hgdeform/render/render.h"
+#include "keys.h"
 #include "replay.h"
 #include "viewer.h"
 
@@ -75,22 +62,7 @@ int parseArgs(int argc, char** argv, ViewArgs& a) {
       ->type_name("EVENTS.json");
   app.add_option("--screenshot", a.shot, "save a PNG (after the replay, if any) and exit")
       ->type_name("OUT.png");
-  std::string size;
-  app.add_option("--size", size, "window size (default 1100x800)")
-      ->check(CLI::Validator(
-          [&a](std::string& text) -> std::string {
-            int w = 0, h = 0;
-            char rest = 0;
-            if (std::sscanf(text.c_str(), "%6dx%6d%c", &w, &h, &rest) != 2 || w < 64 || h < 64 ||
-                w > hgd::kMaxPictureSide || h > hgd::kMaxPictureSide)
-              return "must be WIDTHxHEIGHT, each from 64 to " + std::to_string(hgd::kMaxPictureSide) +
-                     " (got '" + text + "')";
-            a.width = w;
-            a.height = h;
-            return {};
-          },
-          "", "size"))
-      ->type_name("WxH");
+  hgdcli::addSizeOption(app, "window size (default 1100x800)", 64, hgd::kMaxPictureSide, a.width, a.height);
   app.add_flag("--stats", a.stats, "print frame timings");
   app.add_option("--lod", a.lod,
                  "while dragging a larger point cloud, draw and interpolate only this many of its points "
@@ -98,6 +70,7 @@ int parseArgs(int argc, char** argv, ViewArgs& a) {
       ->check(CLI::Range(0, 1000000000))
       ->type_name("N");
   app.add_flag("-q,--quiet", a.quiet, "print nothing but errors");
+  app.footer(hgdview::keysHelp() + "\n" + app.get_footer());
   return hgdcli::parse(app, argc, argv);
 }
 

@@ -1,19 +1,9 @@
 #include "replay.h"
 
-#include <fcntl.h>
-#include <sys/stat.h>
-#include <unistd.h>
-
-#include <cerrno>
 #include <cmath>
-#include <cstdio>
-#include <cstring>
 #include <initializer_list>
-#include <memory>
-#include <nlohmann/json.hpp>
-#include <set>
 
-#include "hgdeform/app/scenario.h"
+#include "hgdeform/app/json_reader.h"
 #include "hgdeform/io/io.h"
 
 namespace hgdview {
@@ -31,97 +21,12 @@ constexpr std::uintmax_t kMaxReplayBytes = std::uintmax_t{1} << 26;
 
 constexpr const char* kEvents = "key, radius, pick, area, drag, view, screenshot, save, save_scenario";
 
-/// Follows the parse to name the JSON path of a problem the parser itself finds: a duplicated
-/// key (the last one would silently win otherwise) or a number out of range (1e999).
-class PathTracker {
- public:
-  struct State {
-    struct Frame {
-      bool array;
-      std::size_t index;
-      std::string key;
-      std::set<std::string> keys;
-    };
-    std::vector<Frame> frames;
-    std::string path() const {
-      std::string p;
-      for (const Frame& f : frames)
-        p += f.array ? "/" + std::to_string(f.index) : hgd::jsonPointerStep(f.key);
-      return p.empty() ? "/" : p;
-    }
-  };
+[[noreturn]] void raiseReplayError(const std::string& message) {
+  throw ReplayError(message);
+}
 
-  PathTracker(std::string name, State* state) : name_(std::move(name)), state_(state) {}
-
-  bool operator()(int /*depth*/, json::parse_event_t event, json& parsed) {
-    using E = json::parse_event_t;
-    auto& frames = state_->frames;
-    switch (event) {
-      case E::object_start: frames.push_back({false, 0, {}, {}}); break;
-      case E::array_start: frames.push_back({true, 0, {}, {}}); break;
-      case E::key: {
-        State::Frame& f = frames.back();
-        f.key = parsed.get<std::string>();
-        if (!f.keys.insert(f.key).second)
-          throw ReplayError(name_ + ": " + state_->path() + ": duplicate key");
-        break;
-      }
-      case E::object_end:
-      case E::array_end:
-        frames.pop_back();
-        completed();
-        break;
-      case E::value: completed(); break;
-    }
-    return true;
-  }
-
- private:
-  void completed() {
-    if (!state_->frames.empty() && state_->frames.back().array) ++state_->frames.back().index;
-  }
-  std::string name_;
-  State* state_;
-};
-
-struct Parser {
-  std::string name;
-
-  [[noreturn]] void fail(const std::string& path, const std::string& what) const {
-    throw ReplayError(name + ": " + (path.empty() ? "/" : path) + ": " + what);
-  }
-
-  static std::string list(std::initializer_list<const char*> keys) {
-    std::string out;
-    for (const char* k : keys) out += std::string(out.empty() ? "" : ", ") + k;
-    return out;
-  }
-
-  void onlyKeys(const json& j, const std::string& path, std::initializer_list<const char*> keys) const {
-    for (auto it = j.begin(); it != j.end(); ++it) {
-      bool known = false;
-      for (const char* k : keys) known = known || it.key() == k;
-      if (!known)
-        fail(path + hgd::jsonPointerStep(it.key()), "unknown key (expected one of: " + list(keys) + ")");
-    }
-  }
-
-  void object(const json& j, const std::string& path) const {
-    if (!j.is_object()) fail(path, "must be an object");
-  }
-
-  const json& member(const json& j, const std::string& path, const char* key) const {
-    const auto it = j.find(key);
-    if (it == j.end()) fail(path + hgd::jsonPointerStep(key), "missing");
-    return *it;
-  }
-
-  double number(const json& j, const std::string& path) const {
-    if (!j.is_number()) fail(path, "must be a number");
-    const double v = j.get<double>();
-    if (!std::isfinite(v)) fail(path, "must be a finite number");
-    return v;
-  }
+struct Parser : hgd::JsonReader {
+  using JsonReader::JsonReader;
 
   double positive(const json& j, const std::string& path) const {
     const double v = number(j, path);
@@ -170,8 +75,7 @@ struct Parser {
   /// {"world": [x, y, z]} or {"screen": [x, y]}; `keys` are the keys the object may have.
   ReplayPosition position(const json& j, const std::string& path,
                           std::initializer_list<const char*> keys = {"world", "screen"}) const {
-    object(j, path);
-    onlyKeys(j, path, keys);
+    objectWith(j, path, keys);
     const bool w = j.contains("world"), s = j.contains("screen");
     if (w == s) fail(path, "must have exactly one of: world, screen");
     if (w) return world(j["world"], path + "/world");
@@ -180,9 +84,8 @@ struct Parser {
   }
 
   ReplayEvent event(const json& j, const std::string& path) const {
-    object(j, path);
-    onlyKeys(j, path,
-             {"key", "radius", "pick", "area", "drag", "view", "screenshot", "save", "save_scenario"});
+    objectWith(j, path,
+               {"key", "radius", "pick", "area", "drag", "view", "screenshot", "save", "save_scenario"});
     if (j.size() != 1) fail(path, std::string("an event must have exactly one of: ") + kEvents);
     ReplayEvent e;
     e.path = path;
@@ -203,8 +106,7 @@ struct Parser {
       }
     } else if (key == "area") {
       e.kind = ReplayEvent::Kind::Area;
-      object(v, p);
-      onlyKeys(v, p, {"screen", "from", "to"});
+      objectWith(v, p, {"screen", "from", "to"});
       if (v.contains("screen")) {
         if (v.contains("from") || v.contains("to"))
           fail(p, "must have either \"screen\" or \"from\" and \"to\", not both");
@@ -218,8 +120,7 @@ struct Parser {
       }
     } else if (key == "drag") {
       e.kind = ReplayEvent::Kind::Drag;
-      object(v, p);
-      onlyKeys(v, p, {"from", "to", "steps"});
+      objectWith(v, p, {"from", "to", "steps"});
       e.from = position(member(v, p, "from"), p + "/from");
       e.to = position(member(v, p, "to"), p + "/to");
       if (v.contains("steps")) {
@@ -277,18 +178,8 @@ const std::string* outputOf(const ReplayEvent& e) {
 }
 
 std::vector<ReplayEvent> parseReplay(const std::string& json_text, const std::string& name) {
-  const Parser p{name};
-  json j;
-  PathTracker::State state;
-  try {
-    j = json::parse(json_text, PathTracker(name, &state));
-  } catch (const json::out_of_range& e) {
-    // A number beyond the range of a double (1e999): where it is, as for any other bad number.
-    if (e.id == 406) p.fail(state.path(), "must be a finite number");
-    throw ReplayError(name + ": invalid JSON: " + e.what());
-  } catch (const json::exception& e) {
-    throw ReplayError(name + ": invalid JSON: " + e.what());
-  }
+  const Parser p(name, raiseReplayError);
+  const json j = p.parse(json_text);
   // {"events": [...]} or, as the first replay files were, the bare array.
   std::string base;
   const json* events = &j;
@@ -308,32 +199,7 @@ std::vector<ReplayEvent> parseReplay(const std::string& json_text, const std::st
 }
 
 std::vector<ReplayEvent> readReplay(const std::string& path) {
-  struct Closer {
-    void operator()(std::FILE* f) const { std::fclose(f); }
-  };
-  // Non-blocking, so that a FIFO given as the replay is refused instead of waiting for a writer.
-  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);
-  if (fd < 0) throw ReplayError(path + ": cannot open replay file: " + std::strerror(errno));
-  std::unique_ptr<std::FILE, Closer> file(::fdopen(fd, "rb"));
-  if (!file) {
-    const int e = errno;
-    ::close(fd);
-    throw ReplayError(path + ": cannot open replay file: " + std::strerror(e));
-  }
-  struct stat st {};
-  if (::fstat(::fileno(file.get()), &st) != 0)
-    throw ReplayError(path + ": cannot open replay file: " + std::strerror(errno));
-  if (S_ISDIR(st.st_mode)) throw ReplayError(path + ": cannot open replay file: " + std::strerror(EISDIR));
-  if (!S_ISREG(st.st_mode)) throw ReplayError(path + ": cannot open replay file: not a regular file");
-  if (st.st_size == 0) throw ReplayError(path + ": empty file");
-  const auto size = static_cast<std::uintmax_t>(st.st_size);
-  if (size > kMaxReplayBytes)
-    throw ReplayError(path + ": file too large for a replay (" + std::to_string(size) + " bytes)");
-  std::string text(static_cast<std::size_t>(size), '\0');
-  if (std::fread(text.data(), 1, text.size(), file.get()) != text.size())
-    throw ReplayError(path + ": cannot read replay file: " +
-                      (std::ferror(file.get()) ? std::strerror(errno) : "the file shrank while being read"));
-  return parseReplay(text, path);
+  return parseReplay(hgd::readJsonFile(path, "replay", kMaxReplayBytes, raiseReplayError), path);
 }
 
 void refuseInputsAsOutputs(const std::vector<ReplayEvent>& events, const std::string& name,

@@ -279,26 +279,25 @@ void Viewer::frameMove(const Eigen::Vector3d& translate, const Eigen::Vector3d& 
 
 void Viewer::undo() {
   if (!ready() || !run_.undo()) return message("nothing to undo");
-  markUnsaved();
-  updateAlerts();
-  message("undone");
-  refresh();
+  shapeChanged("undone");
 }
 
 void Viewer::redo() {
   if (!ready() || !run_.redo()) return message("nothing to redo");
-  markUnsaved();
-  updateAlerts();
-  message("redone");
-  refresh();
+  shapeChanged("redone");
 }
 
 void Viewer::resetShape() {
   if (!ready()) return;
   run_.reset();
+  shapeChanged("rest shape");
+}
+
+// After undo, redo or a reset: the shape moved without a gesture.
+void Viewer::shapeChanged(const std::string& what) {
   markUnsaved();
   updateAlerts();
-  message("rest shape");
+  message(what);
   refresh();
 }
 

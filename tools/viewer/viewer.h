@@ -7,6 +7,7 @@
 //   viewer.cpp         state: selection, handles, moves, undo, saving
 //   viewer_draw.cpp    the window: drawing, colours, the status line, screenshots, screen geometry
 //   viewer_x11.cpp     what is asked of X directly (Caps Lock, queued pointer motions)
+//   keys.cpp           the table of keys: what each does and when, the help and --help texts
 #pragma once
 
 #include <pcl/visualization/interactor_style.h>
@@ -27,6 +28,7 @@
 #include "hgdeform/app/regions.h"
 #include "hgdeform/app/runner.h"
 #include "hgdeform/app/scenario.h"
+#include "keys.h"
 #include "replay.h"
 
 class vtkAbstractPicker;
@@ -39,17 +41,6 @@ using Clock = std::chrono::steady_clock;
 inline double msSince(Clock::time_point t) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
 }
-
-// Every key the viewer answers to (PCL's and VTK's own keys are off; the mouse turns, pans and
-// zooms the view as in PCL). Kept in step with main.cpp's comment and README.md's viewer section.
-inline const char* const kHelp =
-    "modes: x  area select   d  drag the manipulated handle   t  frame (arrows, [ ], , .)   (again: pick)\n"
-    "shift+click  select around a point (any mode)   +/-  radius   c  clear selection\n"
-    "f  fixed handle   m  manipulated handle   j  joint   C  clear all handles   l  drags keep orientation\n"
-    "v  view: colours / field / clusters   o  rest overlay   < >  point size   r  opening view   z/y  "
-    "undo/redo   n  rest "
-    "shape\n"
-    "s  save shape   S  save scenario   k  screenshot (numbered, never replaced)   h  help   q/e  quit";
 
 class Viewer;
 
@@ -160,6 +151,8 @@ class Viewer {
   void frameMove(const Eigen::Vector3d& translate, const Eigen::Vector3d& axis, double degrees);
   void undo();
   void redo();
+  /// Unsaved, alerts, `what` on the status line, redrawn: after undo, redo and resetShape.
+  void shapeChanged(const std::string& what);
   void resetShape();
   void saveShape(const std::string& path);
   void saveScenario(const std::string& path);

@@ -72,7 +72,7 @@ void Viewer::open() {
     return a;
   };
   help_ = text(true, false);
-  help_->SetInput(kHelp);
+  help_->SetInput(helpOverlay().c_str());
   status_ = text(false, false);
   mode_label_ = text(false, true);
   help_visible_ = true;

@@ -54,16 +54,13 @@ bool Viewer::key(const std::string& sym, char code) {
                  sym == "Caps_Lock"))
     return false;
   if (k != 'q' && k != 'e') quit_asked_ = false;
-  // While the mouse button holds a drag, only the help, screenshots, saving the shape shown and
-  // quitting: a key that changed the handles, the shape or the mode would pull the deformer
-  // from under the live frames.
-  if (dragging_ && (k == 0 || std::string("hksqe").find(k) == std::string::npos)) {
+  const KeyBinding* binding = findKey(k);  // the table of keys.cpp: what acts when
+  if (dragging_ && (!binding || (binding->waits & kWaitsForDrag))) {
     message("release the mouse button first");
     return true;
   }
-  // While the deformer builds, keys that need it wait (named keys too: the arrows move the
-  // handle); the view, the selection, the help, the mode, screenshots and quitting do not.
-  if (building_ && (k == 0 || std::string("hrxc+=-kqe<>").find(k) == std::string::npos)) {
+  // Named keys wait too (the arrows move the handle).
+  if (building_ && (!binding || (binding->waits & kWaitsForBuild))) {
     message("the deformer is still being built: this key waits for it");
     return true;
   }
@@ -81,51 +78,50 @@ bool Viewer::key(const std::string& sym, char code) {
     if (k == ',') return frameMove(none, up, turn), true;
     if (k == '.') return frameMove(none, up, -turn), true;
   }
-  switch (k) {
-    case 'f': markSelection(1); return true;
-    case 'm': markSelection(2); return true;
-    case 'j': markSelection(3); return true;
-    case 'c': clearSelection(); return true;
-    case 'C': clearHandles(); return true;
-    case 'x': setMode(std::string(mode()) == "area" ? "pick" : "area"); return true;
-    case 'd': setMode(drag_mode_ ? "pick" : "drag"); return true;
-    case 't': setMode(frame_mode_ ? "pick" : "frame"); return true;
-    case 'l':
+  if (!binding) return false;
+  switch (binding->action) {
+    case KeyAction::Fixed: markSelection(1); return true;
+    case KeyAction::Manipulated: markSelection(2); return true;
+    case KeyAction::Joint: markSelection(3); return true;
+    case KeyAction::ClearSelection: clearSelection(); return true;
+    case KeyAction::ClearHandles: clearHandles(); return true;
+    case KeyAction::AreaMode: setMode(std::string(mode()) == "area" ? "pick" : "area"); return true;
+    case KeyAction::DragMode: setMode(drag_mode_ ? "pick" : "drag"); return true;
+    case KeyAction::FrameMode: setMode(frame_mode_ ? "pick" : "frame"); return true;
+    case KeyAction::KeepOrientation:
       keep_orientation_ = !keep_orientation_;
       message(keep_orientation_ ? "drags keep the handle's orientation (it translates without turning)"
                                 : "drags turn the handle as the shape pulls it (the paper's drag)");
       return true;
-    case 'v':
+    case KeyAction::View:
       view_ = (view_ + 1) % 3;
       refresh();
       return true;
-    case 'o':
+    case KeyAction::Overlay:
       overlay_ = !overlay_;
       refresh();
       return true;
-    case 'r': openingView(); return true;
-    case 'z': undo(); return true;
-    case 'y': redo(); return true;
-    case 'n': resetShape(); return true;
-    case 's': saveShape(freshPath("-deformed", extensionOf(input_))); return true;
-    case 'S': saveScenario(freshPath("-scenario", ".json")); return true;
-    case 'k': screenshot(freshPath("-screenshot", ".png")); return true;
-    case 'h':
+    case KeyAction::OpeningView: openingView(); return true;
+    case KeyAction::Undo: undo(); return true;
+    case KeyAction::Redo: redo(); return true;
+    case KeyAction::RestShape: resetShape(); return true;
+    case KeyAction::SaveShape: saveShape(freshPath("-deformed", extensionOf(input_))); return true;
+    case KeyAction::SaveScenario: saveScenario(freshPath("-scenario", ".json")); return true;
+    case KeyAction::Screenshot: screenshot(freshPath("-screenshot", ".png")); return true;
+    case KeyAction::Help:
       help_visible_ = !help_visible_;
       if (help_) help_->SetVisibility(help_visible_);
       render();
       return true;
-    case '+':
-    case '=':
+    case KeyAction::RadiusUp:
       radius_ *= 1.25;
       message("selection radius " + num(radius_));
       return true;
-    case '-':
+    case KeyAction::RadiusDown:
       radius_ /= 1.25;
       message("selection radius " + num(radius_));
       return true;
-    case '<':
-    case '>': {  // point size (+/- are the selection radius)
+    case KeyAction::PointSize: {  // < and > (+/- are the selection radius)
       if (!run_.geometry().faces.empty()) return message("point size: a mesh is drawn as a surface"), true;
       double size = 1;
       vis_->getPointCloudRenderingProperties(pcl::visualization::PCL_VISUALIZER_POINT_SIZE, size, "shape");
@@ -134,10 +130,11 @@ bool Viewer::key(const std::string& sym, char code) {
       message("point size " + num(size));
       return true;
     }
-    case 'q':
-    case 'e': requestQuit(k); return true;
-    default: return false;
+    case KeyAction::Quit: requestQuit(k); return true;
+    case KeyAction::FrameTurn:  // frame mode's keys, above; nothing in the other modes
+    case KeyAction::None: return false;
   }
+  return false;
 }
 
 // A click with shift: select the points within the radius of the point under the cursor.

@@ -1,20 +1,12 @@
-// Outputs beside the shape: the field as a per-point scalar, and the JSON report of a deformation.
+// The report of a deformation, as JSON (report_json.h has its objects for the tools) and as one
+// line for the terminal. The field stored as a per-point scalar is storeField() in fields.h.
 #pragma once
 
 #include <string>
-#include <vector>
 
 #include "hgdeform/app/runner.h"
-#include "hgdeform/io/geometry.h"
-#include "hgdeform/io/shape.h"
 
 namespace hgd {
-
-/// Adds (or overwrites) a float field `name` holding `values` (one per finite point; NaN for
-/// points that are not finite). With `colour`, also writes the values as a blue-to-red colour
-/// map: red/green/blue uchar fields for PLY/OBJ, a packed `rgb` field for PCD.
-void storeField(Shape& shape, const Geometry& geometry, const std::vector<float>& values,
-                const std::string& name, bool colour = false);
 
 /// The report as JSON text:
 /// {"version", "points", "clusters", "iterations", "energy": {"detail", "prop", "manip", "length", "total"},
@@ -27,8 +19,5 @@ void writeReportJson(const std::string& path, const DeformReport& report);
 
 /// One line for the terminal.
 std::string summaryLine(const DeformReport& report);
-
-/// Writes `text` to `path` through a temporary file and a rename. Throws IoError.
-void writeTextAtomically(const std::string& path, const std::string& text);
 
 }  // namespace hgd

@@ -71,6 +71,14 @@ struct MoveResult {
   std::string warning;  ///< empty, or why the move ended short
 };
 
+/// The harmonic field of a scenario's handles over every point (`hgdeform field`).
+struct FieldResult {
+  std::vector<float> values;  ///< one per point of the geometry: 1 on the manipulated handle, 0 on the fixed
+  FieldTimings timings;       ///< the field stage's
+  std::size_t unreachable = 0;  ///< points in parts that touch no handle (their value is 0)
+  Handles handles;              ///< the scenario's, resolved on the shape
+};
+
 class ScenarioRunner {
  public:
   /// Reads `path` (any format readShape() takes); the time goes into the report.
@@ -86,6 +94,12 @@ class ScenarioRunner {
   /// the deformer (normals and kNN are kept from an earlier build). Its moves are not applied
   /// yet (applyMoves()). Throws ScenarioError when a region does not fit the shape.
   void setScenario(const Scenario& scenario);
+
+  /// The harmonic field alone for the scenario's handles: at full resolution, over every point,
+  /// with the options' field settings and the sensor viewpoint of mergedOptions(). Nothing of the
+  /// runner changes (no deformer is built, its handles stay). Throws ScenarioError when a region
+  /// does not fit the shape.
+  FieldResult field(const Scenario& scenario) const;
 
   /// Handles chosen directly (indices into geometry()); an empty fixed or manipulated handle
   /// leaves the runner without a deformer (ready() is false) until both are there. The

@@ -67,6 +67,10 @@ struct DeformationData {
   BuildTimings timings;  ///< field_ms, sampling_ms, coarse_ms, field; clusters_ms so far
 };
 
+/// The graph's input at full resolution: every point of `geometry`, its file's normals (else
+/// none: estimated, or a mesh's) and its faces.
+void setGraphInput(SurfaceGraph& graph, const Geometry& geometry);
+
 /// Builds `data` for `handles` (valid indices, checked: std::invalid_argument) on `geometry`,
 /// whose clouds must stay as they are while `data` lives. The resolution is chosen on the first
 /// call (options.multires_above, coarse_points) and kept.

@@ -1,4 +1,5 @@
-// Typed access to the fields of a pcl::PCLPointCloud2 blob, whatever their declared types.
+// Typed access to the fields of a pcl::PCLPointCloud2 blob, whatever their declared types, and
+// storeField: a per-point scalar (the harmonic field) stored into a shape, with its colour map.
 #pragma once
 
 #include <pcl/PCLPointCloud2.h>
@@ -10,6 +11,9 @@
 #include <vector>
 
 namespace hgd {
+
+struct Geometry;
+struct Shape;
 
 /// Size in bytes of one value of a pcl::PCLPointField datatype (INT8 … FLOAT64); 0 if unknown.
 std::size_t datatypeSize(std::uint8_t datatype);
@@ -60,5 +64,11 @@ ColourFields findColourFields(const pcl::PCLPointCloud2& cloud);
 
 /// The colour of `point`, each component in [0, 1] (NaN reads as 0); grey when `fields` has none.
 Eigen::Vector3f readColour(const pcl::PCLPointCloud2& cloud, std::size_t point, const ColourFields& fields);
+
+/// Adds (or overwrites) a float field `name` holding `values` (one per finite point; NaN for
+/// points that are not finite). With `colour`, also writes the values as a blue-to-red colour
+/// map: red/green/blue uchar fields for PLY/OBJ, a packed `rgb` field for PCD.
+void storeField(Shape& shape, const Geometry& geometry, const std::vector<float>& values,
+                const std::string& name, bool colour = false);
 
 }  // namespace hgd

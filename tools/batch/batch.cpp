@@ -89,11 +89,10 @@ int parseArgs(int argc, char** argv, Config& c, bool print) {
                  "output directory (created); neither INPUT_DIR nor inside it; required")
       ->required()
       ->type_name("DIR");
-  app.add_option("-j,--jobs", c.jobs,
-                 "scans processed in parallel (default 1); each scan gets\n"
-                 "max(1, cores / N) OpenMP threads (at most OMP_NUM_THREADS)")
-      ->check(hgdcli::integerFrom(1, 1024))
-      ->type_name("N");
+  hgdcli::addCount(app, "-j,--jobs", c.jobs,
+                   "scans processed in parallel (default 1); each scan gets\n"
+                   "max(1, cores / N) OpenMP threads (at most OMP_NUM_THREADS)",
+                   1, 1024);
   app.add_flag("--recursive", c.recursive, "every scan of the tree under INPUT_DIR, not only the top level");
   app.add_option("--format", c.format, "ply, pcd or same (default same: the input's own format)")
       ->check(hgdcli::oneOf({"ply", "pcd", "same"}))

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <string>
 
+#include "hgdeform/app/report_json.h"
 #include "hgdeform/version.h"
 
 namespace hgdcli {
@@ -62,20 +63,7 @@ nlohmann::json toJson(const ScanResult& r) {
   j["rank"] = r.rank;
   j["ms_wall"] = r.ms_wall;
   if (r.has_metrics) {
-    j["points"] = r.report.points;
-    j["clusters"] = r.report.clusters;
-    j["iterations"] = r.report.iterations;
-    j["frames"] = r.report.frames;
-    j["handle_error"] = r.report.handle_error;
-    j["ms"] = {{"read", r.report.read_ms},
-               {"build", r.report.build_ms},
-               {"field", r.report.field_ms},
-               {"sampling", r.report.sampling_ms},
-               {"clusters", r.report.clusters_ms},
-               {"solve", r.report.solve_ms},
-               {"interpolation", r.report.interpolation_ms},
-               {"total", r.report.total_ms},
-               {"write", r.report.write_ms}};
+    j.update(hgd::reportFigures(r.report));  // points, clusters, iterations, frames, handle_error, ms
   } else {
     for (const char* k : {"points", "clusters", "iterations", "frames", "handle_error", "ms"}) j[k] = nullptr;
   }
@@ -97,23 +85,7 @@ ScanResult fromJson(const nlohmann::json& j) {
   r.rank = j.at("rank").get<int>();
   r.ms_wall = j.at("ms_wall").get<double>();
   r.has_metrics = !j.at("points").is_null();
-  if (r.has_metrics) {
-    r.report.points = j.at("points").get<std::size_t>();
-    r.report.clusters = j.at("clusters").get<std::size_t>();
-    r.report.iterations = j.at("iterations").get<int>();
-    r.report.frames = j.at("frames").get<int>();
-    r.report.handle_error = j.at("handle_error").get<double>();
-    const auto& ms = j.at("ms");
-    r.report.read_ms = ms.at("read").get<double>();
-    r.report.build_ms = ms.at("build").get<double>();
-    r.report.field_ms = ms.at("field").get<double>();
-    r.report.sampling_ms = ms.at("sampling").get<double>();
-    r.report.clusters_ms = ms.at("clusters").get<double>();
-    r.report.solve_ms = ms.at("solve").get<double>();
-    r.report.interpolation_ms = ms.at("interpolation").get<double>();
-    r.report.total_ms = ms.at("total").get<double>();
-    r.report.write_ms = ms.at("write").get<double>();
-  }
+  if (r.has_metrics) hgd::readReportFigures(j, r.report);
   return r;
 }
 

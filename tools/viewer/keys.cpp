@@ -1,0 +1,104 @@
+#include "keys.h"
+
+#include <algorithm>
+#include <cstddef>
+#include <cstring>
+#include <vector>
+
+namespace hgdview {
+
+namespace {
+
+using A = KeyAction;
+constexpr unsigned kDrag = kWaitsForDrag, kBuild = kWaitsForBuild;
+
+/// One line of the help overlay and the keys it shows, in order.
+struct HelpLine {
+  const char* start;
+  std::vector<KeyBinding> keys;
+  const char* end;
+};
+
+// The help shows them in this order; the bindings without `shown` go with the one before.
+const std::vector<HelpLine> kLines = {
+    {"modes: ",
+     {
+         {"x", A::AreaMode, "x", "area select", kDrag},
+         {"d", A::DragMode, "d", "drag the manipulated handle", kDrag | kBuild},
+         {"t", A::FrameMode, "t", "frame (arrows, [ ], , .)", kDrag | kBuild},
+         {"[],.", A::FrameTurn, nullptr, nullptr, kDrag | kBuild},
+     },
+     "   (again: pick)"},
+    {"",
+     {
+         {"", A::None, "shift+click", "select around a point (any mode)", kWaitsNever},
+         {"+=", A::RadiusUp, "+/-", "radius", kDrag},
+         {"-", A::RadiusDown, nullptr, nullptr, kDrag},
+         {"c", A::ClearSelection, "c", "clear selection", kDrag},
+     },
+     ""},
+    {"",
+     {
+         {"f", A::Fixed, "f", "fixed handle", kDrag | kBuild},
+         {"m", A::Manipulated, "m", "manipulated handle", kDrag | kBuild},
+         {"j", A::Joint, "j", "joint", kDrag | kBuild},
+         {"C", A::ClearHandles, "C", "clear all handles", kDrag | kBuild},
+         {"l", A::KeepOrientation, "l", "drags keep orientation", kDrag | kBuild},
+     },
+     ""},
+    {"",
+     {
+         {"v", A::View, "v", "view: colours / field / clusters", kDrag | kBuild},
+         {"o", A::Overlay, "o", "rest overlay", kDrag | kBuild},
+         {"<>", A::PointSize, "< >", "point size", kDrag},
+         {"r", A::OpeningView, "r", "opening view", kDrag},
+         {"z", A::Undo, "z/y", "undo/redo", kDrag | kBuild},
+         {"y", A::Redo, nullptr, nullptr, kDrag | kBuild},
+         {"n", A::RestShape, "n", "rest shape", kDrag | kBuild},
+     },
+     ""},
+    {"",
+     {
+         {"s", A::SaveShape, "s", "save shape", kBuild},
+         {"S", A::SaveScenario, "S", "save scenario", kDrag | kBuild},
+         {"k", A::Screenshot, "k", "screenshot (numbered, never replaced)", kWaitsNever},
+         {"h", A::Help, "h", "help", kWaitsNever},
+         {"qe", A::Quit, "q/e", "quit", kWaitsNever},
+     },
+     ""},
+};
+
+}  // namespace
+
+const KeyBinding* findKey(char k) {
+  if (k == 0) return nullptr;
+  for (const HelpLine& line : kLines)
+    for (const KeyBinding& b : line.keys)
+      if (std::strchr(b.keys, k) != nullptr) return &b;
+  return nullptr;
+}
+
+std::string helpOverlay() {
+  std::string text;
+  for (const HelpLine& line : kLines) {
+    std::string items;
+    for (const KeyBinding& b : line.keys)
+      if (b.shown != nullptr) items += std::string(items.empty() ? "" : "   ") + b.shown + "  " + b.what;
+    text += std::string(text.empty() ? "" : "\n") + line.start + items + line.end;
+  }
+  return text;
+}
+
+std::string keysHelp() {
+  std::string text = "Keys in the window (also 'h' there; a mode's key again goes back to pick mode):\n";
+  for (const HelpLine& line : kLines)
+    for (const KeyBinding& b : line.keys)
+      if (b.shown != nullptr) {
+        std::string item = std::string("  ") + b.shown;
+        item.resize(std::max<std::size_t>(item.size() + 2, 15), ' ');
+        text += item + b.what + "\n";
+      }
+  return text;
+}
+
+}  // namespace hgdview
