@@ -245,6 +245,7 @@ void Deformer::setupSolver() {
         options_.weights.mhc_per_cluster > 0 ? std::max(1.0, options_.weights.mhc_per_cluster * n_iso) : 1.0;
     sc[c].rot_weight = cl.kind == ClusterKind::Manipulated ? w_mhc
                        : cl.kind == ClusterKind::Range     ? options_.bone_rigidity * w_mhc
+                       : cl.kind == ClusterKind::Iso       ? options_.iso_rigidity
                                                            : 1.0;
   }
   solver_.setup(std::move(sc), clustering_.adjacency, clustering_.manipulated, options_.weights);
