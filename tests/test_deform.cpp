@@ -305,9 +305,9 @@ TEST(Deform, LargeDragStaysStable) {
 // The paper's Fig. 3: a handle dragged far, with the MHC-preferential weight on the manipulated
 // cluster's rigidity (w_MHC = 1.2 n_IC) and with uniform weights (w_MHC = 1, as in embedded
 // deformation). The bunny's ears are dragged down, forwards and round to the side, 0.78 of the
-// diagonal: with uniform weights the handle's cluster turns inside out (det A_MC < 0: the ears
-// are mirrored) and shears, and one frame needs all 20 Gauss-Newton iterations; with w_MHC it
-// stays a rotation.
+// diagonal: with uniform weights (every cluster's Rot weighing 1: w_MHC = 1 and an isocluster
+// rigidity of 1) the handle's cluster turns inside out (det A_MC < 0: the ears are mirrored) and
+// shears, and one frame needs all 20 Gauss-Newton iterations; with w_MHC it stays a rotation.
 TEST(Deform, MhcWeightKeepsAFarDraggedHandleRigid) {
   const hgd::Shape shape = hgd::readShape(hgdtest::datasetsDir() + "/bunny_1839.ply");
   const hgd::Geometry g = hgd::extractGeometry(shape);
@@ -322,6 +322,7 @@ TEST(Deform, MhcWeightKeepsAFarDraggedHandleRigid) {
     hgd::DeformOptions opt;
     opt.clusters.isovalues = 12;  // as bunny_ears.json
     opt.weights.mhc_per_cluster = mhc[k];
+    if (k == 1) opt.iso_rigidity = 1;  // uniform whatever the default
     hgd::Deformer d(g, h, opt);
     const hgd::DragResult r = d.dragTo(from, to);
     EXPECT_TRUE(r.reached);

@@ -202,6 +202,7 @@ std::vector<SolverCluster> solverClusters(const Clustering& clustering,
     sc[c].constant = cl.kind == ClusterKind::Fixed || cl.kind == ClusterKind::Static;
     sc[c].rot_weight = cl.kind == ClusterKind::Manipulated ? w_mhc
                        : cl.kind == ClusterKind::Range     ? options.bone_rigidity * w_mhc
+                       : cl.kind == ClusterKind::Iso       ? options.iso_rigidity
                                                            : 1.0;
   }
   return sc;
