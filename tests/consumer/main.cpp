@@ -1,6 +1,7 @@
 // A downstream program built against the installed hgdeform: a PCL cloud deformed through
-// <hgdeform/pcl.h>, once with a scenario built in code and once with the interactive stage.
+// <hgdeform/app/pcl.h>, once with a scenario built in code and once with the interactive stage.
 #include <hgdeform/app/pcl.h>
+#include <hgdeform/hgdeform.h>  // the whole API, as installed
 
 #include <cmath>
 #include <cstdio>
