@@ -33,6 +33,7 @@
 #include <vector>
 
 #include "bench_peers.h"
+#include "bench_phases.h"
 #include "bench_references.h"
 #include "blas_guard.h"
 #include "cli_common.h"
@@ -93,7 +94,7 @@ double peakRssMb() {
 }
 
 nlohmann::json runSize(const std::string& model, const std::string& armadillo, std::size_t n, int repeat,
-                       const std::vector<long>& cluster_counts) {
+                       const std::vector<long>& cluster_counts, bool phases) {
   using nlohmann::json;
   // Shared with the Deformer, as ScenarioRunner shares it (no second copy of the index maps).
   const auto shared_geometry = std::make_shared<hgd::Geometry>();
@@ -255,6 +256,12 @@ nlohmann::json runSize(const std::string& model, const std::string& armadillo, s
     if (nc == 100)
       row["gn_iteration_speedup"] = 36.0 / std::max(1e-9, median(per_iter));  // Dinosaur, 100 clusters
     per_clusters.push_back(row);
+    if (phases && nc == cluster_counts.front()) {
+      hgd::DeformOptions opt;
+      opt.clusters.isovalues = static_cast<int>(nc);
+      opt.clusters.samples = std::max(4000, static_cast<int>(nc) * 60);
+      out["build_phases"] = hgdbench::buildPhaseScaling(shared_geometry, h, opt, repeat);
+    }
   }
   out["deform"] = per_clusters;
   if (peak_restarted) {
@@ -274,6 +281,7 @@ struct BenchArgs {
   std::string json;
   bool arap = false;
   bool quality = true;
+  bool phases = true;
 };
 
 /// Parses the command line into `a`; returns -1 to go on, else the exit status.
@@ -309,6 +317,9 @@ int parseArgs(int argc, char** argv, BenchArgs& a) {
   app.add_flag("--quality,!--no-quality", a.quality,
                "the quality rows (default on): local distortion of hgdeform and of CGAL's ARAP run to "
                "convergence on the same meshes, handles and moves (the Armadillo, a procedural quadruped)");
+  app.add_flag("--phases,!--no-phases", a.phases,
+               "the build's thread scaling (default on): each build phase's time on one thread and on "
+               "every thread (OMP_NUM_THREADS), builds alternating, at the first --clusters count");
   app.add_option("--json", a.json,
                  "also write every measurement (with the tool and its version) as JSON; never the mesh")
       ->type_name("OUT");
@@ -330,6 +341,7 @@ int main(int argc, char** argv) {
   const std::string& armadillo = args.armadillo;
   std::vector<std::string> models = args.models;
   const int repeat = args.repeat;
+  const bool phases = args.phases;
   const std::string& json_path = args.json;
   try {  // before any work: --json never replaces the mesh read
     if (!json_path.empty()) hgd::refuseInputs(json_path, {armadillo});
@@ -359,7 +371,7 @@ int main(int argc, char** argv) {
       if (pid == 0) {
         close(pipefd[0]);
         const std::string text =
-            runSize(model, armadillo, static_cast<std::size_t>(n), repeat, cluster_counts).dump();
+            runSize(model, armadillo, static_cast<std::size_t>(n), repeat, cluster_counts, phases).dump();
         if (write(pipefd[1], text.data(), text.size()) < 0) _exit(1);
         close(pipefd[1]);
         _exit(0);
@@ -423,6 +435,9 @@ int main(int argc, char** argv) {
       "the\n"
       "full-resolution field measured above excluded)\n",
       repeat);
+  for (const auto& r : all)
+    if (r.contains("build_phases"))
+      hgdbench::printPhaseScaling(r["model"].get<std::string>(), r["points"].get<long>(), r["build_phases"]);
   if (args.quality) {
     if (!hgdbench::haveCgalArap()) {
       const std::string why = "this build has no CGAL (install libcgal-dev and configure again)";

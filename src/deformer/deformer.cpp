@@ -10,6 +10,7 @@
 #include <stdexcept>
 
 #include "hgdeform/io/fields.h"
+#include "util/phases.h"
 #include "util/timer.h"
 
 namespace hgd {
@@ -30,6 +31,9 @@ Deformer::Deformer(std::shared_ptr<const Geometry> geometry, const Handles& hand
     throw std::invalid_argument("Deformer: the geometry has " +
                                 std::to_string(geometry_->file_normals->size()) + " normals for " +
                                 std::to_string(geometry_->size()) + " points");
+  data_.timings.phases.clear();
+  PhaseRecording recording(&data_.timings.phases);
+  PhaseClock clock;
   // The body's box: a far stray does not coarsen tolerances and steps (nor the normalised frame).
   const Eigen::AlignedBox3f box = bodyBox(*geometry_);
   const Eigen::Vector3d lo = box.min().cast<double>(), hi = box.max().cast<double>();
@@ -37,6 +41,7 @@ Deformer::Deformer(std::shared_ptr<const Geometry> geometry, const Handles& hand
   const double diag = (hi - lo).norm();
   scale_ = diag > 0 ? 1.0 / diag : 1.0;
   positions_.resize(geometry_->size());  // (normals are sized when first derived)
+  clock.lap("deformer.body_box");
   rebuild();
 }
 
@@ -50,18 +55,27 @@ void Deformer::rebuild() {
   // preview the first frame derives them all again.
   if (!preview_.empty()) updateNormals();
   normals_.all_due = normals_.preview_due = false;
+  if (t_phase_log != &data_.timings.phases) data_.timings.phases.clear();  // (a new handle set)
+  PhaseRecording recording(&data_.timings.phases);
   precompute(*geometry_, handles_, options_, data_);
   Stopwatch sw;
+  PhaseClock clock;
   buildPreviewTable();
   data_.timings.clusters_ms += sw.lap();
-  solver_.setup(solverClusters(data_.clustering, *geometry_->points, options_, centre_, scale_),
-                data_.clustering.adjacency, data_.clustering.manipulated, options_.weights);
+  clock.lap("deformer.preview_table");
+  std::vector<SolverCluster> clusters =
+      solverClusters(data_.clustering, *geometry_->points, options_, centre_, scale_);
+  clock.lap("solver.clusters");
+  solver_.setup(std::move(clusters), data_.clustering.adjacency, data_.clustering.manipulated,
+                options_.weights);
+  clock.lap("solver.setup");
   frame_mode_ = false;
   local_.resize(data_.clustering.clusters.size());
   exact_.assign(data_.clustering.clusters.size(), ExactTransform{});
   picked_ = -1;
   updateShape();
   data_.timings.setup_ms = sw.lap();
+  clock.lap("deformer.first_shape");
 }
 
 DeformerState Deformer::state() const {

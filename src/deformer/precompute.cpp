@@ -6,6 +6,8 @@
 #include <string>
 
 #include "hgdeform/graph/normals.h"
+#include "util/parallel.h"
+#include "util/phases.h"
 #include "util/timer.h"
 
 namespace hgd {
@@ -28,15 +30,20 @@ void checkHandles(const Geometry& geometry, const Handles& handles) {
 Clustering clusterField(const pcl::PointCloud<pcl::PointXYZ>& points, const std::vector<float>& phi,
                         const Handles& handles, const std::vector<std::uint32_t>* weight,
                         const DeformOptions& options, DeformationData& data, Stopwatch& sw) {
+  PhaseClock clock;
   const NeighborGraph& graph = data.graph->graph();
   // Stray points of a scan stay out of the sample (meshes have none).
   const std::vector<char>& outliers = data.graph->outliers();
   const std::vector<int> sample =
       sampleSurface(points, handles, options.clusters.samples, outliers.empty() ? nullptr : &outliers);
   data.timings.sampling_ms = sw.lap();
+  clock.lap("cluster.sample");
   data.pieces = analysePieces(points, graph, data.field.pieceLabels(), handles, sample, 2.0, weight);
-  return buildClusters(points, graph, phi, handles, data.field.unreachable(), sample, options.clusters,
-                       data.pieces.follow, outliers);
+  clock.lap("cluster.pieces");
+  Clustering clustering = buildClusters(points, graph, phi, handles, data.field.unreachable(), sample,
+                                        options.clusters, data.pieces.follow, outliers);
+  clock.lap("cluster.clusters");
+  return clustering;
 }
 
 void fullResolution(const Geometry& geometry, const Handles& handles, const DeformOptions& options,
@@ -51,13 +58,16 @@ void fullResolution(const Geometry& geometry, const Handles& handles, const Defo
 
   const auto& pts = *geometry.points;
   Clustering clustering = clusterField(pts, data.phi, handles, nullptr, options, data, sw);
+  PhaseClock clock;
   // Normals rotate with the shape as the file gave them (the filter may have re-oriented its
   // own copy); either way shared with the table, not copied.
   data.table = buildInterpolation(data.phi, handles, clustering, pts,
                                   geometry.hasFileNormals()
                                       ? pcl::PointCloud<pcl::Normal>::ConstPtr(geometry.file_normals)
                                       : data.graph->normalCloud());
+  clock.skip();  // (the table's own phases)
   data.clustering = withoutPointLabels(std::move(clustering));
+  clock.lap("cluster.drop_labels");
 }
 
 /// The coarse level's normals: the file's, else a mesh's (where every coarse vertex has one);
@@ -91,6 +101,7 @@ pcl::PointCloud<pcl::Normal>::Ptr coarseNormals(const Geometry& geometry, const 
 
 void coarseResolution(const Geometry& geometry, const Handles& handles, const DeformOptions& options,
                       DeformationData& data, Stopwatch& sw) {
+  PhaseClock clock;
   const auto& pts = *geometry.points;
   const CoarseLevel& coarse = data.coarse;
   const std::size_t m = coarse.points.size();
@@ -102,15 +113,18 @@ void coarseResolution(const Geometry& geometry, const Handles& handles, const De
   const Handles coarse_handles = coarseHandles(handles, coarse);
   data.field.setHandles(coarse_handles.fixed, coarse_handles.manipulated);
   const double coarse_ms = sw.lap();
+  clock.lap("multires.coarse_input");
   std::vector<float> coarse_phi;
   data.field.compute(coarse_phi);
   data.timings.field = data.field.timings();
   sw.lap();
+  clock.skip();
   std::vector<char> constrained(m, 0);
   for (const auto& f : coarse_handles.fixed)
     for (int a : f) constrained[static_cast<std::size_t>(a)] = 1;
   for (int a : coarse_handles.manipulated) constrained[static_cast<std::size_t>(a)] = 1;
   data.phi = prolongField(pts, coarse, data.graph->graph(), coarse_phi, constrained);
+  clock.lap("multires.prolong_field");
   data.timings.coarse_ms = coarse_ms + sw.ms();
   data.timings.field_ms = data.timings.field.total() + data.timings.coarse_ms;
   sw.lap();
@@ -122,9 +136,12 @@ void coarseResolution(const Geometry& geometry, const Handles& handles, const De
   // the table (no per-point labels in between).
   Clustering coarse_clusters =
       clusterField(*cloud, coarse_phi, coarse_handles, &coarse.weight, options, data, sw);
+  clock.skip();
   data.pieces.follow.clear();  // the coarse points' (each point takes its anchor's clusters)
   data.table = prolongInterpolation(coarse_clusters, coarse, coarse_phi, data.phi, handles, pts);
+  clock.skip();  // (the table's own phases)
   data.clustering = prolongClusters(std::move(coarse_clusters), coarse);
+  clock.lap("multires.prolong_clusters");
   char note[200];
   std::snprintf(note, sizeof note,
                 "multi-resolution: field, pieces and clusters on %zu of %zu points (voxel side %.3g); "
@@ -138,10 +155,14 @@ void coarseResolution(const Geometry& geometry, const Handles& handles, const De
   } else {  // a point's rest normal: its anchor's
     const auto& normals = data.graph->normals();
     table.normals.resize(pts.size());
-    for (std::size_t i = 0; i < pts.size(); ++i)
-      table.normals[i] = normals[coarse.anchor[i]].getNormalVector3fMap();
+    const long long n = static_cast<long long>(pts.size());
+#pragma omp parallel for schedule(static) if (n > kParallelMin)
+    for (long long i = 0; i < n; ++i)
+      table.normals[static_cast<std::size_t>(i)] =
+          normals[coarse.anchor[static_cast<std::size_t>(i)]].getNormalVector3fMap();
     table.has_normals = true;
   }
+  clock.lap("interp.normals");
 }
 
 }  // namespace
@@ -157,6 +178,9 @@ void precompute(const Geometry& geometry, const Handles& handles, const DeformOp
   if (handles.manipulated.empty()) throw std::invalid_argument("Deformer: the manipulated handle is empty");
   if (handles.fixed.empty()) throw std::invalid_argument("Deformer: no fixed handle");
   Stopwatch sw;
+  // The phases go to data.timings.phases (a caller recording into it already keeps its own).
+  if (t_phase_log != &data.timings.phases) data.timings.phases.clear();
+  PhaseRecording recording(&data.timings.phases);
   if (!data.graph) {  // the first call chooses the resolution
     data.graph = std::make_shared<SurfaceGraph>();
     data.field.setSurfaceGraph(data.graph);

@@ -6,6 +6,7 @@
 #include <stdexcept>
 
 #include "util/parallel.h"
+#include "util/phases.h"
 #include "util/timer.h"
 
 namespace hgd {
@@ -45,6 +46,7 @@ void HarmonicField::compute(std::vector<float>& phi) {
   if (manipulated_.empty()) throw std::invalid_argument("HarmonicField: no manipulated handle");
   if (fixed_.empty()) throw std::invalid_argument("HarmonicField: no fixed handle");
   const std::size_t n = cloud->size();
+  PhaseClock clock;
   std::vector<char> constrained(n, 0);
   std::vector<double> value(n, 0.0);
   auto mark = [&](const std::vector<int>& idx, double v) {
@@ -59,6 +61,7 @@ void HarmonicField::compute(std::vector<float>& phi) {
   mark(manipulated_, 1.0);  // a point in both keeps 1; resolveHandles rejects that earlier
 
   FieldTimings t = timings_;
+  clock.lap("field.constraints");
   if (graph_->compute()) {
     const GraphTimings& g = graph_->timings();
     t.knn_ms = g.knn_ms, t.normals_ms = g.normals_ms, t.graph_ms = g.graph_ms;
@@ -83,13 +86,17 @@ void HarmonicField::compute(std::vector<float>& phi) {
     for (const auto& f : fixed_) release(f);
     release(manipulated_);
   }
+  clock.skip();
   Stopwatch sw_join;
   graph_->joinPieces(constrained);
   t.graph_ms += sw_join.ms();
+  clock.lap("field.join_pieces");
   solveDirichlet(graph_->graph(), constrained, value, options_, unreachable_, t, &piece_);
   timings_ = t;
+  clock.skip();
   phi.resize(n);
   for (std::size_t i = 0; i < n; ++i) phi[i] = static_cast<float>(std::clamp(value[i], 0.0, 1.0));
+  clock.lap("field.store");
 }
 
 }  // namespace hgd

@@ -10,6 +10,7 @@
 #include "field/multigrid.h"
 #include "hgdeform/field/harmonic_field.h"
 #include "util/parallel.h"
+#include "util/phases.h"
 #include "util/timer.h"
 
 namespace hgd {
@@ -22,6 +23,7 @@ void solveDirichlet(const NeighborGraph& graph, const std::vector<char>& constra
                     std::vector<double>& value, const FieldOptions& options, std::vector<int>& unreachable,
                     FieldTimings& timings, std::vector<int>* piece_out) {
   Stopwatch sw;
+  PhaseClock clock;
   const std::size_t n = graph.size();
   // Free points reachable from a constraint (in a connected piece that holds one); the others
   // cannot be given a harmonic value.
@@ -44,6 +46,7 @@ void solveDirichlet(const NeighborGraph& graph, const std::vector<char>& constra
     }
   }
   const int nf = static_cast<int>(free_points.size());
+  clock.lap("field.reach");
   if (nf == 0) {
     timings.laplacian_ms = sw.lap();
     timings.solve_ms = 0;
@@ -98,6 +101,7 @@ void solveDirichlet(const NeighborGraph& graph, const std::vector<char>& constra
   }
   a.makeCompressed();
   timings.laplacian_ms = sw.lap();
+  clock.lap("field.laplacian");
 
   Eigen::VectorXd x;
   const bool exact =
@@ -120,6 +124,7 @@ void solveDirichlet(const NeighborGraph& graph, const std::vector<char>& constra
   for (int r = 0; r < nf; ++r)
     value[static_cast<std::size_t>(free_points[static_cast<std::size_t>(r)])] = x[r];
   timings.solve_ms = sw.lap();
+  clock.lap("field.solve");
 }
 
 }  // namespace hgd

@@ -8,6 +8,7 @@
 #include "hgdeform/graph/normal_filter.h"
 #include "hgdeform/graph/normals.h"
 #include "hgdeform/graph/strays.h"
+#include "util/phases.h"
 #include "util/timer.h"
 
 namespace hgd {
@@ -45,6 +46,7 @@ bool SurfaceGraph::compute() {
 void SurfaceGraph::build() {
   const auto& pts = *cloud_;
   Stopwatch sw;
+  PhaseClock clock;
   const bool have_normals = input_normals_ && input_normals_->size() == pts.size();
   const bool mesh = !polygons_.empty();
   const bool ring = mesh && options_.mesh_ring;
@@ -54,6 +56,7 @@ void SurfaceGraph::build() {
   knn_ = KnnTable{};
   if (!ring) knn_ = computeKnn(pts, k);
   timings_.knn_ms = sw.lap();
+  clock.lap("graph.knn");
   if (have_normals) {
     normals_ = input_normals_;
   } else if (mesh) {
@@ -88,6 +91,7 @@ void SurfaceGraph::build() {
     reoriented_ = true;
   }
   timings_.normals_ms = sw.lap();
+  clock.lap("graph.normals");
   dropped_.clear();
   joined_.clear();
   if (ring) {
@@ -109,6 +113,7 @@ void SurfaceGraph::build() {
       graph_ = addEdges(graph_, back);
     }
   }
+  clock.lap("graph.edges");
   // Stray points of a cloud hang from the surface as leaves, so that they cannot carry the
   // field across a gap (meshes have none).
   outliers_ = mesh ? std::vector<char>{} : findOutliers(pts, knn_);
@@ -123,9 +128,11 @@ void SurfaceGraph::build() {
   } else {
     outliers_.clear();
   }
+  clock.lap("graph.strays");
   base_piece_.clear();
   if (!dropped_.empty()) connectedComponents(graph_, base_piece_);
   timings_.graph_ms = sw.lap();
+  clock.lap("graph.pieces");
   valid_ = true;
 }
 

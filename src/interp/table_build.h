@@ -10,6 +10,7 @@
 
 #include "hgdeform/interp/interpolation.h"
 #include "util/parallel.h"
+#include "util/phases.h"
 #include "util/timer.h"
 
 namespace hgd::detail {
@@ -25,6 +26,7 @@ InterpolationTable buildTable(const Handles& handles, const Clustering& c,
                               std::vector<std::pair<int, int>> candidates, Bracket&& bracket,
                               Adjust&& adjust) {
   const std::size_t n = points.size();
+  PhaseClock clock;
   InterpolationTable t;
   std::vector<int> fixed_cluster(handles.fixed.size(), -1);
   for (const auto& cl : c.clusters)
@@ -40,7 +42,9 @@ InterpolationTable buildTable(const Handles& handles, const Clustering& c,
     return static_cast<std::uint32_t>(
         std::lower_bound(t.pairs.begin(), t.pairs.end(), std::make_pair(lo, hi)) - t.pairs.begin());
   };
+  clock.lap("table.pairs");
   t.points.resize(n);
+  clock.lap("table.alloc");
   const long long nn = static_cast<long long>(n);
 #pragma omp parallel for schedule(static) if (nn > kParallelMin)
   for (long long ii = 0; ii < nn; ++ii) {
@@ -53,6 +57,7 @@ InterpolationTable buildTable(const Handles& handles, const Clustering& c,
     r.pair = pairOf(lo, hi);
     r.alpha = alpha;
   }
+  clock.lap("table.records");
   adjust(t);
   // Handle points take their handle's transform exactly.
   auto pin = [&](const std::vector<int>& idx, int cluster) {
@@ -68,6 +73,7 @@ InterpolationTable buildTable(const Handles& handles, const Clustering& c,
     t.pair_centre.push_back((0.5 * (c.clusters[static_cast<std::size_t>(a)].barycentre +
                                     c.clusters[static_cast<std::size_t>(b)].barycentre))
                                 .cast<float>());
+  clock.lap("table.pins");
   return t;
 }
 

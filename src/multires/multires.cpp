@@ -10,6 +10,7 @@
 #include "interp/table_build.h"
 #include "multires/prolong_labels.h"
 #include "util/parallel.h"
+#include "util/phases.h"
 #include "util/radix_sort.h"
 
 namespace hgd {
@@ -38,11 +39,15 @@ struct Grid {
 
 std::size_t countCells(const pcl::PointCloud<pcl::PointXYZ>& points, const std::vector<std::uint16_t>& cls,
                        const Grid& grid, std::size_t stride, std::uint64_t max_key) {
-  std::vector<std::uint64_t> keys;
-  keys.reserve(points.size() / stride + 1);
-  for (std::size_t i = 0; i < points.size(); i += stride)
-    keys.push_back(grid.key(points[i].getVector3fMap(), cls[i]));
-  std::vector<std::uint32_t> payload(keys.size(), 0);
+  const std::size_t m = (points.size() + stride - 1) / stride;
+  std::vector<std::uint64_t> keys(m);
+  const long long mm = static_cast<long long>(m);
+#pragma omp parallel for schedule(static) if (mm > kParallelMin)
+  for (long long k = 0; k < mm; ++k) {
+    const std::size_t i = static_cast<std::size_t>(k) * stride;
+    keys[static_cast<std::size_t>(k)] = grid.key(points[i].getVector3fMap(), cls[i]);
+  }
+  std::vector<std::uint32_t> payload(m, 0);
   radixSort(keys, payload, max_key, 11);
   return static_cast<std::size_t>(std::unique(keys.begin(), keys.end()) - keys.begin());
 }
@@ -59,6 +64,8 @@ std::vector<char> findStrays(const pcl::PointCloud<pcl::PointXYZ>& points, const
                              const std::vector<std::size_t>& starts) {
   const std::size_t n = keys.size(), cells = starts.size() - 1;
   std::vector<char> stray(n, 0);
+  std::vector<std::uint64_t> cell_key(cells);  // searched instead of every point's key
+  for (std::size_t c = 0; c < cells; ++c) cell_key[c] = keys[starts[c]];
   std::vector<std::size_t> size(cells);
   for (std::size_t c = 0; c < cells; ++c) size[c] = starts[c + 1] - starts[c];
   std::nth_element(size.begin(), size.begin() + static_cast<long>(cells / 2), size.end());
@@ -84,9 +91,12 @@ std::vector<char> findStrays(const pcl::PointCloud<pcl::PointXYZ>& points, const
           const std::uint64_t base = (static_cast<std::uint64_t>(c) << (3 * ab)) | row;
           const std::uint64_t first = base | static_cast<std::uint64_t>(x0),
                               last = base | static_cast<std::uint64_t>(x1);
-          for (auto it = std::lower_bound(keys.begin(), keys.end(), first); it != keys.end() && *it <= last;
-               ++it)
-            if (!fn(static_cast<std::size_t>(order[static_cast<std::size_t>(it - keys.begin())]))) return;
+          for (auto it = std::lower_bound(cell_key.begin(), cell_key.end(), first);
+               it != cell_key.end() && *it <= last; ++it) {
+            const auto cell = static_cast<std::size_t>(it - cell_key.begin());
+            for (std::size_t k = starts[cell]; k < starts[cell + 1]; ++k)
+              if (!fn(static_cast<std::size_t>(order[k]))) return;
+          }
         }
       }
   };
@@ -147,6 +157,7 @@ CoarseLevel coarsen(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles&
   CoarseLevel out;
   const std::size_t n = points.size();
   if (n == 0 || target == 0) return out;
+  PhaseClock clock;
   // The class of a point: 0 free, 1 the manipulated handle, 2 + k the fixed handle k, then the
   // joints (free points of joint k: 2 + fixed + k), so that a joint's phi range is measured on
   // its own points and a joint smaller than a cell keeps one.
@@ -163,9 +174,15 @@ CoarseLevel coarsen(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles&
   for (int i : handles.manipulated) cls[static_cast<std::size_t>(i)] = 1;
 
   Eigen::Vector3f lo = Eigen::Vector3f::Constant(INFINITY), hi = -lo;
-  for (const auto& p : points) {
-    lo = lo.cwiseMin(p.getVector3fMap());
-    hi = hi.cwiseMax(p.getVector3fMap());
+  {
+    const int blocks = blockCount(static_cast<long long>(n));
+    std::vector<Eigen::AlignedBox3f> box(static_cast<std::size_t>(blocks));
+    forBlocks(static_cast<long long>(n), blocks, [&](int begin, int end, int b) {
+      Eigen::AlignedBox3f& bb = box[static_cast<std::size_t>(b)];
+      for (int i = begin; i < end; ++i) bb.extend(points[static_cast<std::size_t>(i)].getVector3fMap());
+    });
+    for (const auto& bb : box)
+      if (!bb.isEmpty()) lo = lo.cwiseMin(bb.min()), hi = hi.cwiseMax(bb.max());
   }
   const Eigen::Vector3f extent = hi - lo;
   const float diag = std::max(extent.norm(), 1e-12f);
@@ -192,6 +209,7 @@ CoarseLevel coarsen(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles&
     if (grid.h == before) break;  // at the finest grid allowed
   }
 
+  clock.lap("coarsen.grid");
   // Every point's cell; the cells in key order (neighbouring cells stay near in memory).
   std::vector<std::uint64_t> keys(n);
   std::vector<std::uint32_t> order(n);
@@ -201,39 +219,63 @@ CoarseLevel coarsen(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles&
   for (long long i = 0; i < nn; ++i)
     keys[static_cast<std::size_t>(i)] =
         grid.key(points[static_cast<std::size_t>(i)].getVector3fMap(), cls[static_cast<std::size_t>(i)]);
+  clock.lap("coarsen.keys");
   radixSort(keys, order, maxKey(), 11);
+  clock.lap("coarsen.sort");
   out.cell = grid.h;
   std::vector<std::size_t> starts;  // of each cell's run in keys / order
-  for (std::size_t k = 0; k < n; ++k)
-    if (k == 0 || keys[k] != keys[k - 1]) starts.push_back(k);
-  starts.push_back(n);
+  {
+    const int blocks = blockCount(static_cast<long long>(n));
+    std::vector<std::vector<std::size_t>> part(static_cast<std::size_t>(blocks));
+    forBlocks(static_cast<long long>(n), blocks, [&](int begin, int end, int b) {
+      for (auto k = static_cast<std::size_t>(begin); k < static_cast<std::size_t>(end); ++k)
+        if (k == 0 || keys[k] != keys[k - 1]) part[static_cast<std::size_t>(b)].push_back(k);
+    });
+    for (const auto& p : part) starts.insert(starts.end(), p.begin(), p.end());
+    starts.push_back(n);
+  }
   const std::vector<char> stray =
       find_strays ? findStrays(points, grid, classes, keys, order, starts) : std::vector<char>(n, 0);
+  clock.lap("coarsen.strays");
 
-  out.anchor.assign(n, 0);
-  for (std::size_t c = 0; c + 1 < starts.size(); ++c) {
-    // The point nearest the cell's centre stands for the cell.
-    const auto id = static_cast<std::uint32_t>(out.points.size());
-    int best = -1;
+  // The point nearest its cell's centre stands for the cell; every point of the cell (but its
+  // strays) is anchored there.
+  const std::size_t cells = starts.size() - 1;
+  const long long cc_count = static_cast<long long>(cells);
+  std::vector<int> best(cells, -1);
+  std::vector<std::uint32_t> count(cells, 0);
+#pragma omp parallel for schedule(static) if (cc_count > kParallelMin / 16)
+  for (long long cc = 0; cc < cc_count; ++cc) {
+    const auto c = static_cast<std::size_t>(cc);
     float best_d = INFINITY;
-    std::uint32_t count = 0;
     for (std::size_t k = starts[c]; k < starts[c + 1]; ++k) {
       if (stray[order[k]]) continue;
       const Eigen::Vector3f q = (points[order[k]].getVector3fMap() - lo) / grid.h;
       const float d = (q - q.array().floor().matrix() - Eigen::Vector3f::Constant(0.5f)).squaredNorm();
-      if (d < best_d || best < 0) {
+      if (d < best_d || best[c] < 0) {
         best_d = d;
-        best = static_cast<int>(order[k]);
+        best[c] = static_cast<int>(order[k]);
       }
-      out.anchor[order[k]] = id;
-      ++count;
+      ++count[c];
     }
-    if (best < 0) continue;
-    out.points.push_back(best);
-    out.weight.push_back(count);
+  }
+  std::vector<std::uint32_t> id(cells, 0);
+  for (std::size_t c = 0; c < cells; ++c) {
+    if (best[c] < 0) continue;
+    id[c] = static_cast<std::uint32_t>(out.points.size());
+    out.points.push_back(best[c]);
+    out.weight.push_back(count[c]);
+  }
+  out.anchor.assign(n, 0);
+#pragma omp parallel for schedule(static) if (cc_count > kParallelMin / 16)
+  for (long long cc = 0; cc < cc_count; ++cc) {
+    const auto c = static_cast<std::size_t>(cc);
+    for (std::size_t k = starts[c]; k < starts[c + 1]; ++k)
+      if (!stray[order[k]]) out.anchor[order[k]] = id[c];
   }
   keys = {};
   order = {};
+  clock.lap("coarsen.anchors");
   if (out.points.empty()) return {};
   for (std::size_t i = 0; i < n; ++i)
     if (stray[i]) out.strays.push_back(static_cast<int>(i));
@@ -245,16 +287,29 @@ CoarseLevel coarsen(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles&
     out.anchor[static_cast<std::size_t>(out.strays[s])] = static_cast<std::uint32_t>(a);
     ++out.weight[a];
   }
+  clock.lap("coarsen.stray_anchors");
   return out;
 }
 
 Handles coarseHandles(const Handles& handles, const CoarseLevel& level) {
+  // The anchors in order, each once. A large handle's are marked and collected (sorting every
+  // point's anchor cost more than the rest of the coarse level's set-up), a small one's sorted.
+  std::vector<char> mark(level.points.size(), 0);
   auto map = [&](const std::vector<int>& idx) {
     std::vector<int> out;
-    out.reserve(idx.size());
-    for (int i : idx) out.push_back(static_cast<int>(level.anchor[static_cast<std::size_t>(i)]));
-    std::sort(out.begin(), out.end());
-    out.erase(std::unique(out.begin(), out.end()), out.end());
+    if (idx.size() < mark.size() / 16) {
+      out.reserve(idx.size());
+      for (int i : idx) out.push_back(static_cast<int>(level.anchor[static_cast<std::size_t>(i)]));
+      std::sort(out.begin(), out.end());
+      out.erase(std::unique(out.begin(), out.end()), out.end());
+      return out;
+    }
+    for (int i : idx) mark[level.anchor[static_cast<std::size_t>(i)]] = 1;
+    for (std::size_t a = 0; a < mark.size(); ++a)
+      if (mark[a]) {
+        out.push_back(static_cast<int>(a));
+        mark[a] = 0;
+      }
     return out;
   };
   Handles c;

@@ -2,34 +2,59 @@
 #pragma once
 
 #include <algorithm>
+#include <cstddef>
 #include <cstdint>
 #include <vector>
+
+#include "util/parallel.h"
 
 namespace hgd {
 
 /// Sorts `keys` ascending and permutes `payload` (same length) alongside; stable. LSD radix
-/// sort with `digit_bits` per pass, as many passes as `max_key` (no key larger) needs.
+/// sort with `digit_bits` per pass, as many passes as `max_key` (no key larger) needs, on every
+/// thread: each block of the keys counts its digits, and scatters them (in order) to where the
+/// blocks before it leave off. A pass whose digit is the same for every key is skipped.
 template <typename Key>
 void radixSort(std::vector<Key>& keys, std::vector<std::uint32_t>& payload, Key max_key, int digit_bits) {
   const std::size_t n = keys.size();
-  const Key mask = (Key{1} << digit_bits) - 1;
+  const std::size_t buckets = std::size_t{1} << digit_bits;
+  const Key mask = static_cast<Key>(buckets - 1);
+  const int blocks = blockCount(static_cast<long long>(n));
   std::vector<Key> tmp_keys(n);
-  std::vector<std::uint32_t> tmp_payload(n), count(std::size_t{1} << digit_bits);
+  std::vector<std::uint32_t> tmp_payload(n);
+  std::vector<std::size_t> count(buckets * static_cast<std::size_t>(blocks));
   for (int shift = 0; shift < static_cast<int>(8 * sizeof(Key)) && (max_key >> shift) != 0;
        shift += digit_bits) {
-    std::fill(count.begin(), count.end(), 0u);
-    for (std::size_t i = 0; i < n; ++i) ++count[static_cast<std::size_t>((keys[i] >> shift) & mask)];
-    std::uint32_t sum = 0;
-    for (auto& slot : count) {
-      const std::uint32_t v = slot;
-      slot = sum;
-      sum += v;
+    forBlocks(static_cast<long long>(n), blocks, [&](int begin, int end, int b) {
+      std::size_t* c = count.data() + static_cast<std::size_t>(b) * buckets;
+      std::fill(c, c + buckets, std::size_t{0});
+      for (int i = begin; i < end; ++i)
+        ++c[static_cast<std::size_t>((keys[static_cast<std::size_t>(i)] >> shift) & mask)];
+    });
+    // Where each (digit, block) starts: digits in order, and within a digit the blocks in order.
+    std::size_t sum = 0;
+    bool one_digit = false;
+    for (std::size_t d = 0; d < buckets; ++d) {
+      std::size_t digit_total = 0;
+      for (int b = 0; b < blocks; ++b) {
+        std::size_t& slot = count[static_cast<std::size_t>(b) * buckets + d];
+        const std::size_t v = slot;
+        slot = sum;
+        sum += v;
+        digit_total += v;
+      }
+      one_digit = one_digit || digit_total == n;
     }
-    for (std::size_t i = 0; i < n; ++i) {
-      const std::uint32_t dst = count[static_cast<std::size_t>((keys[i] >> shift) & mask)]++;
-      tmp_keys[dst] = keys[i];
-      tmp_payload[dst] = payload[i];
-    }
+    if (one_digit) continue;  // every key has this digit: the pass would copy them in order
+    forBlocks(static_cast<long long>(n), blocks, [&](int begin, int end, int b) {
+      std::size_t* c = count.data() + static_cast<std::size_t>(b) * buckets;
+      for (int i = begin; i < end; ++i) {
+        const auto k = static_cast<std::size_t>(i);
+        const std::size_t dst = c[static_cast<std::size_t>((keys[k] >> shift) & mask)]++;
+        tmp_keys[dst] = keys[k];
+        tmp_payload[dst] = payload[k];
+      }
+    });
     keys.swap(tmp_keys);
     payload.swap(tmp_payload);
   }

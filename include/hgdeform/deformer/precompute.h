@@ -13,6 +13,7 @@
 
 #include "hgdeform/cluster/clustering.h"
 #include "hgdeform/cluster/pieces.h"
+#include "hgdeform/deformer/phases.h"
 #include "hgdeform/field/harmonic_field.h"
 #include "hgdeform/interp/blend.h"
 #include "hgdeform/interp/interpolation.h"
@@ -51,6 +52,10 @@ struct BuildTimings {
   double field_ms = 0, sampling_ms = 0, clusters_ms = 0, setup_ms = 0;
   double coarse_ms = 0;  ///< of field_ms: the coarse level and the prolongation (multi-resolution)
   FieldTimings field;
+  /// Every phase of the last build in order, finer than the above (a phase run twice is listed
+  /// twice): the kNN, normals and graph, the field's Laplacian and solve, the multi-resolution
+  /// steps, the clusters, the table, the solver's set-up, the first shape.
+  std::vector<BuildPhase> phases;
   double total() const { return field_ms + sampling_ms + clusters_ms + setup_ms; }
 };
 

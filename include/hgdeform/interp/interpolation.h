@@ -35,6 +35,9 @@ struct InterpolationTable {
   /// One 20-byte record per point with its rest position: a frame streams through these once
   /// (at millions of points it is bound by memory traffic, like a copy of the positions).
   struct Point {
+    /// Uninitialised: a table of millions is sized without a serial pass that zeroes it, and its
+    /// pages are first written by the (parallel) pass that fills the records.
+    Point() {}  // NOLINT(modernize-use-equals-default): `= default` would zero on resize
     float p[3];
     float alpha;         ///< blend factor between the pair's lower and upper clusters
     std::uint32_t pair;  ///< index into `pairs`
