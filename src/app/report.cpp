@@ -78,6 +78,9 @@ nlohmann::json reportToJson(const DeformReport& r) {
   ms["laplacian"] = r.build.field.graph_ms + r.build.field.laplacian_ms;
   ms["field_solve"] = r.build.field.solve_ms;
   ms["solve_per_iteration"] = r.solve_per_iteration_ms;
+  // Every phase of the Deformer's build in order (BuildTimings::phases), as the bench lists them.
+  nlohmann::json& phases = j["build_phases"] = nlohmann::json::array();
+  for (const BuildPhase& p : r.build.phases) phases.push_back({{"name", p.name}, {"ms", p.ms}});
   return j;
 }
 

@@ -7,6 +7,7 @@
 #include <utility>
 
 #include "hgdeform/app/regions.h"
+#include "util/phases.h"
 #include "util/timer.h"
 
 namespace hgd {
@@ -42,6 +43,7 @@ ScenarioRunner ScenarioRunner::read(const std::string& path, const RunOptions& o
 ScenarioRunner::ScenarioRunner(Shape shape, const RunOptions& options)
     : shape_(std::move(shape)), options_(options) {
   Stopwatch t;
+  PhaseRecording recording(&phases_);
   read_warnings_ = shape_.warnings;  // what reading noted (a format told by content, ...)
   geometry_ = std::make_shared<const Geometry>(extractGeometry(shape_));
   read_warnings_.insert(read_warnings_.end(), geometry_->warnings.begin(), geometry_->warnings.end());
@@ -56,7 +58,12 @@ void ScenarioRunner::setScenario(const Scenario& scenario) {
   requireShape("setScenario");
   Stopwatch t;
   scenario_ = scenario;
-  handles_ = resolveHandles(scenario_, *geometry_, shape_);
+  PhaseClock clock;
+  {
+    PhaseRecording recording(&phases_);
+    handles_ = resolveHandles(scenario_, *geometry_, shape_);
+    clock.lap("runner.handles");
+  }
   dropLive();  // a live frame's level of detail goes with it
   clearHistory();
   build(mergedOptions(options_, scenario_, shape_, *geometry_));
@@ -283,6 +290,8 @@ DeformReport ScenarioRunner::report() const {
     const Deformer& d = *deformer_;
     const BuildTimings& b = d.buildTimings();
     rep.build = b;
+    // The runner's own phases (the geometry, the handles) before the Deformer's.
+    rep.build.phases.insert(rep.build.phases.begin(), phases_.begin(), phases_.end());
     rep.field_ms = b.field_ms;
     rep.sampling_ms = b.sampling_ms;
     rep.clusters_ms = b.clusters_ms;

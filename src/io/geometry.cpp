@@ -7,6 +7,8 @@
 
 #include "hgdeform/io/fields.h"
 #include "hgdeform/io/io.h"
+#include "util/parallel.h"
+#include "util/phases.h"
 #include "util/radix_sort.h"
 
 namespace hgd {
@@ -16,6 +18,22 @@ namespace {
 constexpr double kFarFactor = 1e6;   // a point this many times the shape's size away is set apart
 constexpr double kMaxOffset = 1e12;  // and any point this far from the shape's centre
 constexpr double kMaxExtent = 1e11;  // a shape larger than this is refused
+
+/// Parallel blocks of [0, n) each kept their first counts[b] items in place at their block's
+/// start (begin(b)); moves them together at the front of `v`, in block order, and resizes it.
+template <typename T, typename Begin>
+void joinBlocks(std::vector<T>& v, const std::vector<std::size_t>& counts, Begin&& begin) {
+  std::size_t total = 0;
+  for (std::size_t b = 0; b < counts.size(); ++b) {
+    const std::size_t from = begin(static_cast<int>(b));
+    if (from != total)
+      std::copy(v.begin() + static_cast<std::ptrdiff_t>(from),
+                v.begin() + static_cast<std::ptrdiff_t>(from + counts[b]),
+                v.begin() + static_cast<std::ptrdiff_t>(total));
+    total += counts[b];
+  }
+  v.resize(total);
+}
 
 struct RobustFrame {
   Eigen::Vector3d centre;  ///< the per-axis median
@@ -56,19 +74,29 @@ Geometry extractGeometry(const Shape& shape) {
   const std::size_t n = shape.size();
   if (n == 0) throw IoError(shape.path + ": no points");
 
+  PhaseClock clock;
   Geometry g;
-  g.finite_index.assign(n, -1);
-  g.raw_index.reserve(n);
-  std::vector<Eigen::Vector3d> world;
-  world.reserve(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    const Eigen::Vector3d p(readValue(c, i, c.fields[f.x]), readValue(c, i, c.fields[f.y]),
-                            readValue(c, i, c.fields[f.z]));
-    if (!p.allFinite()) continue;
-    g.finite_index[i] = static_cast<int>(g.raw_index.size());
-    g.raw_index.push_back(static_cast<int>(i));
-    world.push_back(p);
-  }
+  g.finite_index.assign(n, -1);  // set below for every point kept
+  // The finite points, in file order: each block of points keeps its own at its start, then the
+  // blocks join up.
+  std::vector<Eigen::Vector3d> world(n);
+  g.raw_index.resize(n);
+  const int blocks = blockCount(static_cast<long long>(n));
+  auto blockBegin = [&](int b) { return static_cast<std::size_t>(static_cast<long long>(n) * b / blocks); };
+  std::vector<std::size_t> kept_in(static_cast<std::size_t>(blocks));
+  forBlocks(static_cast<long long>(n), blocks, [&](int begin, int end, int b) {
+    auto k = static_cast<std::size_t>(begin);
+    for (auto i = static_cast<std::size_t>(begin); i < static_cast<std::size_t>(end); ++i) {
+      const Eigen::Vector3d p(readValue(c, i, c.fields[f.x]), readValue(c, i, c.fields[f.y]),
+                              readValue(c, i, c.fields[f.z]));
+      if (!p.allFinite()) continue;
+      g.raw_index[k] = static_cast<int>(i);
+      world[k++] = p;
+    }
+    kept_in[static_cast<std::size_t>(b)] = k - static_cast<std::size_t>(begin);
+  });
+  joinBlocks(world, kept_in, blockBegin);
+  joinBlocks(g.raw_index, kept_in, blockBegin);
   if (world.empty())
     throw IoError(shape.path + ": no finite points (all " + std::to_string(n) + " are NaN/inf)");
 
@@ -78,6 +106,7 @@ Geometry extractGeometry(const Shape& shape) {
   // size, or beyond 1e12 units: a corrupt block decoded to 1e22) cannot be deformed with it in any precision
   // that means something (and their squared distances would overflow): they are set apart like NaN points,
   // written back untouched, with a warning.
+  clock.lap("geometry.read_xyz");
   const RobustFrame frame = robustFrame(world);
   if (frame.extent > kMaxExtent) {
     char buf[200];
@@ -94,26 +123,53 @@ Geometry extractGeometry(const Shape& shape) {
   const double body = frame.extent > 0 ? 4 * frame.extent : INFINITY;
   Eigen::Vector3d body_lo = Eigen::Vector3d::Constant(INFINITY), body_hi = -body_lo;
   {
-    std::size_t kept = 0, far_count = 0;
+    // In blocks as above: each keeps its near points at its start, counts its far ones and
+    // bounds its body (a box, the same whatever the blocks).
+    const std::size_t m = world.size();
+    const int mb = blockCount(static_cast<long long>(m));
+    auto mBegin = [&](int b) { return static_cast<std::size_t>(static_cast<long long>(m) * b / mb); };
+    std::vector<std::size_t> kept(static_cast<std::size_t>(mb)), far_in(static_cast<std::size_t>(mb));
+    std::vector<double> farthest_in(static_cast<std::size_t>(mb), 0.0);
+    std::vector<Eigen::Vector3d> lo_in(static_cast<std::size_t>(mb), body_lo),
+        hi_in(static_cast<std::size_t>(mb), body_hi);
+    forBlocks(static_cast<long long>(m), mb, [&](int begin, int end, int b) {
+      const auto bb = static_cast<std::size_t>(b);
+      auto k = static_cast<std::size_t>(begin);
+      std::size_t far_here = 0;
+      double farthest_here = 0;
+      Eigen::Vector3d lo = lo_in[bb], hi = hi_in[bb];  // (locals: the blocks share cache lines)
+      for (auto j = static_cast<std::size_t>(begin); j < static_cast<std::size_t>(end); ++j) {
+        const Eigen::Vector3d w = world[j];
+        const double d = (w - frame.centre).cwiseAbs().maxCoeff();
+        if (d > far) {
+          ++far_here;
+          farthest_here = std::max(farthest_here, d);
+          g.finite_index[static_cast<std::size_t>(g.raw_index[j])] = -1;
+          continue;
+        }
+        g.raw_index[k] = g.raw_index[j];
+        world[k++] = w;
+        if (d <= body) {
+          lo = lo.cwiseMin(w);
+          hi = hi.cwiseMax(w);
+        }
+      }
+      kept[bb] = k - static_cast<std::size_t>(begin);
+      far_in[bb] = far_here;
+      farthest_in[bb] = farthest_here;
+      lo_in[bb] = lo;
+      hi_in[bb] = hi;
+    });
+    joinBlocks(world, kept, mBegin);
+    joinBlocks(g.raw_index, kept, mBegin);
+    std::size_t far_count = 0;
     double farthest = 0;
-    for (std::size_t k = 0; k < world.size(); ++k) {
-      const double d = (world[k] - frame.centre).cwiseAbs().maxCoeff();
-      if (d > far) {
-        ++far_count;
-        farthest = std::max(farthest, d);
-        g.finite_index[static_cast<std::size_t>(g.raw_index[k])] = -1;
-        continue;
-      }
-      g.finite_index[static_cast<std::size_t>(g.raw_index[k])] = static_cast<int>(kept);
-      g.raw_index[kept] = g.raw_index[k];
-      world[kept++] = world[k];
-      if (d <= body) {
-        body_lo = body_lo.cwiseMin(world[k]);
-        body_hi = body_hi.cwiseMax(world[k]);
-      }
+    for (std::size_t b = 0; b < static_cast<std::size_t>(mb); ++b) {
+      far_count += far_in[b];
+      farthest = std::max(farthest, farthest_in[b]);
+      body_lo = body_lo.cwiseMin(lo_in[b]);
+      body_hi = body_hi.cwiseMax(hi_in[b]);
     }
-    world.resize(kept);
-    g.raw_index.resize(kept);
     g.far_points = far_count;
     if (far_count > 0) {
       char buf[300];
@@ -125,6 +181,7 @@ Geometry extractGeometry(const Shape& shape) {
     }
   }
   if (world.empty()) throw IoError(shape.path + ": no finite points");
+  clock.lap("geometry.frame");
 
   // Points in space-filling-curve order (Morton, 10 bits per axis of the bounding cube; file
   // order among points of one cell): neighbours then lie near each other in memory, so kNN,
@@ -147,15 +204,22 @@ Geometry extractGeometry(const Shape& shape) {
       return x;
     };
     std::vector<std::uint32_t> key(m);
-    for (std::size_t k = 0; k < m; ++k) {
+    const long long mm = static_cast<long long>(m);
+#pragma omp parallel for schedule(static) if (mm > kParallelMin)
+    for (long long kk = 0; kk < mm; ++kk) {
+      const auto k = static_cast<std::size_t>(kk);
       const Eigen::Vector3d q = ((world[k] - body_lo) * scale).cwiseMax(0.0).cwiseMin(1023.0);
       key[k] = spread(static_cast<std::uint32_t>(q.x())) | (spread(static_cast<std::uint32_t>(q.y())) << 1) |
                (spread(static_cast<std::uint32_t>(q.z())) << 2);
       perm[k] = static_cast<std::uint32_t>(k);
     }
-    radixSort(key, perm, (std::uint32_t{1} << 30) - 1, 15);  // stable: file order within a cell
+    clock.lap("geometry.morton_keys");
+    radixSort(key, perm, (std::uint32_t{1} << 30) - 1, 10);  // stable: file order within a cell
+    clock.lap("geometry.morton_sort");
     std::vector<int> raw(m);
-    for (std::size_t k = 0; k < m; ++k) {
+#pragma omp parallel for schedule(static) if (mm > kParallelMin)
+    for (long long kk = 0; kk < mm; ++kk) {
+      const auto k = static_cast<std::size_t>(kk);
       raw[k] = g.raw_index[perm[k]];
       g.finite_index[static_cast<std::size_t>(raw[k])] = static_cast<int>(k);
     }
@@ -167,11 +231,16 @@ Geometry extractGeometry(const Shape& shape) {
   g.origin = (0.5 * (body_lo + body_hi)).array().round().matrix();
   g.body = Eigen::AlignedBox3f((body_lo - g.origin).cast<float>(), (body_hi - g.origin).cast<float>());
   g.points->resize(world.size());
-  for (std::size_t i = 0; i < world.size(); ++i)
+  const long long wn = static_cast<long long>(world.size());
+#pragma omp parallel for schedule(static) if (wn > kParallelMin)
+  for (long long ii = 0; ii < wn; ++ii) {
+    const auto i = static_cast<std::size_t>(ii);
     (*g.points)[i].getVector3fMap() = (world[perm[i]] - g.origin).cast<float>();
+  }
   g.points->width = static_cast<std::uint32_t>(world.size());
   g.points->height = 1;
   g.points->is_dense = true;
+  clock.lap("geometry.points");
 
   if (f.hasNormals()) {
     bool usable = true;
@@ -205,6 +274,7 @@ Geometry extractGeometry(const Shape& shape) {
     }
     if (ok) g.faces.push_back(std::move(v));
   }
+  clock.lap("geometry.normals_faces");
   return g;
 }
 
@@ -213,7 +283,10 @@ void storePositions(Shape& shape, const Geometry& geometry, const std::vector<Ei
   pcl::PCLPointCloud2& c = shape.cloud;
   const XyzFields f = findXyzFields(c);
   const bool write_normals = normals != nullptr && f.hasNormals();
-  for (std::size_t k = 0; k < positions.size(); ++k) {
+  const long long m = static_cast<long long>(positions.size());
+#pragma omp parallel for schedule(static) if (m > kParallelMin)
+  for (long long kk = 0; kk < m; ++kk) {  // each point's own bytes
+    const auto k = static_cast<std::size_t>(kk);
     const std::size_t i = static_cast<std::size_t>(geometry.raw_index[k]);
     const Eigen::Vector3d p = positions[k].cast<double>() + geometry.origin;
     writeValue(c, i, c.fields[f.x], p.x());

@@ -220,6 +220,7 @@ class ScenarioRunner {
   std::optional<MoveResult> live_result_;
   bool released_ = false;  // the shape was handed over (release, writeAndRelease)
   double read_ms_ = 0, build_ms_ = 0, write_ms_ = 0;
+  std::vector<BuildPhase> phases_;  ///< the runner's own build phases (geometry, handles)
 };
 
 /// The whole of `hgdeform deform` on a shape already read: the scenario applied by a
