@@ -236,7 +236,13 @@ hgd::RunOptions runOptions(const py::dict& options) {
 hgd::Scenario scenarioArg(const py::handle& obj) {
   if (py::isinstance<hgd::Scenario>(obj)) return obj.cast<hgd::Scenario>();
   if (py::isinstance<py::dict>(obj)) {
-    const std::string text = py::module_::import("json").attr("dumps")(obj).cast<std::string>();
+    // numpy arrays and numbers inside (index arrays, coordinates) as the lists and numbers they hold
+    const py::cpp_function numpy_values([](const py::handle& v) -> py::object {
+      if (py::hasattr(v, "tolist")) return v.attr("tolist")();
+      throw py::type_error("scenario: a value of type " + typeName(v) + " has no JSON form");
+    });
+    const std::string text =
+        py::module_::import("json").attr("dumps")(obj, py::arg("default") = numpy_values).cast<std::string>();
     return hgd::parseScenario(text, "scenario");
   }
   if (py::isinstance<py::str>(obj)) {

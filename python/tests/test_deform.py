@@ -137,6 +137,10 @@ def test_the_builder_chains_and_takes_index_arrays(tube_points):
     assert same_bits(a, b)
     assert np.allclose(a[base], points[base])
     assert np.allclose(a[tip] - points[tip], [0, 2, 0], atol=1e-4)
+    as_dict = {"fixed": [{"indices": base}], "manipulated": {"indices": tip},
+               "move": {"frame": {"translate": np.array([0.0, 2.0, 0.0])}}}
+    c, _ = hgdeform.deform(points, as_dict)  # numpy values inside a dict
+    assert same_bits(c, a)
     assert "hgdeform-scenario/1" in by_index.to_json()
     assert repr(Region.sphere((0, 0, 0), 1.5)).startswith("Region.sphere(")
 
