@@ -906,7 +906,7 @@ PYBIND11_MODULE(_hgdeform, m) {
   m.doc() =
       "hgdeform: handle-based deformation of point clouds and meshes (harmonic-guided clustering). "
       "The package hgdeform wraps this module; see docs/python.md.";
-  m.attr("__version__") = hgd::version();
+  m.attr("__version__") = HGDEFORM_VERSION;  // CMake's project(VERSION), through version.h
 
   // The library's two exception types, with their messages: a ValueError and an OSError.
   py::register_exception<hgd::ScenarioError>(m, "ScenarioError", PyExc_ValueError).attr("__doc__") =
