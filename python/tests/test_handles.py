@@ -140,3 +140,22 @@ def test_open3d_free_constructor_takes_a_shape():
     h.set_scenario(Scenario().fix(np.flatnonzero(points[:, 0] < 1.0))
                    .manipulate(np.flatnonzero(points[:, 0] > 9.0)))
     assert h.points.shape == points.shape
+
+
+def test_joints_and_a_whole_drag():
+    points, _ = tube(n=3000, seed=8)
+    h = hgdeform.HandleDeformation(points, blend="rotation")
+    base = np.flatnonzero(points[:, 0] < 1.0)
+    tip = np.flatnonzero(points[:, 0] > 9.0)
+    joint = np.flatnonzero(np.abs(points[:, 0] - 5.0) < 0.4)
+    h.set_fixed([base])
+    h.set_manipulated(tip)
+    h.set_joints([joint])
+    result = h.drag_to([10.0, 1.0, 0.0], [8.0, 4.0, 0.0])
+    assert result["reached"] and result["frames"] >= 1
+    scenario = (Scenario().fix(base).manipulate(tip).joint(joint)
+                .drag([10.0, 1.0, 0.0], [8.0, 4.0, 0.0]))
+    out, report = hgdeform.deform(points, scenario)
+    diagonal = np.linalg.norm(points.max(axis=0) - points.min(axis=0))
+    assert np.abs(h.points - out).max() < 5e-3 * diagonal
+    assert report["reached"]
