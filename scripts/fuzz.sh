@@ -16,7 +16,7 @@ targets=(fuzz_scenario fuzz_ply fuzz_pcd fuzz_obj fuzz_xyz fuzz_off fuzz_stl)
 source scripts/ccache.sh
 cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo "${HGD_LAUNCHER[@]}" \
   -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_C_COMPILER=clang -DHGDEFORM_FUZZ=ON \
-  -DHGDEFORM_BUILD_TESTS=OFF -DHGDEFORM_BUILD_TOOLS=OFF >/dev/null
+  -DHGDEFORM_BUILD_TESTS=OFF -DHGDEFORM_BUILD_TOOLS=OFF -DHGDEFORM_PYTHON=OFF >/dev/null
 cmake --build "$build" --target fuzz_targets -j "${JOBS:-2}"
 
 status=0

@@ -21,6 +21,10 @@ packages=(
   xvfb xauth clang-format
   xdotool                                   # tests/test_viewer_x.cpp: real X keyboard and mouse events (XTEST) for the viewer
   clang libclang-rt-14-dev                  # scripts/fuzz.sh: libFuzzer targets (clang's runtime)
+  pybind11-dev python3-dev                  # the Python module, import hgdeform (python/, header-only binding)
+  python3-numpy                             # the Python module's arrays (numpy in and out)
+  python3-pytest                            # the Python tests (python/tests, run by ctest)
+  python3-open3d                            # the Python tests' Open3D interop (optional for the module; ~15 s to install)
 )
 
 missing=()

@@ -7,6 +7,8 @@
 #   -DTOOLS_DATA=DIR    also run the installed tools (bin/hgdeform --version, and a deform of
 #                       DIR/bunny_1839.ply with DIR/bunny_ears.json) with LD_LIBRARY_PATH unset:
 #                       they must find libhgdeform through their RPATH, wherever the prefix is
+#   -DPYTHON=EXE -DPYTHON_DIR=DIR  also import the installed Python module (PREFIX/DIR/hgdeform)
+#                       with EXE from another directory, LD_LIBRARY_PATH unset, and deform with it
 #   -DCOMPILER_LAUNCHER=ccache, -DCXX_COMPILER=..., -DC_COMPILER=...  for the static build (the
 #                       main build's, so that the library is built like the rest)
 foreach(var BUILD_DIR SOURCE_DIR WORK_DIR)
@@ -48,7 +50,7 @@ if(DEFINED STATIC_FROM)
   # The library only: no tools, no tests (they would double the build time for nothing new).
   step("static configure" "${CMAKE_COMMAND}" -S "${STATIC_FROM}" -B "${BUILD_DIR}" ${generator}
        -DCMAKE_BUILD_TYPE=Release -DBUILD_SHARED_LIBS=OFF -DHGDEFORM_BUILD_TOOLS=OFF
-       -DHGDEFORM_BUILD_TESTS=OFF ${launcher})
+       -DHGDEFORM_BUILD_TESTS=OFF -DHGDEFORM_PYTHON=OFF ${launcher})
   step("static build" "${CMAKE_COMMAND}" --build "${BUILD_DIR}" --target hgdeform -j 2)
 endif()
 
@@ -89,6 +91,24 @@ if(DEFINED TOOLS_DATA)
   if(NOT report MATCHES "\"version\"")
     message(FATAL_ERROR "install_consumer: no version in the report: ${report}")
   endif()
+endif()
+
+if(DEFINED PYTHON)
+  # The installed package from the prefix alone: its module finds libhgdeform through its RPATH.
+  string(CONCAT code "import hgdeform, numpy as np\n"
+           "p = np.random.default_rng(1).uniform(0, 1, (500, 3))\n"
+           "s = hgdeform.Scenario().fix(hgdeform.Region.box((0, 0, 0), (0.2, 1, 1)))"
+           ".manipulate(hgdeform.Region.box((0.8, 0, 0), (1, 1, 1))).frame(translate=(0, 0.1, 0))\n"
+           "out, report = hgdeform.deform(p, s)\n"
+           "assert hgdeform.__file__.startswith('${prefix}/'), hgdeform.__file__\n"
+           "print(hgdeform.__version__, report['points'])\n")
+  execute_process(COMMAND "${CMAKE_COMMAND}" -E env --unset=LD_LIBRARY_PATH "PYTHONPATH=${prefix}/${PYTHON_DIR}"
+                          "${PYTHON}" -c "${code}"
+                  WORKING_DIRECTORY "${WORK_DIR}" RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+  if(NOT rc EQUAL 0 OR NOT out MATCHES "^[0-9]+\\.[0-9]+\\.[0-9]+ 500")
+    message(FATAL_ERROR "install_consumer: the installed Python module: exit ${rc}, '${out}' ${err}")
+  endif()
+  message(STATUS "install_consumer: import hgdeform from the prefix: ${out}")
 endif()
 
 step("configure" "${CMAKE_COMMAND}" -S "${SOURCE_DIR}" -B "${build}" ${generator}

@@ -1,0 +1,189 @@
+"""hgdeform: handle-based deformation of point clouds and meshes.
+
+Numpy arrays in and out (Open3D geometries too), the C++ library underneath with the GIL
+released while it works. See docs/python.md.
+
+    import hgdeform
+    from hgdeform import Region, Scenario
+
+    shape = hgdeform.read("scan.ply")
+    s = Scenario().fix(Region.box(lo, hi)).manipulate(Region.sphere(c, r)).drag(a, b)
+    deformed, report = hgdeform.deform(shape, s)
+    hgdeform.write("out.ply", deformed)
+"""
+
+import warnings as _warnings
+
+from . import _hgdeform
+from ._hgdeform import (  # noqa: F401  (the public names)
+    HandleDeformation as _HandleDeformation,
+    IoError,
+    Region,
+    Scenario,
+    ScenarioError,
+    Shape,
+    __version__,
+    read,
+)
+
+__all__ = [
+    "HandleDeformation",
+    "IoError",
+    "Region",
+    "Scenario",
+    "ScenarioError",
+    "Shape",
+    "__version__",
+    "deform",
+    "field",
+    "read",
+    "write",
+]
+
+for _cls in (IoError, ScenarioError, Region, Scenario, Shape):
+    try:
+        _cls.__module__ = "hgdeform"
+    except (AttributeError, TypeError):
+        pass
+
+
+# --- Open3D, without importing it unless it is what was given ---------------------------------
+
+def _is_open3d(obj):
+    return type(obj).__module__.startswith("open3d")
+
+
+def _open3d_arrays(geometry):
+    """(points, normals or None, faces or None) of an Open3D PointCloud or TriangleMesh."""
+    import numpy as np
+
+    name = type(geometry).__name__
+    if name == "PointCloud":
+        points = np.asarray(geometry.points)
+        normals = np.asarray(geometry.normals) if geometry.has_normals() else None
+        return points, normals, None
+    if name == "TriangleMesh":
+        points = np.asarray(geometry.vertices)
+        normals = (np.asarray(geometry.vertex_normals)
+                   if geometry.has_vertex_normals() else None)
+        faces = np.asarray(geometry.triangles)
+        return points, normals, (faces if len(faces) else None)
+    raise TypeError("an Open3D PointCloud or TriangleMesh is taken, got open3d "
+                    + name)
+
+
+def _open3d_like(geometry, points, normals):
+    """A copy of `geometry` with these points (and normals)."""
+    import open3d
+
+    vectors = open3d.utility.Vector3dVector
+    if type(geometry).__name__ == "PointCloud":
+        out = open3d.geometry.PointCloud(geometry)
+        out.points = vectors(points)
+        if normals is not None:
+            out.normals = vectors(normals)
+        return out
+    out = open3d.geometry.TriangleMesh(geometry)
+    out.vertices = vectors(points)
+    if normals is not None:
+        out.vertex_normals = vectors(normals)
+    return out
+
+
+# --- the functions -----------------------------------------------------------------------------
+
+def deform(points, scenario, normals=None, faces=None, **options):
+    """Deforms a shape as a scenario says (what ``hgdeform deform`` does).
+
+    points: an (N, 3) array of any float dtype and memory order, a Shape, or an Open3D
+        PointCloud or TriangleMesh.
+    scenario: a Scenario, a dict or JSON text in the hgdeform-scenario/1 format, or a path.
+    normals: (N, 3) or None (arrays only); turned with the shape when given.
+    faces: (M, 3) integers, a list of index lists, or None (arrays only).
+    options: clusters, blend ('rotation' or 'linear'), k, samples, joint_clusters,
+        solver ('auto', 'exact', 'multilevel'), mesh_ring, full_field: the command line's.
+
+    Returns (points, report) with points (N, 3) float64, or (points, normals, report) when
+    normals were given; (Shape, report) for a Shape; (geometry, report) for Open3D, a new
+    geometry of the same kind. The report is a dict with the keys of ``--report``.
+    Raises ScenarioError (a ValueError) or IoError (an OSError) with the library's message.
+    """
+    if isinstance(points, Shape):
+        _no_arrays(normals, faces, "a Shape")
+        return _hgdeform._deform_shape(points, scenario, options)
+    if _is_open3d(points):
+        _no_arrays(normals, faces, "an Open3D geometry")
+        p, n, f = _open3d_arrays(points)
+        out, out_normals, report = _hgdeform._deform_arrays(p, scenario, n, f, options)
+        return _open3d_like(points, out, out_normals), report
+    out, out_normals, report = _hgdeform._deform_arrays(points, scenario, normals, faces,
+                                                        options)
+    if normals is None:
+        return out, report
+    return out, out_normals, report
+
+
+def field(points, scenario, normals=None, faces=None, **options):
+    """The harmonic field φ of a scenario's handles (what ``hgdeform field`` stores).
+
+    points, scenario, normals, faces and options as deform()'s. Returns an (N,) float32 array
+    in the input's order: 1 on the manipulated handle, 0 on the fixed ones (and on parts no
+    handle reaches), NaN for points that are not finite.
+    """
+    if isinstance(points, Shape):
+        _no_arrays(normals, faces, "a Shape")
+        return _hgdeform._field_shape(points, scenario, options)
+    if _is_open3d(points):
+        _no_arrays(normals, faces, "an Open3D geometry")
+        points, normals, faces = _open3d_arrays(points)
+    return _hgdeform._field_arrays(points, scenario, normals, faces, options)
+
+
+def write(path, shape, ascii=False):
+    """Writes a Shape (or an (N, 3) array, or an Open3D geometry) to a PLY, PCD, OBJ, XYZ/TXT,
+    OFF or STL file, chosen by the extension; binary unless ascii. Atomic: a failed write
+    leaves no file. Warns (UserWarning) about what the format cannot hold. Raises IoError.
+    """
+    import os
+
+    path = os.fspath(path)
+    if not isinstance(shape, Shape):
+        if _is_open3d(shape):
+            p, n, f = _open3d_arrays(shape)
+            shape = Shape(p, n, f)
+        else:
+            shape = Shape(shape)
+    lost = _hgdeform._extras_lost(shape, path)
+    if lost:
+        _warnings.warn(path + ": " + lost, stacklevel=2)
+    _hgdeform._write(path, shape, ascii)
+
+
+class HandleDeformation(_HandleDeformation):
+    """Interactive deformation of one shape (the C++ hgd::HandleDeformation's Python side).
+
+        hd = hgdeform.HandleDeformation(points)       # (N, 3), a Shape or Open3D geometry
+        hd.set_fixed([base_indices])
+        hd.set_manipulated(hand_indices)
+        view = hd.points                               # (N, 3) float32, read-only, no copy
+        hd.drag(from_, to)                             # one frame: `view` now shows it
+        hd.set_handle_transform(T)                     # or the frame metaphor, (4, 4)
+
+    `points` is the deformer's own buffer: every frame writes into it and the view shows it
+    without being fetched again. Row k is input point k (index[k] when the input has NaN
+    points); the coordinates are world coordinates unless `origin` is not zero (a shape
+    farther from the origin than 16 times its size): then world = points + origin.
+    """
+
+    def __init__(self, points, normals=None, faces=None, **options):
+        if _is_open3d(points):
+            if normals is not None or faces is not None:
+                raise TypeError("normals and faces come from the Open3D geometry itself")
+            points, normals, faces = _open3d_arrays(points)
+        super().__init__(points, normals, faces, **options)
+
+
+def _no_arrays(normals, faces, what):
+    if normals is not None or faces is not None:
+        raise TypeError("normals and faces are given with points arrays, not with "
+                        + what + " (it has its own)")

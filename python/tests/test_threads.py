@@ -1,0 +1,76 @@
+"""The GIL is released while the library works: two threads deforming two clouds are inside
+their deform() calls at the same time, and the interpreter runs other Python code meanwhile."""
+
+import threading
+import time
+
+import numpy as np
+
+import hgdeform
+
+from conftest import tube, tube_scenario
+
+
+def test_two_threads_deform_at_the_same_time():
+    clouds = [tube(n=60000, seed=11)[0], tube(n=60000, seed=12)[0]]
+    scenario = tube_scenario()
+    expected = [hgdeform.deform(c, scenario)[0] for c in clouds]  # (and warms up)
+    intervals = [None, None]
+    results = [None, None]
+    barrier = threading.Barrier(3)
+
+    def work(k):
+        barrier.wait()
+        start = time.perf_counter()
+        results[k] = hgdeform.deform(clouds[k], scenario)[0]
+        intervals[k] = (start, time.perf_counter())
+
+    threads = [threading.Thread(target=work, args=(k,)) for k in range(2)]
+    for t in threads:
+        t.start()
+    # Meanwhile this thread samples the clock from Python code, which can only run while
+    # neither call holds the GIL.
+    barrier.wait()
+    ticks = []
+    while any(t.is_alive() for t in threads):
+        ticks.append(time.perf_counter())
+        time.sleep(0.0005)
+    for t in threads:
+        t.join()
+
+    (a0, a1), (b0, b1) = intervals
+    overlap_start, overlap_end = max(a0, b0), min(a1, b1)
+    assert overlap_end > overlap_start, intervals  # both calls were running at once
+    shorter = min(a1 - a0, b1 - b0)
+    assert overlap_end - overlap_start > 0.5 * shorter, intervals
+    # ... and not one waiting on the other's GIL: Python ran all through the overlap.
+    inside = [t for t in ticks if overlap_start < t < overlap_end]
+    assert len(inside) >= 10, (len(inside), intervals)
+    gaps = np.diff([overlap_start, *inside, overlap_end])
+    assert gaps.max() < 0.5 * (overlap_end - overlap_start), gaps.max()
+    for k in range(2):  # and each got its own answer, the same as alone
+        assert np.array_equal(results[k], expected[k])
+
+
+def test_a_handle_deformation_frame_releases_the_gil():
+    points = tube(n=60000, seed=13)[0]
+    h = hgdeform.HandleDeformation(points)
+    h.set_fixed([np.flatnonzero(points[:, 0] < 1.0)])
+    h.set_manipulated(np.flatnonzero(points[:, 0] > 9.0))
+    interval = []
+
+    def build():
+        start = time.perf_counter()
+        h.build()
+        interval.extend([start, time.perf_counter()])
+
+    t = threading.Thread(target=build)
+    t.start()
+    ticks = []
+    while t.is_alive():
+        ticks.append(time.perf_counter())
+        time.sleep(0.0005)
+    t.join()
+    start, end = interval
+    inside = [x for x in ticks if start < x < end]
+    assert len(inside) >= 5, (len(inside), end - start)
