@@ -306,7 +306,7 @@ TEST(CliDeform, SameResultOnOneAndTwoThreads) {
 
 // --- deform ----------------------------------------------------------------------------------
 
-// Above 500,000 points deform builds on a coarse level and says so in the report; --full-field
+// Above 131,072 points deform builds on a coarse level and says so in the report; --full-field
 // keeps every point in the field. The two outputs agree within a bound (the Multires tests
 // bound the difference in detail).
 TEST(CliDeform, LargeShapesBuildOnACoarseLevelUnlessAskedNot) {

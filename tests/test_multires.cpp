@@ -32,6 +32,7 @@ DeformOptions coarse(std::size_t points) {
   DeformOptions o;
   o.multires_above = 1;  // whatever the size
   o.coarse_points = points;
+  o.points_per_coarse = 0;  // that many, whatever the size
   return o;
 }
 

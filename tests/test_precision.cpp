@@ -159,6 +159,7 @@ Compared deformAndCompare(const std::string& path, const std::string& scenario, 
   if (multires) {  // the coarse level and its prolongation, on a small shape
     ro.deform.multires_above = 400;
     ro.deform.coarse_points = 300;
+    ro.deform.points_per_coarse = 0;
   }
   hgd::ScenarioRunner run = hgd::ScenarioRunner::read(path, ro);
   run.setScenario(hgd::parseScenario(scenario, "test.json"));

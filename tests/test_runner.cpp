@@ -233,6 +233,7 @@ TEST(ScenarioRunner, ResolutionKeyKeepsEveryPointInTheField) {
   hgd::RunOptions o;
   o.deform.multires_above = 1;  // this small bar would be built on a coarse level
   o.deform.coarse_points = 500;
+  o.deform.points_per_coarse = 0;
   EXPECT_FALSE(bar(barScenario(), o).deformer().coarseLevel().empty());
   hgd::Scenario s = barScenario();
   s.full_resolution = true;
@@ -260,6 +261,7 @@ TEST(ScenarioRunner, FieldAloneIsTheFullResolutionDeformersField) {
   hgd::RunOptions o;
   o.deform.multires_above = 1;  // a deformer of this bar would be built on a coarse level...
   o.deform.coarse_points = 500;
+  o.deform.points_per_coarse = 0;
   hgd::ScenarioRunner alone(hgd::shapes::bar(1.0f, 0.1f, 0.01f), o);
   const hgd::FieldResult f = alone.field(barScenario());
   EXPECT_FALSE(alone.ready());

@@ -138,8 +138,8 @@ int parseDeform(int argc, const char* const* argv, DeformArgs& a) {
   app.add_flag("--mesh-ring", a.mesh_ring,
                "on meshes, the field's graph is the faces' 1-ring instead of kNN (at full resolution)");
   app.add_flag("--full-field", a.full_field,
-               "the field, pieces and clusters over every point, however many (default: above 500,000\n"
-               "points, on a subsample of about 65,536, prolonged to every point)");
+               "the field, pieces and clusters over every point, however many (default: above 131,072\n"
+               "points, on a subsample of about 65,536 or a tenth of the points, prolonged to every point)");
   addOutputFlags(app, a.ascii, a.quiet);
   return hgdcli::parse(app, argc, argv);
 }

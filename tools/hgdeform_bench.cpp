@@ -32,6 +32,7 @@
 #include <string>
 #include <vector>
 
+#include "bench_command.h"
 #include "bench_peers.h"
 #include "bench_phases.h"
 #include "bench_references.h"
@@ -94,12 +95,13 @@ double peakRssMb() {
 }
 
 nlohmann::json runSize(const std::string& model, const std::string& armadillo, std::size_t n, int repeat,
-                       const std::vector<long>& cluster_counts, bool phases) {
+                       const std::vector<long>& cluster_counts, bool phases, bool command) {
   using nlohmann::json;
   // Shared with the Deformer, as ScenarioRunner shares it (no second copy of the index maps).
   const auto shared_geometry = std::make_shared<hgd::Geometry>();
   hgd::Geometry& g = *shared_geometry;
   hgd::Handles h;
+  hgd::Shape source;  // what the whole-command row writes to a file
   if (model.rfind("armadillo", 0) == 0) {
     hgd::Shape sampled = hgd::shapes::sampleMesh(hgd::readShape(armadillo), n, 7);
     if (model != "armadillo") {
@@ -123,8 +125,10 @@ nlohmann::json runSize(const std::string& model, const std::string& armadillo, s
     }
     g = hgd::extractGeometry(sampled);
     h = armadilloHandles(g);
+    if (command) source = std::move(sampled);
   } else {
-    g = hgd::extractGeometry(hgd::shapes::bumpySphere(n));
+    source = hgd::shapes::bumpySphere(n);
+    g = hgd::extractGeometry(source);
     h.fixed.emplace_back();
     for (std::size_t i = 0; i < g.size(); ++i) {
       const Eigen::Vector3d w = g.world(i);
@@ -264,6 +268,25 @@ nlohmann::json runSize(const std::string& model, const std::string& armadillo, s
     }
   }
   out["deform"] = per_clusters;
+  if (command) {
+    // The whole command on the same points: the bottom tenth fixed, the top tenth moved a twentieth
+    // of the height (boxes, as a user's scenario has, not the bench's index lists).
+    const Eigen::AlignedBox3f box = hgd::boundingBox(*g.points);
+    const Eigen::Vector3d lo = box.min().cast<double>() + g.origin, hi = box.max().cast<double>() + g.origin;
+    const double dy = hi.y() - lo.y();
+    auto v = [](double x, double y, double z) { return nlohmann::json::array({x, y, z}); };
+    const nlohmann::json scenario = {{"format", "hgdeform-scenario/1"},
+                                     {"fixed",
+                                      {{{"box",
+                                         {{"min", v(lo.x() - 1, lo.y() - 1, lo.z() - 1)},
+                                          {"max", v(hi.x() + 1, lo.y() + 0.1 * dy, hi.z() + 1)}}}}}},
+                                     {"manipulated",
+                                      {{"box",
+                                        {{"min", v(lo.x() - 1, hi.y() - 0.1 * dy, lo.z() - 1)},
+                                         {"max", v(hi.x() + 1, hi.y() + 1, hi.z() + 1)}}}}},
+                                     {"move", {{{"frame", {{"translate", v(0.05 * dy, 0, 0)}}}}}}};
+    out["command"] = hgdbench::commandReference(source, scenario.dump(), repeat);
+  }
   if (peak_restarted) {
     out["deformer_peak_rss_mb"] = deformer_peak;
     out["peak_rss_before_deformer_mb"] = peak_before;
@@ -282,6 +305,7 @@ struct BenchArgs {
   bool arap = false;
   bool quality = true;
   bool phases = true;
+  bool command = true;
 };
 
 /// Parses the command line into `a`; returns -1 to go on, else the exit status.
@@ -320,6 +344,11 @@ int parseArgs(int argc, char** argv, BenchArgs& a) {
   app.add_flag("--phases,!--no-phases", a.phases,
                "the build's thread scaling (default on): each build phase's time on one thread and on "
                "every thread (OMP_NUM_THREADS), builds alternating, at the first --clusters count");
+  app.add_flag(
+      "--command,!--no-command", a.command,
+      "the whole command (default on): `hgdeform deform` (beside the bench) on the cloud written as a "
+      "binary PLY, a frame move, its wall time and peak memory, against PCL reading and writing the "
+      "same file (PLYReader, PLYWriter), alternating");
   app.add_option("--json", a.json,
                  "also write every measurement (with the tool and its version) as JSON; never the mesh")
       ->type_name("OUT");
@@ -342,6 +371,7 @@ int main(int argc, char** argv) {
   std::vector<std::string> models = args.models;
   const int repeat = args.repeat;
   const bool phases = args.phases;
+  const bool command = args.command;
   const std::string& json_path = args.json;
   try {  // before any work: --json never replaces the mesh read
     if (!json_path.empty()) hgd::refuseInputs(json_path, {armadillo});
@@ -371,7 +401,8 @@ int main(int argc, char** argv) {
       if (pid == 0) {
         close(pipefd[0]);
         const std::string text =
-            runSize(model, armadillo, static_cast<std::size_t>(n), repeat, cluster_counts, phases).dump();
+            runSize(model, armadillo, static_cast<std::size_t>(n), repeat, cluster_counts, phases, command)
+                .dump();
         if (write(pipefd[1], text.data(), text.size()) < 0) _exit(1);
         close(pipefd[1]);
         _exit(0);
@@ -438,6 +469,24 @@ int main(int argc, char** argv) {
   for (const auto& r : all)
     if (r.contains("build_phases"))
       hgdbench::printPhaseScaling(r["model"].get<std::string>(), r["points"].get<long>(), r["build_phases"]);
+  for (const auto& r : all) {
+    if (!r.contains("command")) continue;
+    const auto& c = r["command"];
+    if (c.contains("left_out")) {
+      std::printf("whole command, %s: left out: %s\n", r["model"].get<std::string>().c_str(),
+                  c["left_out"].get<std::string>().c_str());
+      continue;
+    }
+    const double pcl = c["pcl_read_ms"].get<double>() + c["pcl_write_ms"].get<double>();
+    std::printf(
+        "whole command, %s at %ld points: hgdeform deform %.0f ms, peak %.0f MB (%.0f B/pt); PCL read + "
+        "write "
+        "%.0f + %.0f = %.0f ms; command / PCL %.2fx\n",
+        r["model"].get<std::string>().c_str(), r["points"].get<long>(), c["command_ms"].get<double>(),
+        c["command_peak_mb"].get<double>(), c["bytes_per_point"].get<double>(),
+        c["pcl_read_ms"].get<double>(), c["pcl_write_ms"].get<double>(), pcl,
+        c["command_ms"].get<double>() / std::max(1e-9, pcl));
+  }
   if (args.quality) {
     if (!hgdbench::haveCgalArap()) {
       const std::string why = "this build has no CGAL (install libcgal-dev and configure again)";

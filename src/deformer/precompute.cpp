@@ -193,7 +193,11 @@ void precompute(const Geometry& geometry, const Handles& handles, const DeformOp
   }
   if (data.multires) {
     checkHandles(geometry, handles);
-    data.coarse = coarsen(*geometry.points, handles, options.coarse_points, geometry.faces.empty());
+    const std::size_t target =
+        options.points_per_coarse > 0
+            ? std::min(options.coarse_points, geometry.size() / options.points_per_coarse)
+            : options.coarse_points;
+    data.coarse = coarsen(*geometry.points, handles, target, geometry.faces.empty());
     if (data.coarse.empty()) {  // thousands of handles: no cell key holds them all
       data.multires = false;
       setGraphInput(*data.graph, geometry);

@@ -42,10 +42,13 @@ struct DeformOptions {
   /// (docs/method.md, "Shape quality").
   double iso_rigidity = 1;
   /// Multi-resolution build (docs/method.md §7): a shape with more points than this gets its
-  /// field, pieces and clusters on a voxel subsample of about `coarse_points` points, prolonged
-  /// to every point. 0: always at full resolution (every point in the neighbour graph).
-  std::size_t multires_above = 500000;
+  /// field, pieces and clusters on a voxel subsample, prolonged to every point: of about
+  /// `coarse_points` points, or one for every `points_per_coarse` points where that is fewer
+  /// (a mid-sized shape's coarse level grows with it, and so does its build time). 0: always at
+  /// full resolution (every point in the neighbour graph).
+  std::size_t multires_above = 131072;
   std::size_t coarse_points = 65536;
+  std::size_t points_per_coarse = 10;
 };
 
 struct BuildTimings {

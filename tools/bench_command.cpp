@@ -1,0 +1,87 @@
+#include "bench_command.h"
+
+#include <pcl/io/ply_io.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <vector>
+
+#include "bench_references.h"
+#include "hgdeform/io/io.h"
+
+namespace hgdbench {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+double msSince(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+/// Runs argv (stdout and stderr to /dev/null); its wall ms and peak RSS in MB, or -1 ms when
+/// it failed.
+std::pair<double, double> timeChild(const std::vector<std::string>& args) {
+  std::vector<char*> argv;
+  for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  const auto t0 = std::chrono::steady_clock::now();
+  const pid_t pid = fork();
+  if (pid == 0) {
+    if (!std::freopen("/dev/null", "w", stdout) || !std::freopen("/dev/null", "w", stderr)) _exit(127);
+    execv(argv[0], argv.data());
+    _exit(127);
+  }
+  int status = 0;
+  struct rusage ru {};
+  if (pid < 0 || wait4(pid, &status, 0, &ru) != pid) return {-1, 0};
+  const double ms = msSince(t0);
+  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) return {-1, 0};
+  return {ms, static_cast<double>(ru.ru_maxrss) / 1024.0};
+}
+
+}  // namespace
+
+nlohmann::json commandReference(const hgd::Shape& shape, const std::string& scenario, int repeat) {
+  const fs::path cli = fs::read_symlink("/proc/self/exe").parent_path() / "hgdeform";
+  if (!fs::exists(cli)) return {{"left_out", "no " + cli.string() + " beside the bench"}};
+  const fs::path dir = fs::temp_directory_path() / ("hgdeform-bench-" + std::to_string(getpid()));
+  fs::create_directories(dir);
+  const std::string in = (dir / "in.ply").string(), out = (dir / "out.ply").string(),
+                    pcl_out = (dir / "pcl.ply").string(), s = (dir / "s.json").string();
+  hgd::writeShape(in, shape);
+  std::ofstream(s) << scenario;
+  std::vector<double> command, peak, read, write;
+  for (int r = 0; r < repeat; ++r) {
+    const auto [ms, mb] = timeChild({cli.string(), "deform", in, "-s", s, "-o", out, "-q"});
+    if (ms < 0) {
+      fs::remove_all(dir);
+      return {{"left_out", "hgdeform deform failed on the bench's file"}};
+    }
+    command.push_back(ms);
+    peak.push_back(mb);
+    fs::remove(out);
+    pcl::PCLPointCloud2 cloud;
+    auto t0 = std::chrono::steady_clock::now();
+    pcl::PLYReader reader;
+    if (reader.read(in, cloud) != 0) continue;
+    read.push_back(msSince(t0));
+    t0 = std::chrono::steady_clock::now();
+    pcl::PLYWriter writer;
+    writer.writeBinary(pcl_out, cloud);
+    write.push_back(msSince(t0));
+    fs::remove(pcl_out);
+  }
+  fs::remove_all(dir);
+  const double points = static_cast<double>(shape.size());
+  return {{"points", shape.size()},          {"command_ms", median(command)},
+          {"command_peak_mb", median(peak)}, {"pcl_read_ms", median(read)},
+          {"pcl_write_ms", median(write)},   {"bytes_per_point", median(peak) * 1048576.0 / points}};
+}
+
+}  // namespace hgdbench
