@@ -584,13 +584,16 @@ py::tuple deformArrays(const py::handle& points, const hgd::Scenario& scenario, 
 }
 
 /// deform() on a Shape: (the deformed shape, report).
+/// The shape is copied while the GIL is held: another thread may change (and reallocate) the
+/// Python-owned shape once it is released.
 py::tuple deformShape(const PyShape& shape, const hgd::Scenario& scenario, const py::dict& options) {
   const hgd::RunOptions ro = runOptions(options);
+  hgd::Shape in = shape.s;
   PyShape out;
   hgd::DeformReport report;
   {
     py::gil_scoped_release release;
-    hgd::ScenarioRunner run(shape.s, ro);
+    hgd::ScenarioRunner run(std::move(in), ro);
     run.setScenario(scenario);
     run.applyMoves();
     out.s = run.release(true);
@@ -600,15 +603,17 @@ py::tuple deformShape(const PyShape& shape, const hgd::Scenario& scenario, const
 }
 
 /// φ in file order: float32, NaN for the points the field does not cover (not finite, set apart).
-py::array_t<float> fieldOf(const hgd::Shape& shape, const hgd::Scenario& scenario, const py::dict& options) {
+/// `shape` is the caller's own copy (taken while the GIL was held), handed to the runner.
+py::array_t<float> fieldOf(hgd::Shape shape, const hgd::Scenario& scenario, const py::dict& options) {
   const hgd::RunOptions ro = runOptions(options);
-  py::array_t<float> out(static_cast<py::ssize_t>(shape.size()));
+  const std::size_t n = shape.size();
+  py::array_t<float> out(static_cast<py::ssize_t>(n));
   float* o = out.mutable_data();
   {
     py::gil_scoped_release release;
-    const hgd::ScenarioRunner run(shape, ro);
+    const hgd::ScenarioRunner run(std::move(shape), ro);
     const hgd::FieldResult r = run.field(scenario);
-    std::fill(o, o + shape.size(), std::numeric_limits<float>::quiet_NaN());
+    std::fill(o, o + n, std::numeric_limits<float>::quiet_NaN());
     const hgd::Geometry& g = run.geometry();
     for (std::size_t k = 0; k < r.values.size(); ++k) o[g.raw_index[k]] = r.values[k];
   }
@@ -1095,8 +1100,11 @@ PYBIND11_MODULE(_hgdeform, m) {
       [](const std::string& path, const PyShape& shape, bool ascii) {
         hgd::WriteOptions wo;
         if (ascii) wo.encoding = hgd::Encoding::Ascii;
+        // A copy taken with the GIL held: once it is released another thread may change the
+        // Python-owned shape (set_field reallocates its records).
+        const hgd::Shape copy = shape.s;
         py::gil_scoped_release release;
-        hgd::writeShape(path, shape.s, wo);
+        hgd::writeShape(path, copy, wo);
       },
       py::arg("path"), py::arg("shape"), py::arg("ascii") = false);
   m.def(
@@ -1124,14 +1132,15 @@ PYBIND11_MODULE(_hgdeform, m) {
       "_field_arrays",
       [](const py::handle& points, const py::handle& scenario, const py::handle& normals,
          const py::handle& faces, const py::dict& options) {
-        const PyShape s = shapeFromPython(points, normals, faces);
-        return fieldOf(s.s, scenarioArg(scenario), options);
+        PyShape s = shapeFromPython(points, normals, faces);
+        return fieldOf(std::move(s.s), scenarioArg(scenario), options);
       },
       py::arg("points"), py::arg("scenario"), py::arg("normals"), py::arg("faces"), py::arg("options"));
   m.def(
       "_field_shape",
       [](const PyShape& shape, const py::handle& scenario, const py::dict& options) {
-        return fieldOf(shape.s, scenarioArg(scenario), options);
+        const hgd::Scenario sc = scenarioArg(scenario);  // (may release the GIL: a scenario file)
+        return fieldOf(shape.s, sc, options);            // a copy, taken with the GIL held
       },
       py::arg("shape"), py::arg("scenario"), py::arg("options"));
   m.def(
