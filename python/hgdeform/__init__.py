@@ -170,9 +170,11 @@ class HandleDeformation(_HandleDeformation):
         hd.set_handle_transform(T)                     # or the frame metaphor, (4, 4)
 
     `points` is the deformer's own buffer: every frame writes into it and the view shows it
-    without being fetched again. Row k is input point k (index[k] when the input has NaN
-    points); the coordinates are world coordinates unless `origin` is not zero (a shape
-    farther from the origin than 16 times its size): then world = points + origin.
+    without being fetched again. Its rows are in the library's (Morton) order, as
+    ``hgdeform deform`` builds them: row k is input point index[k], and world = points + origin
+    (the library's local frame). deformed_shape() is, in the input's order, what
+    ``hgdeform deform`` writes for the same scenario, to the bit. A set_scenario that changes
+    clusters or full resolution builds a new deformer: fetch `points` again after it.
     """
 
     def __init__(self, points, normals=None, faces=None, **options):

@@ -639,65 +639,17 @@ double cppDeformMs(const py::handle& points, const hgd::Scenario& scenario, cons
 
 // --- HandleDeformation -------------------------------------------------------------------------
 
-/// The geometry of `shape` with its points in the shape's own order (extractGeometry's are in
-/// Morton order), so that the deformer's buffer has the input's rows: row k is input point
-/// raw_index[k], which is k when every point is finite. Its origin is zero (positions are world
-/// coordinates) unless the shape lies farther from the origin than 16 times its size, where
-/// float32 world coordinates would lose its detail; then the origin extractGeometry chose.
-std::shared_ptr<hgd::Geometry> fileOrderGeometry(const hgd::Shape& shape) {
-  hgd::Geometry g = hgd::extractGeometry(shape);
-  const std::size_t m = g.size();
-  std::vector<int> raw = g.raw_index;
-  std::sort(raw.begin(), raw.end());
-  std::vector<int> new_of_old(m);
-  for (std::size_t j = 0; j < m; ++j)
-    new_of_old[static_cast<std::size_t>(g.finite_index[static_cast<std::size_t>(raw[j])])] =
-        static_cast<int>(j);
-
-  const Eigen::Vector3d old_origin = g.origin;
-  const Eigen::Vector3d origin = old_origin.cwiseAbs().maxCoeff() <= 16 * hgd::boundingBoxDiagonal(g)
-                                     ? Eigen::Vector3d::Zero()
-                                     : old_origin;
-  const pcl::PCLPointCloud2& c = shape.cloud;
-  const hgd::XyzFields f = hgd::findXyzFields(c);
-  auto points = std::make_shared<pcl::PointCloud<pcl::PointXYZ>>();
-  points->resize(m);
-  for (std::size_t j = 0; j < m; ++j) {
-    const auto i = static_cast<std::size_t>(raw[j]);
-    const Eigen::Vector3d w(hgd::readValue(c, i, c.fields[static_cast<std::size_t>(f.x)]),
-                            hgd::readValue(c, i, c.fields[static_cast<std::size_t>(f.y)]),
-                            hgd::readValue(c, i, c.fields[static_cast<std::size_t>(f.z)]));
-    (*points)[j].getVector3fMap() = (w - origin).cast<float>();
-  }
-  points->width = static_cast<std::uint32_t>(m);
-  points->height = 1;
-  points->is_dense = true;
-  if (g.hasFileNormals()) {
-    auto normals = std::make_shared<pcl::PointCloud<pcl::Normal>>();
-    normals->resize(m);
-    for (std::size_t k = 0; k < m; ++k)
-      (*normals)[static_cast<std::size_t>(new_of_old[k])] = (*g.file_normals)[k];
-    g.file_normals = normals;
-  }
-  for (auto& face : g.faces)
-    for (auto& v : face.vertices) v = static_cast<std::uint32_t>(new_of_old[v]);
-  for (std::size_t j = 0; j < m; ++j) g.finite_index[static_cast<std::size_t>(raw[j])] = static_cast<int>(j);
-  g.raw_index = std::move(raw);
-  g.points = points;
-  const Eigen::Vector3f shift = (old_origin - origin).cast<float>();
-  g.body = Eigen::AlignedBox3f(g.body.min() + shift, g.body.max() + shift);
-  g.origin = origin;
-  return std::make_shared<hgd::Geometry>(std::move(g));
-}
-
 /// Interactive deformation of one shape: handles by index (or a scenario), frames one at a time,
 /// the deformed positions as a read-only view of the deformer's own buffer.
 class PyHandleDeformation {
  public:
   PyHandleDeformation(hgd::Shape shape, hgd::RunOptions options)
-      : shape_(std::move(shape)), options_(std::move(options)) {
-    geometry_ = fileOrderGeometry(shape_);
-  }
+      : shape_(std::move(shape)),
+        // extractGeometry's own geometry (Morton order, its origin), as ScenarioRunner builds it
+        // for `hgdeform deform`: the library's sampling depends on the points' order, so any
+        // other order gives another (equally valid, not bit-equal) result.
+        geometry_(std::make_shared<const hgd::Geometry>(hgd::extractGeometry(shape_))),
+        options_(std::move(options)) {}
 
   void setFixed(const std::vector<std::vector<long long>>& handles) {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -740,19 +692,21 @@ class PyHandleDeformation {
   }
   void reset() {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (deformer_ && built_) deformer_->reset();
+    if (deformer_) deformer_->reset();  // also after a handle change not built yet
   }
   void build() {
     std::lock_guard<std::mutex> lock(mutex_);
     ensureBuilt();
   }
 
-  /// The deformer's positions (built first if due): its own buffer, which no later frame or
-  /// handle change moves (Deformer sizes it once).
-  const std::vector<Eigen::Vector3f>& positions() {
+  /// The deformer (built first if due), whose positions are the buffer `points` views: no frame
+  /// or handle change moves it (Deformer sizes it once); a rebuild for other options (clusters,
+  /// samples, full resolution) makes a new deformer, and the old one lives on as long as a view
+  /// of it does.
+  std::shared_ptr<const hgd::Deformer> deformer() {
     std::lock_guard<std::mutex> lock(mutex_);
     ensureBuilt();
-    return deformer_->deformedPoints();
+    return deformer_;
   }
   std::vector<Eigen::Vector3f> normals() {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -801,13 +755,18 @@ class PyHandleDeformation {
       throw hgd::ScenarioError("HandleDeformation: no manipulated handle (set_manipulated or set_scenario)");
     const hgd::Handles handles = hgd::resolveHandles(scenario_, *geometry_, shape_);
     const hgd::DeformOptions opt = hgd::mergedOptions(options_, scenario_, shape_, *geometry_);
-    // One deformer for the object's life: the buffer `points` views stays where it is.
-    if (!deformer_) {
-      deformer_ = std::make_unique<hgd::Deformer>(geometry_, handles, opt);
+    // The deformer is kept (and the buffer `points` views with it) while only the handles or the
+    // blend change. The options mergedOptions() takes from a scenario besides the blend (the
+    // rest come from the constructor and the shape) are built into it: clusters and full
+    // resolution need a new one.
+    if (!deformer_ || opt.clusters.isovalues != built_options_.clusters.isovalues ||
+        opt.multires_above != built_options_.multires_above) {
+      deformer_ = std::make_shared<hgd::Deformer>(geometry_, handles, opt);
     } else {
       deformer_->setHandles(handles);  // normals, kNN and the graph kept
       deformer_->setBlend(opt.blend);
     }
+    built_options_ = opt;
     built_ = true;
     for (const hgd::Move& m : scenario_.moves) applyMove(m);
   }
@@ -832,12 +791,13 @@ class PyHandleDeformation {
   }
 
   hgd::Shape shape_;
-  std::shared_ptr<hgd::Geometry> geometry_;
+  std::shared_ptr<const hgd::Geometry> geometry_;
   hgd::RunOptions options_;
   hgd::Scenario scenario_;
   bool have_scenario_ = false;
   bool built_ = false;
-  std::unique_ptr<hgd::Deformer> deformer_;
+  std::shared_ptr<hgd::Deformer> deformer_;  // shared with the `points` views of it
+  hgd::DeformOptions built_options_;
   std::mutex mutex_;  // one frame at a time (the GIL is released while it runs)
 };
 
@@ -1249,19 +1209,24 @@ PYBIND11_MODULE(_hgdeform, m) {
           "Back to the rest shape.")
       .def_property_readonly(
           "points",
-          [](py::object self) {
-            auto& h = self.cast<PyHandleDeformation&>();
-            const std::vector<Eigen::Vector3f>* p = nullptr;
+          [](PyHandleDeformation& h) {
+            std::shared_ptr<const hgd::Deformer> d;
             {
               py::gil_scoped_release release;
-              p = &h.positions();
+              d = h.deformer();
             }
-            return readOnlyView(py::dtype::of<float>(), {static_cast<py::ssize_t>(p->size()), 3}, p->data(),
-                                self);
+            const std::vector<Eigen::Vector3f>& p = d->deformedPoints();
+            // The view keeps this deformer (its buffer) alive, even past a rebuild.
+            const py::capsule owner(new std::shared_ptr<const hgd::Deformer>(d), [](void* x) {
+              delete static_cast<std::shared_ptr<const hgd::Deformer>*>(x);
+            });
+            return readOnlyView(py::dtype::of<float>(), {static_cast<py::ssize_t>(p.size()), 3}, p.data(),
+                                owner);
           },
           "(N, 3) float32, read-only: a view of the deformer's own buffer, updated in place by every "
-          "frame (no copy). Row k is input point index[k] (k itself when every point is finite); "
-          "world coordinates minus `origin` (zero unless the shape lies far from the origin).")
+          "frame (no copy). Rows in the library's (Morton) order: row k is input point index[k]; "
+          "world = points + origin. A set_scenario that changes clusters or full resolution builds a "
+          "new deformer: fetch `points` again after it (an older view keeps the old buffer).")
       .def_property_readonly(
           "index",
           [](py::object self) {
@@ -1269,15 +1234,16 @@ PYBIND11_MODULE(_hgdeform, m) {
             return readOnlyView(py::dtype::of<int>(), {static_cast<py::ssize_t>(g.raw_index.size())},
                                 g.raw_index.data(), self);
           },
-          "(N,) int32, read-only: the input point of each row of `points`.")
+          "(N,) int32, read-only: the input point of each row of `points` (points[k] is input point "
+          "index[k]; inverse: rows = np.argsort(index) when every point is finite).")
       .def_property_readonly(
           "origin",
           [](const PyHandleDeformation& h) {
             const Eigen::Vector3d& o = h.geometry().origin;
             return py::make_tuple(o.x(), o.y(), o.z());
           },
-          "world = points + origin; (0, 0, 0) unless the shape lies farther from the origin than 16 times "
-          "its size.")
+          "world = points + origin: the centre of the shape's body, rounded (the library's local frame, "
+          "which keeps float32 positions exact to the shape's detail).")
       .def_property_readonly(
           "normals",
           [](PyHandleDeformation& h) {
@@ -1313,7 +1279,8 @@ PYBIND11_MODULE(_hgdeform, m) {
             }
             return out;
           },
-          "The deformed Shape, in double from the input's values (as `hgdeform deform` writes it).")
+          "The deformed Shape in the input's order, in double from the input's values: what `hgdeform "
+          "deform` writes for the same scenario, to the bit.")
       .def_property_readonly("energy", [](PyHandleDeformation& h) {
         hgd::Energies e;
         {
