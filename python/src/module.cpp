@@ -186,6 +186,15 @@ int intOption(const py::handle& v, const std::string& key, int lo, int hi) {
   return static_cast<int>(x);
 }
 
+/// A yes/no option: a bool (Python's or numpy's), nothing else (as intOption refuses a str).
+bool boolOption(const py::handle& v, const std::string& key) {
+  if (py::isinstance<py::bool_>(v)) return v.cast<bool>();
+  if (py::hasattr(v, "dtype") && py::hasattr(v, "ndim") && v.attr("ndim").cast<int>() == 0 &&
+      v.attr("dtype").attr("kind").cast<std::string>() == "b")
+    return py::bool_(v.attr("item")()).cast<bool>();  // numpy.bool_
+  throw py::type_error("option " + key + " must be True or False, got " + typeName(v));
+}
+
 /// The keyword options of deform(), field() and HandleDeformation(): the command line's
 /// (`hgdeform deform --help`), with the same names and ranges, and the same precedence over the
 /// scenario (clusters, blend).
@@ -222,9 +231,9 @@ hgd::RunOptions runOptions(const py::dict& options) {
         throw py::value_error("option solver must be 'auto', 'exact' or 'multilevel', got " +
                               py::repr(v).cast<std::string>());
     } else if (key == "mesh_ring") {
-      opt.field.mesh_ring = py::cast<bool>(v);
+      opt.field.mesh_ring = boolOption(v, key);
     } else if (key == "full_field") {
-      if (py::cast<bool>(v)) opt.multires_above = 0;
+      if (boolOption(v, key)) opt.multires_above = 0;
     } else {
       throw py::type_error("unexpected option '" + key + "' (the options: " + kOptionNames + ")");
     }
@@ -545,6 +554,23 @@ PyShape shapeFromPython(const py::handle& points, const py::handle& normals, con
 
 // --- deform and field ------------------------------------------------------------------------
 
+/// Refuses a shape held in memory (no path) without a finite point before the library sees it,
+/// which would name the file ("<path>: no finite points") that there is not: a ValueError naming
+/// the argument. A shape read from a file keeps the library's IoError with its path.
+void requireFinitePoint(const hgd::Shape& s) {
+  if (!s.path.empty()) return;
+  const pcl::PCLPointCloud2& c = s.cloud;
+  const hgd::XyzFields f = hgd::findXyzFields(c);
+  if (!f.hasXyz()) return;  // the library's message
+  const Field &fx = c.fields[static_cast<std::size_t>(f.x)], &fy = c.fields[static_cast<std::size_t>(f.y)],
+              &fz = c.fields[static_cast<std::size_t>(f.z)];
+  for (std::size_t i = 0, n = s.size(); i < n; ++i)
+    if (std::isfinite(hgd::readValue(c, i, fx)) && std::isfinite(hgd::readValue(c, i, fy)) &&
+        std::isfinite(hgd::readValue(c, i, fz)))
+      return;
+  throw py::value_error("points has no finite row (every point is NaN or infinite)");
+}
+
 /// x, y, z of a shape built by shapeFromArrays, as an N×3 array without a copy when the records
 /// are the coordinates alone (the cloud's bytes handed to numpy).
 py::array_t<double> takePoints(hgd::Shape& s) {
@@ -564,6 +590,7 @@ py::array_t<double> takePoints(hgd::Shape& s) {
 py::tuple deformArrays(const py::handle& points, const hgd::Scenario& scenario, const py::handle& normals,
                        const py::handle& faces, const py::dict& options) {
   PyShape in = shapeFromPython(points, normals, faces);
+  requireFinitePoint(in.s);
   const hgd::RunOptions ro = runOptions(options);
   hgd::DeformReport report;
   {
@@ -589,6 +616,7 @@ py::tuple deformArrays(const py::handle& points, const hgd::Scenario& scenario, 
 py::tuple deformShape(const PyShape& shape, const hgd::Scenario& scenario, const py::dict& options) {
   const hgd::RunOptions ro = runOptions(options);
   hgd::Shape in = shape.s;
+  requireFinitePoint(in);
   PyShape out;
   hgd::DeformReport report;
   {
@@ -605,6 +633,7 @@ py::tuple deformShape(const PyShape& shape, const hgd::Scenario& scenario, const
 /// φ in file order: float32, NaN for the points the field does not cover (not finite, set apart).
 /// `shape` is the caller's own copy (taken while the GIL was held), handed to the runner.
 py::array_t<float> fieldOf(hgd::Shape shape, const hgd::Scenario& scenario, const py::dict& options) {
+  requireFinitePoint(shape);
   const hgd::RunOptions ro = runOptions(options);
   const std::size_t n = shape.size();
   py::array_t<float> out(static_cast<py::ssize_t>(n));
@@ -820,6 +849,16 @@ std::vector<std::vector<long long>> indexLists(const py::handle& obj, const std:
   }
   if (!py::isinstance<py::sequence>(obj) || py::isinstance<py::str>(obj))
     throw py::type_error(name + " must be a list of index arrays, got " + typeName(obj));
+  // A flat, non-empty sequence of integers is one handle too, as a 1-D array is.
+  const auto seq = py::reinterpret_borrow<py::sequence>(obj);
+  const bool flat = py::len(seq) > 0 && std::all_of(seq.begin(), seq.end(), [](const py::handle& item) {
+                      return PyIndex_Check(item.ptr()) && !py::isinstance<py::array>(item) &&
+                             !py::isinstance<py::bool_>(item);
+                    });
+  if (flat) {
+    out.push_back(indicesArg(obj, name));
+    return out;
+  }
   std::size_t k = 0;
   for (const py::handle item : obj) out.push_back(indicesArg(item, name + "[" + std::to_string(k++) + "]"));
   return out;
@@ -1120,6 +1159,7 @@ PYBIND11_MODULE(_hgdeform, m) {
                        const py::kwargs& options) {
              hgd::Shape shape = py::isinstance<PyShape>(points) ? points.cast<const PyShape&>().s
                                                                 : shapeFromPython(points, normals, faces).s;
+             requireFinitePoint(shape);
              const hgd::RunOptions ro = runOptions(options);
              py::gil_scoped_release release;
              return std::make_unique<PyHandleDeformation>(std::move(shape), ro);
