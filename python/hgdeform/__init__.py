@@ -87,7 +87,24 @@ def _open3d_like(geometry, points, normals):
     out.vertices = vectors(points)
     if normals is not None:
         out.vertex_normals = vectors(normals)
+    if out.has_triangle_normals():  # the input's would be stale: the faces turned
+        out.compute_triangle_normals()
     return out
+
+
+def _open3d_colors(geometry):
+    """An Open3D geometry's colours as (N, 3) uint8 (what PLY files hold), or None."""
+    import numpy as np
+
+    if type(geometry).__name__ == "PointCloud":
+        if not geometry.has_colors():
+            return None
+        colors = np.asarray(geometry.colors)
+    else:
+        if not geometry.has_vertex_colors():
+            return None
+        colors = np.asarray(geometry.vertex_colors)
+    return np.clip(np.rint(colors * 255.0), 0, 255).astype(np.uint8)
 
 
 # --- the functions -----------------------------------------------------------------------------
@@ -140,8 +157,9 @@ def field(points, scenario, normals=None, faces=None, **options):
 
 
 def write(path, shape, ascii=False):
-    """Writes a Shape (or an (N, 3) array, or an Open3D geometry) to a PLY, PCD, OBJ, XYZ/TXT,
-    OFF or STL file, chosen by the extension; binary unless ascii. Atomic: a failed write
+    """Writes a Shape (or an (N, 3) array, or an Open3D geometry: its normals and colours, the
+    colours as uint8 red/green/blue fields) to a PLY, PCD, OBJ, XYZ/TXT, OFF or STL file, chosen
+    by the extension; binary unless ascii. Atomic: a failed write
     leaves no file. Warns (UserWarning) about what the format cannot hold. Raises IoError.
     """
     import os
@@ -150,7 +168,11 @@ def write(path, shape, ascii=False):
     if not isinstance(shape, Shape):
         if _is_open3d(shape):
             p, n, f = _open3d_arrays(shape)
+            colors = _open3d_colors(shape)
             shape = Shape(p, n, f)
+            if colors is not None:  # as Open3D writes them: uint8 red, green, blue
+                for k, name in enumerate(("red", "green", "blue")):
+                    shape.set_field(name, colors[:, k])
         else:
             shape = Shape(shape)
     lost = _hgdeform._extras_lost(shape, path)
@@ -170,9 +192,11 @@ class HandleDeformation(_HandleDeformation):
         hd.set_handle_transform(T)                     # or the frame metaphor, (4, 4)
 
     `points` is the deformer's own buffer: every frame writes into it and the view shows it
-    without being fetched again. Row k is input point k (index[k] when the input has NaN
-    points); the coordinates are world coordinates unless `origin` is not zero (a shape
-    farther from the origin than 16 times its size): then world = points + origin.
+    without being fetched again. Its rows are in the library's (Morton) order, as
+    ``hgdeform deform`` builds them: row k is input point index[k], and world = points + origin
+    (the library's local frame). deformed_shape() is, in the input's order, what
+    ``hgdeform deform`` writes for the same scenario, to the bit. A set_scenario that changes
+    clusters or full resolution builds a new deformer: fetch `points` again after it.
     """
 
     def __init__(self, points, normals=None, faces=None, **options):

@@ -146,18 +146,23 @@ class HandleDeformation:
     def reset(self) -> None: ...
     @property
     def points(self) -> npt.NDArray[np.float32]:
-        """(N, 3) float32, read-only view of the deformer's buffer (no copy, updated by every frame)."""
+        """(N, 3) float32, read-only view of the deformer's buffer (no copy, updated by every frame).
+
+        Rows in the library's (Morton) order: row k is input point index[k]; world = points + origin.
+        Fetch again after a set_scenario that changes clusters or full resolution (a rebuild)."""
     @property
     def index(self) -> npt.NDArray[np.int32]:
-        """(N,) the input point of each row of points."""
+        """(N,) the input point of each row of points (and of normals and field)."""
     @property
-    def origin(self) -> Tuple[float, float, float]: ...
+    def origin(self) -> Tuple[float, float, float]:
+        """world = points + origin (the centre of the shape's body, rounded)."""
     @property
     def normals(self) -> npt.NDArray[np.float32]:
-        """(N, 3) float32 (a copy)."""
+        """(N, 3) float32 (a copy), rows as points."""
     @property
     def field(self) -> npt.NDArray[np.float32]:
-        """(N,) float32."""
-    def deformed_shape(self) -> Shape: ...
+        """(N,) float32, rows as points."""
+    def deformed_shape(self) -> Shape:
+        """The deformed Shape in the input's order: what ``hgdeform deform`` writes, to the bit."""
     @property
     def energy(self) -> Dict[str, float]: ...

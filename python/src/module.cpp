@@ -186,6 +186,15 @@ int intOption(const py::handle& v, const std::string& key, int lo, int hi) {
   return static_cast<int>(x);
 }
 
+/// A yes/no option: a bool (Python's or numpy's), nothing else (as intOption refuses a str).
+bool boolOption(const py::handle& v, const std::string& key) {
+  if (py::isinstance<py::bool_>(v)) return v.cast<bool>();
+  if (py::hasattr(v, "dtype") && py::hasattr(v, "ndim") && v.attr("ndim").cast<int>() == 0 &&
+      v.attr("dtype").attr("kind").cast<std::string>() == "b")
+    return py::bool_(v.attr("item")()).cast<bool>();  // numpy.bool_
+  throw py::type_error("option " + key + " must be True or False, got " + typeName(v));
+}
+
 /// The keyword options of deform(), field() and HandleDeformation(): the command line's
 /// (`hgdeform deform --help`), with the same names and ranges, and the same precedence over the
 /// scenario (clusters, blend).
@@ -222,9 +231,9 @@ hgd::RunOptions runOptions(const py::dict& options) {
         throw py::value_error("option solver must be 'auto', 'exact' or 'multilevel', got " +
                               py::repr(v).cast<std::string>());
     } else if (key == "mesh_ring") {
-      opt.field.mesh_ring = py::cast<bool>(v);
+      opt.field.mesh_ring = boolOption(v, key);
     } else if (key == "full_field") {
-      if (py::cast<bool>(v)) opt.multires_above = 0;
+      if (boolOption(v, key)) opt.multires_above = 0;
     } else {
       throw py::type_error("unexpected option '" + key + "' (the options: " + kOptionNames + ")");
     }
@@ -545,6 +554,23 @@ PyShape shapeFromPython(const py::handle& points, const py::handle& normals, con
 
 // --- deform and field ------------------------------------------------------------------------
 
+/// Refuses a shape held in memory (no path) without a finite point before the library sees it,
+/// which would name the file ("<path>: no finite points") that there is not: a ValueError naming
+/// the argument. A shape read from a file keeps the library's IoError with its path.
+void requireFinitePoint(const hgd::Shape& s) {
+  if (!s.path.empty()) return;
+  const pcl::PCLPointCloud2& c = s.cloud;
+  const hgd::XyzFields f = hgd::findXyzFields(c);
+  if (!f.hasXyz()) return;  // the library's message
+  const Field &fx = c.fields[static_cast<std::size_t>(f.x)], &fy = c.fields[static_cast<std::size_t>(f.y)],
+              &fz = c.fields[static_cast<std::size_t>(f.z)];
+  for (std::size_t i = 0, n = s.size(); i < n; ++i)
+    if (std::isfinite(hgd::readValue(c, i, fx)) && std::isfinite(hgd::readValue(c, i, fy)) &&
+        std::isfinite(hgd::readValue(c, i, fz)))
+      return;
+  throw py::value_error("points has no finite row (every point is NaN or infinite)");
+}
+
 /// x, y, z of a shape built by shapeFromArrays, as an N×3 array without a copy when the records
 /// are the coordinates alone (the cloud's bytes handed to numpy).
 py::array_t<double> takePoints(hgd::Shape& s) {
@@ -564,6 +590,7 @@ py::array_t<double> takePoints(hgd::Shape& s) {
 py::tuple deformArrays(const py::handle& points, const hgd::Scenario& scenario, const py::handle& normals,
                        const py::handle& faces, const py::dict& options) {
   PyShape in = shapeFromPython(points, normals, faces);
+  requireFinitePoint(in.s);
   const hgd::RunOptions ro = runOptions(options);
   hgd::DeformReport report;
   {
@@ -584,13 +611,17 @@ py::tuple deformArrays(const py::handle& points, const hgd::Scenario& scenario, 
 }
 
 /// deform() on a Shape: (the deformed shape, report).
+/// The shape is copied while the GIL is held: another thread may change (and reallocate) the
+/// Python-owned shape once it is released.
 py::tuple deformShape(const PyShape& shape, const hgd::Scenario& scenario, const py::dict& options) {
   const hgd::RunOptions ro = runOptions(options);
+  hgd::Shape in = shape.s;
+  requireFinitePoint(in);
   PyShape out;
   hgd::DeformReport report;
   {
     py::gil_scoped_release release;
-    hgd::ScenarioRunner run(shape.s, ro);
+    hgd::ScenarioRunner run(std::move(in), ro);
     run.setScenario(scenario);
     run.applyMoves();
     out.s = run.release(true);
@@ -600,15 +631,18 @@ py::tuple deformShape(const PyShape& shape, const hgd::Scenario& scenario, const
 }
 
 /// φ in file order: float32, NaN for the points the field does not cover (not finite, set apart).
-py::array_t<float> fieldOf(const hgd::Shape& shape, const hgd::Scenario& scenario, const py::dict& options) {
+/// `shape` is the caller's own copy (taken while the GIL was held), handed to the runner.
+py::array_t<float> fieldOf(hgd::Shape shape, const hgd::Scenario& scenario, const py::dict& options) {
+  requireFinitePoint(shape);
   const hgd::RunOptions ro = runOptions(options);
-  py::array_t<float> out(static_cast<py::ssize_t>(shape.size()));
+  const std::size_t n = shape.size();
+  py::array_t<float> out(static_cast<py::ssize_t>(n));
   float* o = out.mutable_data();
   {
     py::gil_scoped_release release;
-    const hgd::ScenarioRunner run(shape, ro);
+    const hgd::ScenarioRunner run(std::move(shape), ro);
     const hgd::FieldResult r = run.field(scenario);
-    std::fill(o, o + shape.size(), std::numeric_limits<float>::quiet_NaN());
+    std::fill(o, o + n, std::numeric_limits<float>::quiet_NaN());
     const hgd::Geometry& g = run.geometry();
     for (std::size_t k = 0; k < r.values.size(); ++k) o[g.raw_index[k]] = r.values[k];
   }
@@ -634,65 +668,17 @@ double cppDeformMs(const py::handle& points, const hgd::Scenario& scenario, cons
 
 // --- HandleDeformation -------------------------------------------------------------------------
 
-/// The geometry of `shape` with its points in the shape's own order (extractGeometry's are in
-/// Morton order), so that the deformer's buffer has the input's rows: row k is input point
-/// raw_index[k], which is k when every point is finite. Its origin is zero (positions are world
-/// coordinates) unless the shape lies farther from the origin than 16 times its size, where
-/// float32 world coordinates would lose its detail; then the origin extractGeometry chose.
-std::shared_ptr<hgd::Geometry> fileOrderGeometry(const hgd::Shape& shape) {
-  hgd::Geometry g = hgd::extractGeometry(shape);
-  const std::size_t m = g.size();
-  std::vector<int> raw = g.raw_index;
-  std::sort(raw.begin(), raw.end());
-  std::vector<int> new_of_old(m);
-  for (std::size_t j = 0; j < m; ++j)
-    new_of_old[static_cast<std::size_t>(g.finite_index[static_cast<std::size_t>(raw[j])])] =
-        static_cast<int>(j);
-
-  const Eigen::Vector3d old_origin = g.origin;
-  const Eigen::Vector3d origin = old_origin.cwiseAbs().maxCoeff() <= 16 * hgd::boundingBoxDiagonal(g)
-                                     ? Eigen::Vector3d::Zero()
-                                     : old_origin;
-  const pcl::PCLPointCloud2& c = shape.cloud;
-  const hgd::XyzFields f = hgd::findXyzFields(c);
-  auto points = std::make_shared<pcl::PointCloud<pcl::PointXYZ>>();
-  points->resize(m);
-  for (std::size_t j = 0; j < m; ++j) {
-    const auto i = static_cast<std::size_t>(raw[j]);
-    const Eigen::Vector3d w(hgd::readValue(c, i, c.fields[static_cast<std::size_t>(f.x)]),
-                            hgd::readValue(c, i, c.fields[static_cast<std::size_t>(f.y)]),
-                            hgd::readValue(c, i, c.fields[static_cast<std::size_t>(f.z)]));
-    (*points)[j].getVector3fMap() = (w - origin).cast<float>();
-  }
-  points->width = static_cast<std::uint32_t>(m);
-  points->height = 1;
-  points->is_dense = true;
-  if (g.hasFileNormals()) {
-    auto normals = std::make_shared<pcl::PointCloud<pcl::Normal>>();
-    normals->resize(m);
-    for (std::size_t k = 0; k < m; ++k)
-      (*normals)[static_cast<std::size_t>(new_of_old[k])] = (*g.file_normals)[k];
-    g.file_normals = normals;
-  }
-  for (auto& face : g.faces)
-    for (auto& v : face.vertices) v = static_cast<std::uint32_t>(new_of_old[v]);
-  for (std::size_t j = 0; j < m; ++j) g.finite_index[static_cast<std::size_t>(raw[j])] = static_cast<int>(j);
-  g.raw_index = std::move(raw);
-  g.points = points;
-  const Eigen::Vector3f shift = (old_origin - origin).cast<float>();
-  g.body = Eigen::AlignedBox3f(g.body.min() + shift, g.body.max() + shift);
-  g.origin = origin;
-  return std::make_shared<hgd::Geometry>(std::move(g));
-}
-
 /// Interactive deformation of one shape: handles by index (or a scenario), frames one at a time,
 /// the deformed positions as a read-only view of the deformer's own buffer.
 class PyHandleDeformation {
  public:
   PyHandleDeformation(hgd::Shape shape, hgd::RunOptions options)
-      : shape_(std::move(shape)), options_(std::move(options)) {
-    geometry_ = fileOrderGeometry(shape_);
-  }
+      : shape_(std::move(shape)),
+        // extractGeometry's own geometry (Morton order, its origin), as ScenarioRunner builds it
+        // for `hgdeform deform`: the library's sampling depends on the points' order, so any
+        // other order gives another (equally valid, not bit-equal) result.
+        geometry_(std::make_shared<const hgd::Geometry>(hgd::extractGeometry(shape_))),
+        options_(std::move(options)) {}
 
   void setFixed(const std::vector<std::vector<long long>>& handles) {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -735,19 +721,21 @@ class PyHandleDeformation {
   }
   void reset() {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (deformer_ && built_) deformer_->reset();
+    if (deformer_) deformer_->reset();  // also after a handle change not built yet
   }
   void build() {
     std::lock_guard<std::mutex> lock(mutex_);
     ensureBuilt();
   }
 
-  /// The deformer's positions (built first if due): its own buffer, which no later frame or
-  /// handle change moves (Deformer sizes it once).
-  const std::vector<Eigen::Vector3f>& positions() {
+  /// The deformer (built first if due), whose positions are the buffer `points` views: no frame
+  /// or handle change moves it (Deformer sizes it once); a rebuild for other options (clusters,
+  /// samples, full resolution) makes a new deformer, and the old one lives on as long as a view
+  /// of it does.
+  std::shared_ptr<const hgd::Deformer> deformer() {
     std::lock_guard<std::mutex> lock(mutex_);
     ensureBuilt();
-    return deformer_->deformedPoints();
+    return deformer_;
   }
   std::vector<Eigen::Vector3f> normals() {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -796,13 +784,18 @@ class PyHandleDeformation {
       throw hgd::ScenarioError("HandleDeformation: no manipulated handle (set_manipulated or set_scenario)");
     const hgd::Handles handles = hgd::resolveHandles(scenario_, *geometry_, shape_);
     const hgd::DeformOptions opt = hgd::mergedOptions(options_, scenario_, shape_, *geometry_);
-    // One deformer for the object's life: the buffer `points` views stays where it is.
-    if (!deformer_) {
-      deformer_ = std::make_unique<hgd::Deformer>(geometry_, handles, opt);
+    // The deformer is kept (and the buffer `points` views with it) while only the handles or the
+    // blend change. The options mergedOptions() takes from a scenario besides the blend (the
+    // rest come from the constructor and the shape) are built into it: clusters and full
+    // resolution need a new one.
+    if (!deformer_ || opt.clusters.isovalues != built_options_.clusters.isovalues ||
+        opt.multires_above != built_options_.multires_above) {
+      deformer_ = std::make_shared<hgd::Deformer>(geometry_, handles, opt);
     } else {
       deformer_->setHandles(handles);  // normals, kNN and the graph kept
       deformer_->setBlend(opt.blend);
     }
+    built_options_ = opt;
     built_ = true;
     for (const hgd::Move& m : scenario_.moves) applyMove(m);
   }
@@ -827,12 +820,13 @@ class PyHandleDeformation {
   }
 
   hgd::Shape shape_;
-  std::shared_ptr<hgd::Geometry> geometry_;
+  std::shared_ptr<const hgd::Geometry> geometry_;
   hgd::RunOptions options_;
   hgd::Scenario scenario_;
   bool have_scenario_ = false;
   bool built_ = false;
-  std::unique_ptr<hgd::Deformer> deformer_;
+  std::shared_ptr<hgd::Deformer> deformer_;  // shared with the `points` views of it
+  hgd::DeformOptions built_options_;
   std::mutex mutex_;  // one frame at a time (the GIL is released while it runs)
 };
 
@@ -855,6 +849,16 @@ std::vector<std::vector<long long>> indexLists(const py::handle& obj, const std:
   }
   if (!py::isinstance<py::sequence>(obj) || py::isinstance<py::str>(obj))
     throw py::type_error(name + " must be a list of index arrays, got " + typeName(obj));
+  // A flat, non-empty sequence of integers is one handle too, as a 1-D array is.
+  const auto seq = py::reinterpret_borrow<py::sequence>(obj);
+  const bool flat = py::len(seq) > 0 && std::all_of(seq.begin(), seq.end(), [](const py::handle& item) {
+                      return PyIndex_Check(item.ptr()) && !py::isinstance<py::array>(item) &&
+                             !py::isinstance<py::bool_>(item);
+                    });
+  if (flat) {
+    out.push_back(indicesArg(obj, name));
+    return out;
+  }
   std::size_t k = 0;
   for (const py::handle item : obj) out.push_back(indicesArg(item, name + "[" + std::to_string(k++) + "]"));
   return out;
@@ -1095,8 +1099,11 @@ PYBIND11_MODULE(_hgdeform, m) {
       [](const std::string& path, const PyShape& shape, bool ascii) {
         hgd::WriteOptions wo;
         if (ascii) wo.encoding = hgd::Encoding::Ascii;
+        // A copy taken with the GIL held: once it is released another thread may change the
+        // Python-owned shape (set_field reallocates its records).
+        const hgd::Shape copy = shape.s;
         py::gil_scoped_release release;
-        hgd::writeShape(path, shape.s, wo);
+        hgd::writeShape(path, copy, wo);
       },
       py::arg("path"), py::arg("shape"), py::arg("ascii") = false);
   m.def(
@@ -1124,14 +1131,15 @@ PYBIND11_MODULE(_hgdeform, m) {
       "_field_arrays",
       [](const py::handle& points, const py::handle& scenario, const py::handle& normals,
          const py::handle& faces, const py::dict& options) {
-        const PyShape s = shapeFromPython(points, normals, faces);
-        return fieldOf(s.s, scenarioArg(scenario), options);
+        PyShape s = shapeFromPython(points, normals, faces);
+        return fieldOf(std::move(s.s), scenarioArg(scenario), options);
       },
       py::arg("points"), py::arg("scenario"), py::arg("normals"), py::arg("faces"), py::arg("options"));
   m.def(
       "_field_shape",
       [](const PyShape& shape, const py::handle& scenario, const py::dict& options) {
-        return fieldOf(shape.s, scenarioArg(scenario), options);
+        const hgd::Scenario sc = scenarioArg(scenario);  // (may release the GIL: a scenario file)
+        return fieldOf(shape.s, sc, options);            // a copy, taken with the GIL held
       },
       py::arg("shape"), py::arg("scenario"), py::arg("options"));
   m.def(
@@ -1151,6 +1159,7 @@ PYBIND11_MODULE(_hgdeform, m) {
                        const py::kwargs& options) {
              hgd::Shape shape = py::isinstance<PyShape>(points) ? points.cast<const PyShape&>().s
                                                                 : shapeFromPython(points, normals, faces).s;
+             requireFinitePoint(shape);
              const hgd::RunOptions ro = runOptions(options);
              py::gil_scoped_release release;
              return std::make_unique<PyHandleDeformation>(std::move(shape), ro);
@@ -1240,19 +1249,24 @@ PYBIND11_MODULE(_hgdeform, m) {
           "Back to the rest shape.")
       .def_property_readonly(
           "points",
-          [](py::object self) {
-            auto& h = self.cast<PyHandleDeformation&>();
-            const std::vector<Eigen::Vector3f>* p = nullptr;
+          [](PyHandleDeformation& h) {
+            std::shared_ptr<const hgd::Deformer> d;
             {
               py::gil_scoped_release release;
-              p = &h.positions();
+              d = h.deformer();
             }
-            return readOnlyView(py::dtype::of<float>(), {static_cast<py::ssize_t>(p->size()), 3}, p->data(),
-                                self);
+            const std::vector<Eigen::Vector3f>& p = d->deformedPoints();
+            // The view keeps this deformer (its buffer) alive, even past a rebuild.
+            const py::capsule owner(new std::shared_ptr<const hgd::Deformer>(d), [](void* x) {
+              delete static_cast<std::shared_ptr<const hgd::Deformer>*>(x);
+            });
+            return readOnlyView(py::dtype::of<float>(), {static_cast<py::ssize_t>(p.size()), 3}, p.data(),
+                                owner);
           },
           "(N, 3) float32, read-only: a view of the deformer's own buffer, updated in place by every "
-          "frame (no copy). Row k is input point index[k] (k itself when every point is finite); "
-          "world coordinates minus `origin` (zero unless the shape lies far from the origin).")
+          "frame (no copy). Rows in the library's (Morton) order: row k is input point index[k]; "
+          "world = points + origin. A set_scenario that changes clusters or full resolution builds a "
+          "new deformer: fetch `points` again after it (an older view keeps the old buffer).")
       .def_property_readonly(
           "index",
           [](py::object self) {
@@ -1260,15 +1274,16 @@ PYBIND11_MODULE(_hgdeform, m) {
             return readOnlyView(py::dtype::of<int>(), {static_cast<py::ssize_t>(g.raw_index.size())},
                                 g.raw_index.data(), self);
           },
-          "(N,) int32, read-only: the input point of each row of `points`.")
+          "(N,) int32, read-only: the input point of each row of `points` (points[k] is input point "
+          "index[k]; inverse: rows = np.argsort(index) when every point is finite).")
       .def_property_readonly(
           "origin",
           [](const PyHandleDeformation& h) {
             const Eigen::Vector3d& o = h.geometry().origin;
             return py::make_tuple(o.x(), o.y(), o.z());
           },
-          "world = points + origin; (0, 0, 0) unless the shape lies farther from the origin than 16 times "
-          "its size.")
+          "world = points + origin: the centre of the shape's body, rounded (the library's local frame, "
+          "which keeps float32 positions exact to the shape's detail).")
       .def_property_readonly(
           "normals",
           [](PyHandleDeformation& h) {
@@ -1304,7 +1319,8 @@ PYBIND11_MODULE(_hgdeform, m) {
             }
             return out;
           },
-          "The deformed Shape, in double from the input's values (as `hgdeform deform` writes it).")
+          "The deformed Shape in the input's order, in double from the input's values: what `hgdeform "
+          "deform` writes for the same scenario, to the bit.")
       .def_property_readonly("energy", [](PyHandleDeformation& h) {
         hgd::Energies e;
         {

@@ -72,3 +72,33 @@ def test_handle_deformation_and_write_take_open3d(tmp_path):
     assert same_bits(hgdeform.read(tmp_path / "pc.ply").points, points)
     with pytest.raises(TypeError, match="Open3D PointCloud or TriangleMesh"):
         hgdeform.deform(o3d.geometry.LineSet(), tube_scenario())
+
+
+def test_write_keeps_an_open3d_clouds_colours_and_normals(tmp_path):
+    points, normals = tube(n=800, seed=32)
+    colors = np.random.default_rng(3).uniform(0, 1, (len(points), 3))
+    pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
+    pc.normals = o3d.utility.Vector3dVector(normals)
+    pc.colors = o3d.utility.Vector3dVector(colors)
+    hgdeform.write(tmp_path / "pc.ply", pc)
+    back = hgdeform.read(tmp_path / "pc.ply")
+    expected = np.rint(colors * 255).astype(np.uint8)
+    for k, name in enumerate(("red", "green", "blue")):
+        assert back.field(name).dtype == np.uint8
+        assert np.array_equal(back.field(name), expected[:, k])
+    assert np.allclose(back.normals, normals, atol=1e-6)
+    # and Open3D reads them back as it wrote its own
+    again = o3d.io.read_point_cloud(str(tmp_path / "pc.ply"))
+    assert np.abs(np.asarray(again.colors) - colors).max() <= 0.5 / 255 + 1e-9
+
+
+def test_a_deformed_meshs_triangle_normals_are_recomputed():
+    points, faces = tube_mesh()
+    mesh = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(points),
+                                     o3d.utility.Vector3iVector(faces.astype(np.int32)))
+    mesh.compute_triangle_normals()
+    out, _ = hgdeform.deform(mesh, tube_scenario())
+    expected = o3d.geometry.TriangleMesh(out)
+    expected.compute_triangle_normals()
+    assert not np.allclose(np.asarray(out.triangle_normals), np.asarray(mesh.triangle_normals))
+    assert np.array_equal(np.asarray(out.triangle_normals), np.asarray(expected.triangle_normals))

@@ -74,3 +74,25 @@ def test_a_handle_deformation_frame_releases_the_gil():
     start, end = interval
     inside = [x for x in ticks if start < x < end]
     assert len(inside) >= 5, (len(inside), end - start)
+
+    # and a frame: a whole drag (many drag() calls) while Python keeps running
+    frames = []
+
+    def drag():
+        start = time.perf_counter()
+        for k in range(1, 16):
+            h.drag([10.0, 1.0 + 0.2 * (k - 1), 0.0], [10.0, 1.0 + 0.2 * k, 0.0])
+        frames.extend([start, time.perf_counter()])
+
+    t = threading.Thread(target=drag)
+    t.start()
+    ticks = []
+    while t.is_alive():
+        ticks.append(time.perf_counter())
+        time.sleep(0.0005)
+    t.join()
+    start, end = frames
+    inside = [x for x in ticks if start < x < end]
+    assert len(inside) >= 5, (len(inside), end - start)
+    gaps = np.diff([start, *inside, end])
+    assert gaps.max() < 0.5 * (end - start), (gaps.max(), end - start)
