@@ -1,5 +1,6 @@
 #include "bench_command.h"
 
+#include <fcntl.h>
 #include <pcl/io/ply_io.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
@@ -33,7 +34,9 @@ std::pair<double, double> timeChild(const std::vector<std::string>& args) {
   const auto t0 = std::chrono::steady_clock::now();
   const pid_t pid = fork();
   if (pid == 0) {
-    if (!std::freopen("/dev/null", "w", stdout) || !std::freopen("/dev/null", "w", stderr)) _exit(127);
+    // dup2, not freopen: closing stdout would flush the bench's own unwritten output a second time.
+    const int null = open("/dev/null", O_WRONLY);
+    if (null < 0 || dup2(null, 1) < 0 || dup2(null, 2) < 0) _exit(127);
     execv(argv[0], argv.data());
     _exit(127);
   }
