@@ -617,7 +617,10 @@ TEST(ViewerX, DeformerBuildsWhileTheWindowResponds) {
   REQUIRE_X();
   hgdtest::TempDir dir;
   writePlane(dir.file("plane.ply"), 700);  // 490,000 points
-  const ViewerWindow v(x, hgdtest::quote(dir.file("plane.ply")) + " --size 640x480", dir.file("log.txt"));
+  // At full resolution: a build of seconds (on its coarse level it would end in a fraction of
+  // one, before the screenshot could show anything about it).
+  const ViewerWindow v(x, hgdtest::quote(dir.file("plane.ply")) + " --size 640x480 --full-field",
+                       dir.file("log.txt"));
   ASSERT_TRUE(v.ok()) << v.log();
   const OpeningView view = openingView(dir.file("plane.ply"));
   auto at = [&](double wx, double wy) { return view.at({wx, wy, 0.0}, v.width(), v.height()); };

@@ -1,7 +1,7 @@
 // hgdeform-view: the interactive front end. Pick handles, drag, see it live.
 //
 //   hgdeform-view INPUT [--scenario S.json] [--replay EVENTS.json] [--screenshot OUT.png]
-//                 [--size WxH] [--stats] [--lod N]
+//                 [--size WxH] [--stats] [--lod N] [--full-field]
 //
 // One mode at a time, shown at the start of the status line: pick (the mouse turns the view),
 // area, drag or frame. The keys, and what each does when, are one table (keys.cpp): the help
@@ -46,7 +46,7 @@ const char* kDescription =
 struct ViewArgs {
   std::string input, scenario, replay, shot;
   int width = 1100, height = 800;
-  bool stats = false, quiet = false;
+  bool stats = false, quiet = false, full_field = false;
   int lod = 100000;
 };
 
@@ -69,6 +69,9 @@ int parseArgs(int argc, char** argv, ViewArgs& a) {
                  "(0: all; default 100000)")
       ->check(CLI::Range(0, 1000000000))
       ->type_name("N");
+  app.add_flag("--full-field", a.full_field,
+               "the field, pieces and clusters over every point, however many (as hgdeform deform "
+               "--full-field; default: above 131,072 points on a coarse level)");
   app.add_flag("-q,--quiet", a.quiet, "print nothing but errors");
   app.footer(hgdview::keysHelp() + "\n" + app.get_footer());
   return hgdcli::parse(app, argc, argv);
@@ -99,7 +102,9 @@ int main(int argc, char** argv) {
     if (const std::string problem = hgd::displayProblem(); !problem.empty())
       throw std::runtime_error(problem);
     const auto start = hgdview::Clock::now();
-    Viewer viewer(input, width, height);
+    hgd::RunOptions run_options;
+    if (args.full_field) run_options.deform.multires_above = 0;
+    Viewer viewer(input, width, height, run_options);
     const double read_ms = hgdview::msSince(start);
     viewer.verbose_ = !quiet;
     viewer.inputs_ = inputs;

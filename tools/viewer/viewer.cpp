@@ -20,8 +20,8 @@
 
 namespace hgdview {
 
-Viewer::Viewer(const std::string& input, int width, int height)
-    : input_(input), width_(width), height_(height), run_(hgd::ScenarioRunner::read(input)) {
+Viewer::Viewer(const std::string& input, int width, int height, const hgd::RunOptions& options)
+    : input_(input), width_(width), height_(height), run_(hgd::ScenarioRunner::read(input, options)) {
   diagonal_ = hgd::boundingBoxDiagonal(run_.geometry());
   for (const std::string& w : run_.shape().warnings)
     std::fprintf(stderr, "hgdeform-view: warning: %s\n", w.c_str());

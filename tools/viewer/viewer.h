@@ -94,7 +94,8 @@ struct FrameStats {
 class Viewer {
  public:
   // --- state (viewer.cpp) -----------------------------------------------------------------
-  Viewer(const std::string& input, int width, int height);
+  /// `options`: the runner's (e.g. `deform.multires_above = 0` for --full-field).
+  Viewer(const std::string& input, int width, int height, const hgd::RunOptions& options = {});
   ~Viewer();
   Viewer(const Viewer&) = delete;
   Viewer& operator=(const Viewer&) = delete;
