@@ -43,8 +43,7 @@ InterpolationTable buildTable(const Handles& handles, const Clustering& c,
         std::lower_bound(t.pairs.begin(), t.pairs.end(), std::make_pair(lo, hi)) - t.pairs.begin());
   };
   clock.lap("table.pairs");
-  t.points.resize(n);
-  clock.lap("table.alloc");
+  t.points.resize(n);  // (not zeroed: the records' pages are first written in parallel below)
   const long long nn = static_cast<long long>(n);
 #pragma omp parallel for schedule(static) if (nn > kParallelMin)
   for (long long ii = 0; ii < nn; ++ii) {

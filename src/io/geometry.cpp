@@ -19,13 +19,15 @@ constexpr double kFarFactor = 1e6;   // a point this many times the shape's size
 constexpr double kMaxOffset = 1e12;  // and any point this far from the shape's centre
 constexpr double kMaxExtent = 1e11;  // a shape larger than this is refused
 
-/// Parallel blocks of [0, n) each kept their first counts[b] items in place at their block's
-/// start (begin(b)); moves them together at the front of `v`, in block order, and resizes it.
-template <typename T, typename Begin>
-void joinBlocks(std::vector<T>& v, const std::vector<std::size_t>& counts, Begin&& begin) {
+/// The forBlocks() blocks of `v` (one a count) each kept their first counts[b] items in place at
+/// their block's start; moves them together at the front of `v`, in block order, and resizes it.
+template <typename T>
+void joinBlocks(std::vector<T>& v, const std::vector<std::size_t>& counts) {
+  const auto n = static_cast<long long>(v.size());
+  const int blocks = static_cast<int>(counts.size());
   std::size_t total = 0;
   for (std::size_t b = 0; b < counts.size(); ++b) {
-    const std::size_t from = begin(static_cast<int>(b));
+    const auto from = static_cast<std::size_t>(blockStart(n, blocks, static_cast<int>(b)));
     if (from != total)
       std::copy(v.begin() + static_cast<std::ptrdiff_t>(from),
                 v.begin() + static_cast<std::ptrdiff_t>(from + counts[b]),
@@ -82,7 +84,6 @@ Geometry extractGeometry(const Shape& shape) {
   std::vector<Eigen::Vector3d> world(n);
   g.raw_index.resize(n);
   const int blocks = blockCount(static_cast<long long>(n));
-  auto blockBegin = [&](int b) { return static_cast<std::size_t>(static_cast<long long>(n) * b / blocks); };
   std::vector<std::size_t> kept_in(static_cast<std::size_t>(blocks));
   forBlocks(static_cast<long long>(n), blocks, [&](int begin, int end, int b) {
     auto k = static_cast<std::size_t>(begin);
@@ -95,10 +96,11 @@ Geometry extractGeometry(const Shape& shape) {
     }
     kept_in[static_cast<std::size_t>(b)] = k - static_cast<std::size_t>(begin);
   });
-  joinBlocks(world, kept_in, blockBegin);
-  joinBlocks(g.raw_index, kept_in, blockBegin);
+  joinBlocks(world, kept_in);
+  joinBlocks(g.raw_index, kept_in);
   if (world.empty())
     throw IoError(shape.path + ": no finite points (all " + std::to_string(n) + " are NaN/inf)");
+  clock.lap("geometry.read_xyz");
 
   // The local frame: its origin is the centre of the shape's body, not of the bounding box of
   // every point, so that one far point (a bad return at 1e5 or 1e10) neither moves the frame nor
@@ -106,7 +108,6 @@ Geometry extractGeometry(const Shape& shape) {
   // size, or beyond 1e12 units: a corrupt block decoded to 1e22) cannot be deformed with it in any precision
   // that means something (and their squared distances would overflow): they are set apart like NaN points,
   // written back untouched, with a warning.
-  clock.lap("geometry.read_xyz");
   const RobustFrame frame = robustFrame(world);
   if (frame.extent > kMaxExtent) {
     char buf[200];
@@ -127,7 +128,6 @@ Geometry extractGeometry(const Shape& shape) {
     // bounds its body (a box, the same whatever the blocks).
     const std::size_t m = world.size();
     const int mb = blockCount(static_cast<long long>(m));
-    auto mBegin = [&](int b) { return static_cast<std::size_t>(static_cast<long long>(m) * b / mb); };
     std::vector<std::size_t> kept(static_cast<std::size_t>(mb)), far_in(static_cast<std::size_t>(mb));
     std::vector<double> farthest_in(static_cast<std::size_t>(mb), 0.0);
     std::vector<Eigen::Vector3d> lo_in(static_cast<std::size_t>(mb), body_lo),
@@ -160,8 +160,8 @@ Geometry extractGeometry(const Shape& shape) {
       lo_in[bb] = lo;
       hi_in[bb] = hi;
     });
-    joinBlocks(world, kept, mBegin);
-    joinBlocks(g.raw_index, kept, mBegin);
+    joinBlocks(world, kept);
+    joinBlocks(g.raw_index, kept);
     std::size_t far_count = 0;
     double farthest = 0;
     for (std::size_t b = 0; b < static_cast<std::size_t>(mb); ++b) {
@@ -302,8 +302,17 @@ void storePositions(Shape& shape, const Geometry& geometry, const std::vector<Ei
 }
 
 Eigen::AlignedBox3f boundingBox(const pcl::PointCloud<pcl::PointXYZ>& points) {
+  // One box a block of points, then their union (the same box whatever the blocks).
+  const auto n = static_cast<long long>(points.size());
+  const int blocks = blockCount(n);
+  std::vector<Eigen::AlignedBox3f> part(static_cast<std::size_t>(blocks));  // empty
+  forBlocks(n, blocks, [&](int begin, int end, int b) {
+    Eigen::AlignedBox3f box;
+    for (int i = begin; i < end; ++i) box.extend(points[static_cast<std::size_t>(i)].getVector3fMap());
+    part[static_cast<std::size_t>(b)] = box;
+  });
   Eigen::AlignedBox3f box;  // empty
-  for (const auto& p : points) box.extend(p.getVector3fMap());
+  for (const auto& p : part) box.extend(p);
   return box;
 }
 

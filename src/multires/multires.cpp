@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "graph/nearest.h"
+#include "hgdeform/io/geometry.h"
 #include "interp/table_build.h"
 #include "multires/prolong_labels.h"
 #include "util/parallel.h"
@@ -173,17 +174,8 @@ CoarseLevel coarsen(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles&
     for (int i : handles.fixed[k]) cls[static_cast<std::size_t>(i)] = static_cast<std::uint16_t>(2 + k);
   for (int i : handles.manipulated) cls[static_cast<std::size_t>(i)] = 1;
 
-  Eigen::Vector3f lo = Eigen::Vector3f::Constant(INFINITY), hi = -lo;
-  {
-    const int blocks = blockCount(static_cast<long long>(n));
-    std::vector<Eigen::AlignedBox3f> box(static_cast<std::size_t>(blocks));
-    forBlocks(static_cast<long long>(n), blocks, [&](int begin, int end, int b) {
-      Eigen::AlignedBox3f& bb = box[static_cast<std::size_t>(b)];
-      for (int i = begin; i < end; ++i) bb.extend(points[static_cast<std::size_t>(i)].getVector3fMap());
-    });
-    for (const auto& bb : box)
-      if (!bb.isEmpty()) lo = lo.cwiseMin(bb.min()), hi = hi.cwiseMax(bb.max());
-  }
+  const Eigen::AlignedBox3f box = boundingBox(points);
+  const Eigen::Vector3f lo = box.min(), hi = box.max();
   const Eigen::Vector3f extent = hi - lo;
   const float diag = std::max(extent.norm(), 1e-12f);
   Grid grid;

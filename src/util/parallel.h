@@ -20,13 +20,18 @@ inline int blockCount(long long n) {
   return threads;
 }
 
+/// Where block b of [0, n) split into `blocks` begins (forBlocks' split; b = blocks: n).
+inline long long blockStart(long long n, int blocks, int b) {
+  return n * b / blocks;
+}
+
 /// Splits [0, n) into `blocks` contiguous blocks and runs body(begin, end, block) on each
 /// exactly once, in parallel (even if the runtime grants fewer threads than asked).
 template <typename Body>
 void forBlocks(long long n, int blocks, Body&& body) {
 #pragma omp parallel for schedule(static, 1) num_threads(blocks) if (blocks > 1)
   for (int t = 0; t < blocks; ++t)
-    body(static_cast<int>(n * t / blocks), static_cast<int>(n * (t + 1) / blocks), t);
+    body(static_cast<int>(blockStart(n, blocks, t)), static_cast<int>(blockStart(n, blocks, t + 1)), t);
 }
 
 }  // namespace hgd
