@@ -378,6 +378,48 @@ TEST(Batch, AbsentXServerSkipsThumbnailsOnly) {
   EXPECT_FALSE(contains(html, "<img")) << html;
 }
 
+#ifdef HGD_HAVE_RENDER
+// The renderer (VTK, OpenGL, X11) is a module that only a batch writing a report loads: without
+// one, the program starts with none of its libraries (the loader's own log says which it opens).
+TEST(Batch, OnlyAReportLoadsTheRenderer) {
+  const Reference& ref = reference();
+  TempDir dir;
+  const auto loads = [](const std::string& log, const std::string& library) {
+    return contains(log, "find library=" + library) || contains(log, "file=" + library);
+  };
+  const Result version = shell("LD_DEBUG=libs " + quote(HGD_TOOL) + " --version");
+  EXPECT_EQ(version.code, 0) << version.err;
+  EXPECT_TRUE(loads(version.err, "libhgdeform.so")) << "LD_DEBUG gave no log:\n" << version.err;
+  const Result plain = shell("LD_DEBUG=libs " + quote(HGD_TOOL) + " " + batch(ref.in, dir.path() / "a", ""));
+  for (const char* lib : {"libvtk", "libpcl_visualization", "libhgdeform_thumbnails", "libGL"})
+    EXPECT_FALSE(loads(plain.err, lib)) << lib << " loaded by a batch without a report";
+  const Result report = shell("DISPLAY=:4711 LD_DEBUG=libs " + quote(HGD_TOOL) + " " +
+                              batch(ref.in, dir.path() / "b", "--report " + q(dir.path() / "r")));
+  EXPECT_TRUE(loads(report.err, "libhgdeform_thumbnails")) << "the report did not load the renderer";
+}
+
+// Without the module, a report is written without pictures and says why; the scans are done.
+TEST(Batch, MissingRendererModuleSkipsThumbnailsOnly) {
+  const Reference& ref = reference();
+  TempDir dir;
+  const fs::path out = dir.path() / "out", rep = dir.path() / "report", gone = dir.path() / "libgone.so";
+  const Result r = shell("HGDEFORM_THUMBNAILS_MODULE=" + q(gone) + " " + quote(HGD_TOOL) + " " +
+                         batch(ref.in, out, "--recursive --report " + q(rep)));
+  EXPECT_EQ(r.code, 1) << r.out << r.err;  // the folder's two bad scans
+  for (const auto& rel : ref.folder.good) EXPECT_TRUE(fs::exists(out / rel)) << rel;
+  EXPECT_EQ(
+      countOf(r.err, "hgdeform batch: warning: no thumbnails: the thumbnail renderer could not be loaded"),
+      1u)
+      << r.err;
+  EXPECT_TRUE(contains(r.err, gone.string())) << r.err;
+  EXPECT_FALSE(contains(r.err, "X display")) << r.err;  // not a display problem
+  const auto j = nlohmann::json::parse(slurp(rep / "summary.json"));
+  ASSERT_EQ(j.at("warnings").size(), 1u) << j.dump(2);
+  EXPECT_TRUE(contains(j.at("warnings")[0].get<std::string>(), "could not be loaded"));
+  EXPECT_FALSE(contains(slurp(rep / "index.html"), "<img"));
+}
+#endif
+
 TEST(Batch, DeformsLikeDeformAndReportsFailures) {
   const Reference& ref = reference();
   TempDir dir;

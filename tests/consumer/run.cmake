@@ -91,6 +91,17 @@ if(DEFINED TOOLS_DATA)
   if(NOT report MATCHES "\"version\"")
     message(FATAL_ERROR "install_consumer: no version in the report: ${report}")
   endif()
+  if(DEFINED XVFB_RUN)
+    # The renderer is a module the installed program loads from the prefix for a batch report.
+    file(REMOVE_RECURSE "${WORK_DIR}/scans" "${WORK_DIR}/batch_out" "${WORK_DIR}/batch_report")
+    file(COPY "${TOOLS_DATA}/bunny_1839.ply" DESTINATION "${WORK_DIR}/scans")
+    step("installed hgdeform batch --report" ${noenv} "${XVFB_RUN}" -a -s "-screen 0 1280x1024x24" "${tool}" batch
+         -s "${TOOLS_DATA}/bunny_ears.json" "${WORK_DIR}/scans" -o "${WORK_DIR}/batch_out"
+         --report "${WORK_DIR}/batch_report")
+    if(NOT EXISTS "${WORK_DIR}/batch_report/thumbs/bunny_1839.ply.png")
+      message(FATAL_ERROR "install_consumer: the installed hgdeform batch drew no thumbnail")
+    endif()
+  endif()
 endif()
 
 if(DEFINED PYTHON)

@@ -24,7 +24,7 @@
 #include "hgdeform/app/scenario.h"
 #include "hgdeform/io/io.h"
 #ifdef HGD_HAVE_RENDER
-#include "hgdeform/render/render.h"
+#include "thumbnails.h"
 #endif
 #ifdef HGD_HAVE_MPI
 #include <mpi.h>
@@ -203,11 +203,13 @@ int run(const Config& cfg, MpiSession& mpi) {
   std::string note;
   if (!cfg.report_dir.empty()) {
 #ifdef HGD_HAVE_RENDER
-    const std::string problem = hgd::displayProblem();
+    const std::string problem = thumbnailProblem();
     ctx.thumbnails = problem.empty();
     if (!ctx.thumbnails)
-      note = "no thumbnails (they need an X display with OpenGL): " + problem +
-             ". Run the batch under xvfb-run -a (or with a display) to get before/after pictures.";
+      note = thumbnailModuleLoaded()
+                 ? "no thumbnails (they need an X display with OpenGL): " + problem +
+                       ". Run the batch under xvfb-run -a (or with a display) to get before/after pictures."
+                 : "no thumbnails: " + problem;
 #else
     note = "no thumbnails: this hgdeform was built without PCL visualization (the hgdeform_render target).";
 #endif

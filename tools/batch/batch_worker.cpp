@@ -4,7 +4,6 @@
 #include <cstdlib>
 #include <exception>
 #include <filesystem>
-#include <mutex>
 #include <new>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -21,7 +20,7 @@
 #include "hgdeform/io/geometry.h"
 #include "hgdeform/io/io.h"
 #ifdef HGD_HAVE_RENDER
-#include "hgdeform/render/render.h"
+#include "thumbnails.h"
 #endif
 
 namespace hgdcli {
@@ -98,25 +97,17 @@ void testHook(const std::string& rel) {
 }
 
 #ifdef HGD_HAVE_RENDER
-std::mutex g_render_mutex;  // VTK is not thread-safe: one picture at a time
-
 /// The scan before (its own colours) and after (coloured by each point's displacement, with a
 /// scale), the handles marked in both, seen from the side where the motion shows best.
 void renderThumbnail(const hgd::Shape& before, const hgd::Shape& after, const hgd::Geometry& rest,
                      const hgd::Handles& handles, const fs::path& png) {
   fs::create_directories(png.parent_path());
-  hgd::RenderOptions o;
-  o.width = 640;
-  o.height = 320;
-  o.point_size = 3;  // a lit cloud's points fill the thumbnail without gaps
-  o.titles = {"before", "after"};
-  o.displacement_rest = &before;
+  std::vector<int> fixed, manipulated;
   for (const auto& f : handles.fixed)
-    for (const int i : f) o.fixed_points.push_back(rest.raw_index[static_cast<std::size_t>(i)]);
-  for (const int i : handles.manipulated)
-    o.manipulated_points.push_back(rest.raw_index[static_cast<std::size_t>(i)]);
-  std::lock_guard<std::mutex> lock(g_render_mutex);
-  hgd::renderPng({&before, &after}, png.string(), o);
+    for (const int i : f) fixed.push_back(rest.raw_index[static_cast<std::size_t>(i)]);
+  for (const int i : handles.manipulated) manipulated.push_back(rest.raw_index[static_cast<std::size_t>(i)]);
+  const std::string file = png.string();
+  drawThumbnail(ThumbnailRequest{&before, &after, &fixed, &manipulated, file.c_str()});
 }
 #endif
 
