@@ -44,6 +44,10 @@ struct DeformReport {
   double read_ms = 0, build_ms = 0, field_ms = 0, sampling_ms = 0, clusters_ms = 0, solve_ms = 0,
          solve_per_iteration_ms = 0, interpolation_ms = 0, write_ms = 0, total_ms = 0;
   BuildTimings build;
+  /// The program's peak resident memory in MB when the report was made (Linux's VmHWM: this
+  /// process image only, not the parent it was forked from). `hgdeform deform` sets it; 0 (left
+  /// out of the JSON) elsewhere: a library call shares its process with whatever else runs there.
+  double peak_rss_mb = 0;
 };
 
 /// Options a front end sets beside a scenario. Where both say something, the front end wins:
