@@ -151,6 +151,47 @@ std::vector<char> findStrays(const pcl::PointCloud<pcl::PointXYZ>& points, const
   return stray;
 }
 
+/// Sorts `keys` (stably) and sets order[k] to the position the k-th sorted key came from, as
+/// radixSort on every point would, but sorting runs of equal consecutive keys instead of points:
+/// the points come in Morton order, so a cell's points lie in a few runs (357,000 runs for
+/// 1,000,000 points at 15 points a cell). Runs are cut at block boundaries; the sort is stable, so
+/// the pieces of a run stay in order.
+void sortByRuns(std::vector<std::uint64_t>& keys, std::vector<std::uint32_t>& order, std::uint64_t max_key) {
+  const std::size_t n = keys.size();
+  const int blocks = blockCount(static_cast<long long>(n));
+  std::vector<std::vector<std::uint32_t>> part(static_cast<std::size_t>(blocks));
+  forBlocks(static_cast<long long>(n), blocks, [&](int begin, int end, int b) {
+    auto& starts = part[static_cast<std::size_t>(b)];
+    for (auto k = static_cast<std::size_t>(begin); k < static_cast<std::size_t>(end); ++k)
+      if (k == static_cast<std::size_t>(begin) || keys[k] != keys[k - 1])
+        starts.push_back(static_cast<std::uint32_t>(k));
+  });
+  std::vector<std::uint32_t> run_start;
+  for (const auto& p : part) run_start.insert(run_start.end(), p.begin(), p.end());
+  const std::size_t runs = run_start.size();
+  run_start.push_back(static_cast<std::uint32_t>(n));
+  std::vector<std::uint64_t> run_key(runs);
+  std::vector<std::uint32_t> run(runs);
+  for (std::size_t r = 0; r < runs; ++r) {
+    run_key[r] = keys[run_start[r]];
+    run[r] = static_cast<std::uint32_t>(r);
+  }
+  radixSort(run_key, run, max_key, 11);
+  // Where each sorted run goes, then the runs written out in parallel.
+  std::vector<std::uint32_t> to(runs + 1, 0);
+  for (std::size_t r = 0; r < runs; ++r) to[r + 1] = to[r] + (run_start[run[r] + 1] - run_start[run[r]]);
+  const long long rr = static_cast<long long>(runs);
+#pragma omp parallel for schedule(static) if (static_cast <long long>(n) > kParallelMin)
+  for (long long r = 0; r < rr; ++r) {
+    const auto s = static_cast<std::size_t>(r);
+    std::uint32_t w = to[s];
+    for (std::uint32_t k = run_start[run[s]]; k < run_start[run[s] + 1]; ++k) {
+      keys[w] = run_key[s];
+      order[w++] = k;
+    }
+  }
+}
+
 }  // namespace
 
 CoarseLevel coarsen(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles& handles, std::size_t target,
@@ -205,14 +246,13 @@ CoarseLevel coarsen(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles&
   // Every point's cell; the cells in key order (neighbouring cells stay near in memory).
   std::vector<std::uint64_t> keys(n);
   std::vector<std::uint32_t> order(n);
-  std::iota(order.begin(), order.end(), 0u);
   const long long nn = static_cast<long long>(n);
 #pragma omp parallel for schedule(static) if (nn > kParallelMin)
   for (long long i = 0; i < nn; ++i)
     keys[static_cast<std::size_t>(i)] =
         grid.key(points[static_cast<std::size_t>(i)].getVector3fMap(), cls[static_cast<std::size_t>(i)]);
   clock.lap("coarsen.keys");
-  radixSort(keys, order, maxKey(), 11);
+  sortByRuns(keys, order, maxKey());
   clock.lap("coarsen.sort");
   out.cell = grid.h;
   std::vector<std::size_t> starts;  // of each cell's run in keys / order
