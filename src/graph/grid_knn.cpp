@@ -270,10 +270,9 @@ bool gridKnnAt(const float* xyz, std::size_t n, int kk, int* idx, float* d2, std
   }
 
   const long long ncells = static_cast<long long>(cells);
-  // Parallel with enough queries: every point, above kParallelMin; a crowd's (fewer queries than
-  // points, each one dearer), above an eighth of that.
-  bool parallel = static_cast<long long>(n) > kParallelMin;
-  if (query) parallel = std::count_if(query, query + n, [](char q) { return q != 0; }) > kParallelMin / 8;
+  // Parallel with enough queries (each costs a microsecond or two): kParallelMinCostly.
+  bool parallel = static_cast<long long>(n) > kParallelMinCostly;
+  if (query) parallel = std::count_if(query, query + n, [](char q) { return q != 0; }) > kParallelMinCostly;
 #pragma omp parallel if (parallel)
   {
     std::vector<std::uint32_t> my_far;  // this thread's far outliers

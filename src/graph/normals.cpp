@@ -32,7 +32,7 @@ pcl::PointCloud<pcl::Normal>::Ptr estimateNormals(const pcl::PointCloud<pcl::Poi
   normals->resize(n);
   const int kn = std::min(k_normals, knn.k);
   const long long nn = static_cast<long long>(n);
-#pragma omp parallel if (nn > kParallelMin)
+#pragma omp parallel if (nn > kParallelMinCostly)
   {
     pcl::Indices idx;
 #pragma omp for schedule(static)

@@ -10,6 +10,10 @@ namespace hgd {
 /// Below this many items a loop runs on one thread: waking a team costs more than it saves
 /// (and on a loaded machine a sleeping thread can take a whole time slice to join).
 constexpr long long kParallelMin = 20000;
+/// The same for loops whose items cost a microsecond or more each (a k-nearest query, a
+/// neighbourhood's PCA): 2,048 of them already pay for the team. A mid-sized shape's coarse
+/// level (20,000 points at 200,000) searched its neighbours on one thread under kParallelMin.
+constexpr long long kParallelMinCostly = 2048;
 
 /// One block per thread when n is large enough to share (kParallelMin), else one.
 inline int blockCount(long long n) {
