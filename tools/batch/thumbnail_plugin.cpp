@@ -31,8 +31,8 @@ void copyMessage(const std::string& what, char* out, std::size_t size) {
 
 extern "C" {
 
-HGD_THUMBNAILS_EXPORT int hgd_thumbnails_abi() {
-  return HGD_THUMBNAILS_ABI;
+HGD_THUMBNAILS_EXPORT const char* hgd_thumbnails_abi() {
+  return hgdcli::batch::thumbnailsAbi();
 }
 
 HGD_THUMBNAILS_EXPORT int hgd_thumbnails_display_problem(char* problem, std::size_t size) {
@@ -41,6 +41,9 @@ HGD_THUMBNAILS_EXPORT int hgd_thumbnails_display_problem(char* problem, std::siz
     return 0;
   } catch (const std::exception& e) {
     copyMessage(e.what(), problem, size);
+    return 1;
+  } catch (...) {
+    copyMessage("the display check failed", problem, size);
     return 1;
   }
 }
@@ -62,6 +65,9 @@ HGD_THUMBNAILS_EXPORT int hgd_thumbnails_draw(const hgdcli::batch::ThumbnailRequ
     return 0;
   } catch (const std::exception& e) {
     copyMessage(e.what(), error, size);
+    return 1;
+  } catch (...) {
+    copyMessage("the thumbnail renderer failed", error, size);
     return 1;
   }
 }

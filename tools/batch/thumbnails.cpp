@@ -5,22 +5,32 @@
 #include <array>
 #include <cstddef>
 #include <cstdlib>
+#include <cstring>
+#include <filesystem>
 #include <mutex>
 #include <stdexcept>
+#include <vector>
 
 namespace hgdcli {
 namespace batch {
 
 namespace {
 
-/// The module's file name: found through the program's RUNPATH (beside libhgdeform, in the build
-/// tree and in an installed prefix alike). HGDEFORM_THUMBNAILS_MODULE, when set, names another
-/// file (a packager's layout; the tests name a missing one).
 constexpr const char* kModule = "libhgdeform_thumbnails.so";
 
-std::string modulePath() {
-  const char* path = std::getenv("HGDEFORM_THUMBNAILS_MODULE");
-  return path && *path ? path : kModule;
+/// Where the module may be, in order, as absolute paths (never the current directory):
+/// HGDEFORM_THUMBNAILS_MODULE when set (a packager's layout; the tests name a missing file),
+/// else beside the installed library (the program's directory, then HGD_BIN_TO_LIB), else the
+/// build tree's library directory (HGD_THUMBNAILS_BUILD_DIR: a build's programs, shared or
+/// static, run from where they were built).
+std::vector<std::string> candidates() {
+  if (const char* path = std::getenv("HGDEFORM_THUMBNAILS_MODULE"); path && *path) return {path};
+  std::vector<std::string> out;
+  std::error_code ec;
+  const std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe", ec);
+  if (!ec) out.push_back((exe.parent_path() / HGD_BIN_TO_LIB / kModule).lexically_normal().string());
+  out.push_back((std::filesystem::path(HGD_THUMBNAILS_BUILD_DIR) / kModule).string());
+  return out;
 }
 
 struct Module {
@@ -31,35 +41,48 @@ struct Module {
 };
 
 template <typename F>
-F symbol(void* handle, const char* name, std::string& problem) {
+F symbol(void* handle, const std::string& path, const char* name, std::string& problem) {
   void* p = dlsym(handle, name);
-  if (!p && problem.empty())
-    problem = std::string(kModule) + " has no " + name + " (a module from another build?)";
+  if (!p && problem.empty()) problem = path + " has no " + name + " (not hgdeform's thumbnail module?)";
   return reinterpret_cast<F>(p);
 }
 
 Module load() {
   Module m;
+  std::string path, tried;
+  for (const std::string& c : candidates()) {
+    std::error_code ec;
+    if (std::filesystem::exists(c, ec) || std::getenv("HGDEFORM_THUMBNAILS_MODULE")) {
+      path = c;
+      break;
+    }
+    tried += (tried.empty() ? "" : ", ") + c;
+  }
+  if (path.empty()) {
+    m.problem = std::string("the thumbnail renderer could not be loaded: no ") + kModule + " (looked for " +
+                tried + ")";
+    return m;
+  }
   // Never unloaded: VTK registers atexit handlers and static objects.
-  const std::string path = modulePath();
   void* handle = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
   if (!handle) {
     const char* why = dlerror();
     m.problem = "the thumbnail renderer could not be loaded: " + (why ? std::string(why) : path);
     return m;
   }
-  const auto abi = symbol<int (*)()>(handle, "hgd_thumbnails_abi", m.problem);
+  const auto abi = symbol<const char* (*)()>(handle, path, "hgd_thumbnails_abi", m.problem);
   m.display_problem =
-      symbol<int (*)(char*, std::size_t)>(handle, "hgd_thumbnails_display_problem", m.problem);
-  m.draw =
-      symbol<int (*)(const ThumbnailRequest*, char*, std::size_t)>(handle, "hgd_thumbnails_draw", m.problem);
-  if (m.problem.empty() && abi() != HGD_THUMBNAILS_ABI)
-    m.problem = std::string(kModule) + " is from another build of hgdeform (interface " +
-                std::to_string(abi()) + ", this program's " + std::to_string(HGD_THUMBNAILS_ABI) + ")";
+      symbol<int (*)(char*, std::size_t)>(handle, path, "hgd_thumbnails_display_problem", m.problem);
+  m.draw = symbol<int (*)(const ThumbnailRequest*, char*, std::size_t)>(handle, path, "hgd_thumbnails_draw",
+                                                                        m.problem);
+  if (m.problem.empty() && std::strcmp(abi(), thumbnailsAbi()) != 0)
+    m.problem =
+        path + " is from another build of hgdeform (" + abi() + "; this program: " + thumbnailsAbi() + ")";
   if (!m.problem.empty()) return m;
   m.loaded = true;
   std::array<char, 1024> text{};
-  m.display_problem(text.data(), text.size());
+  if (m.display_problem(text.data(), text.size()) != 0 && text[0] == '\0')
+    std::strcpy(text.data(), "the display check failed");
   m.problem = text.data();
   return m;
 }
@@ -85,7 +108,8 @@ void drawThumbnail(const ThumbnailRequest& request) {
   const Module& m = module();
   if (!m.problem.empty()) throw std::runtime_error(m.problem);
   std::array<char, 2048> error{};
-  if (m.draw(&request, error.data(), error.size()) != 0) throw std::runtime_error(error.data());
+  if (m.draw(&request, error.data(), error.size()) != 0)
+    throw std::runtime_error(error[0] ? error.data() : "the thumbnail renderer failed");
 }
 
 }  // namespace batch

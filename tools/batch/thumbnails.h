@@ -6,14 +6,27 @@
 #include <string>
 #include <vector>
 
-namespace hgd {
-struct Shape;
-}
+#include "hgdeform/io/shape.h"
+#include "hgdeform/version.h"
 
 #define HGD_THUMBNAILS_EXPORT __attribute__((visibility("default")))
-/// Bumped whenever ThumbnailRequest or an entry point changes: a module left over from another
-/// build is refused instead of called with the wrong layout.
-#define HGD_THUMBNAILS_ABI 1
+
+namespace hgdcli {
+namespace batch {
+
+/// What the module and the program must agree on, compared as text when the module is loaded: a
+/// module from another build (another version, or other layouts of the types passed across) is
+/// refused instead of called. Bump the "1" when ThumbnailRequest or an entry point changes.
+inline const char* thumbnailsAbi() {
+  static const std::string abi = std::string("hgdeform " HGDEFORM_VERSION ", thumbnails 1, Shape ") +
+                                 std::to_string(sizeof(hgd::Shape)) + ", cloud " +
+                                 std::to_string(sizeof(pcl::PCLPointCloud2)) + ", vector " +
+                                 std::to_string(sizeof(std::vector<int>));
+  return abi.c_str();
+}
+
+}  // namespace batch
+}  // namespace hgdcli
 
 namespace hgdcli {
 namespace batch {
