@@ -13,6 +13,7 @@
 #include <csignal>
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -347,21 +348,30 @@ TEST(CliDeform, LargeShapesBuildOnACoarseLevelUnlessAskedNot) {
   EXPECT_LT(worst, 0.25 * 0.09);  // measured 0.0153, 6.1% of the drag
 }
 
-// The report's peak memory is the command's own: run from a process that holds 512 MB, as a
-// benchmark holding its clouds does, the bunny's deform still reports tens of MB (getrusage's
-// ru_maxrss would give the parent's 512: a forked child counts the image it was forked from).
+// The report's peak memory is the command's own: run from a process that holds 512 MB more, as
+// a benchmark holding its clouds does, the bunny's deform reports far less than its parent's
+// resident size (getrusage's ru_maxrss would give at least the parent's: a forked child counts
+// the image it was forked from until its exec).
+double residentMb() {
+  std::ifstream status("/proc/self/status");
+  for (std::string line; std::getline(status, line);)
+    if (line.rfind("VmRSS:", 0) == 0) return std::strtod(line.c_str() + 6, nullptr) / 1024.0;
+  return 0;
+}
+
 TEST(CliDeform, ReportsItsOwnPeakMemoryNotItsParents) {
   std::vector<char> ballast(512u << 20);
   for (std::size_t i = 0; i < ballast.size(); i += 4096) ballast[i] = static_cast<char>(i >> 12);  // resident
+  const double parent = residentMb();
   TempDir dir;
   const std::string report = dir.file("r.json");
   const Result r = cli("deform " + quote(bunnyPath()) + " --scenario " + quote(bunnyScenarioPath()) + " -o " +
                        quote(dir.file("out.ply")) + " -q --report " + quote(report));
   ASSERT_EQ(r.code, 0) << r.err;
   const double mb = nlohmann::json::parse(slurp(report)).value("peak_rss_mb", 0.0);
-  std::printf("bunny deform: peak %.1f MB (parent holding %zu MB)\n", mb, ballast.size() >> 20);
-  EXPECT_GT(mb, 4.0);               // its libraries and the shape: measured 11 MB
-  EXPECT_LT(mb, 100.0);             // far below the parent's 512
+  std::printf("bunny deform: peak %.1f MB (parent resident %.0f MB)\n", mb, parent);
+  EXPECT_GT(mb, 4.0);               // its libraries and the shape: measured 11-15 MB (270 under ASan)
+  EXPECT_LT(mb, parent - 256.0);    // far below the parent's, which holds 512 MB more
   EXPECT_NE(ballast[4096 * 7], 1);  // keeps the ballast alive until here
 }
 
