@@ -1,9 +1,9 @@
 // libhgdeform_thumbnails: `hgdeform batch --report`'s before/after pictures, drawn with the
 // shared renderer (PCL visualization, hence VTK and OpenGL). A module that hgdeform loads only
 // when a report is asked for (batch/thumbnails.cpp), so that every other command starts without
-// VTK's libraries: 44 MB and about 40 ms less at each start. The two entry points are C
-// functions that never throw (the caller and the module are built together, so the hgd types
-// they pass are the same).
+// VTK's libraries: 44 MB and about 40 ms less at each start. The entry points are C functions
+// that never throw; the program refuses a module whose build check (thumbnailsAbi) differs from
+// its own, so the hgd types they pass have the same layout on both sides.
 #include <algorithm>
 #include <cstddef>
 #include <cstring>
@@ -27,6 +27,21 @@ void copyMessage(const std::string& what, char* out, std::size_t size) {
   out[n] = '\0';
 }
 
+/// An entry point's body, so that no exception crosses into the program: 0 and the text `body`
+/// returns in `out`, or 1 and what went wrong (`fallback` for an exception that says nothing).
+template <typename Body>
+int guarded(char* out, std::size_t size, const char* fallback, Body&& body) {
+  try {
+    copyMessage(body(), out, size);
+    return 0;
+  } catch (const std::exception& e) {
+    copyMessage(*e.what() ? e.what() : fallback, out, size);
+  } catch (...) {
+    copyMessage(fallback, out, size);
+  }
+  return 1;
+}
+
 }  // namespace
 
 extern "C" {
@@ -36,21 +51,12 @@ HGD_THUMBNAILS_EXPORT const char* hgd_thumbnails_abi() {
 }
 
 HGD_THUMBNAILS_EXPORT int hgd_thumbnails_display_problem(char* problem, std::size_t size) {
-  try {
-    copyMessage(hgd::displayProblem(), problem, size);
-    return 0;
-  } catch (const std::exception& e) {
-    copyMessage(e.what(), problem, size);
-    return 1;
-  } catch (...) {
-    copyMessage("the display check failed", problem, size);
-    return 1;
-  }
+  return guarded(problem, size, "the display check failed", [] { return hgd::displayProblem(); });
 }
 
 HGD_THUMBNAILS_EXPORT int hgd_thumbnails_draw(const hgdcli::batch::ThumbnailRequest* request, char* error,
                                               std::size_t size) {
-  try {
+  return guarded(error, size, "the thumbnail renderer failed", [request] {
     hgd::RenderOptions o;
     o.width = 640;
     o.height = 320;
@@ -61,15 +67,8 @@ HGD_THUMBNAILS_EXPORT int hgd_thumbnails_draw(const hgdcli::batch::ThumbnailRequ
     o.manipulated_points = *request->manipulated;
     const std::lock_guard<std::mutex> lock(g_render_mutex);
     hgd::renderPng({request->before, request->after}, request->png, o);
-    copyMessage("", error, size);
-    return 0;
-  } catch (const std::exception& e) {
-    copyMessage(e.what(), error, size);
-    return 1;
-  } catch (...) {
-    copyMessage("the thumbnail renderer failed", error, size);
-    return 1;
-  }
+    return std::string();
+  });
 }
 
 }  // extern "C"

@@ -18,19 +18,23 @@ namespace {
 
 constexpr const char* kModule = "libhgdeform_thumbnails.so";
 
-/// Where the module may be, in order, as absolute paths (never the current directory):
-/// HGDEFORM_THUMBNAILS_MODULE when set (a packager's layout; the tests name a missing file),
-/// else beside the installed library (the program's directory, then HGD_BIN_TO_LIB), else the
-/// build tree's library directory (HGD_THUMBNAILS_BUILD_DIR: a build's programs, shared or
-/// static, run from where they were built).
-std::vector<std::string> candidates() {
-  if (const char* path = std::getenv("HGDEFORM_THUMBNAILS_MODULE"); path && *path) return {path};
-  std::vector<std::string> out;
+/// The module's absolute path, never one in the current directory: HGDEFORM_THUMBNAILS_MODULE
+/// when set (a packager's layout; the tests name a missing file), else the first that exists of
+/// beside the installed library (the program's directory, then HGD_BIN_TO_LIB) and the build
+/// tree's library directory (HGD_THUMBNAILS_BUILD_DIR: a build's programs, shared or static, run
+/// from where they were built). "" when none exists; `tried` lists them.
+std::string modulePath(std::string& tried) {
+  if (const char* path = std::getenv("HGDEFORM_THUMBNAILS_MODULE"); path && *path) return path;
+  std::vector<std::filesystem::path> places;
   std::error_code ec;
   const std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe", ec);
-  if (!ec) out.push_back((exe.parent_path() / HGD_BIN_TO_LIB / kModule).lexically_normal().string());
-  out.push_back((std::filesystem::path(HGD_THUMBNAILS_BUILD_DIR) / kModule).string());
-  return out;
+  if (!ec) places.push_back((exe.parent_path() / HGD_BIN_TO_LIB / kModule).lexically_normal());
+  places.push_back(std::filesystem::path(HGD_THUMBNAILS_BUILD_DIR) / kModule);
+  for (const auto& p : places) {
+    if (std::filesystem::exists(p, ec)) return p.string();
+    tried += (tried.empty() ? "" : ", ") + p.string();
+  }
+  return "";
 }
 
 struct Module {
@@ -49,15 +53,8 @@ F symbol(void* handle, const std::string& path, const char* name, std::string& p
 
 Module load() {
   Module m;
-  std::string path, tried;
-  for (const std::string& c : candidates()) {
-    std::error_code ec;
-    if (std::filesystem::exists(c, ec) || std::getenv("HGDEFORM_THUMBNAILS_MODULE")) {
-      path = c;
-      break;
-    }
-    tried += (tried.empty() ? "" : ", ") + c;
-  }
+  std::string tried;
+  const std::string path = modulePath(tried);
   if (path.empty()) {
     m.problem = std::string("the thumbnail renderer could not be loaded: no ") + kModule + " (looked for " +
                 tried + ")";
@@ -80,9 +77,8 @@ Module load() {
         path + " is from another build of hgdeform (" + abi() + "; this program: " + thumbnailsAbi() + ")";
   if (!m.problem.empty()) return m;
   m.loaded = true;
-  std::array<char, 1024> text{};
-  if (m.display_problem(text.data(), text.size()) != 0 && text[0] == '\0')
-    std::strcpy(text.data(), "the display check failed");
+  std::array<char, 1024> text{};  // (a failure always says something: the module's `guarded`)
+  m.display_problem(text.data(), text.size());
   m.problem = text.data();
   return m;
 }
@@ -108,8 +104,7 @@ void drawThumbnail(const ThumbnailRequest& request) {
   const Module& m = module();
   if (!m.problem.empty()) throw std::runtime_error(m.problem);
   std::array<char, 2048> error{};
-  if (m.draw(&request, error.data(), error.size()) != 0)
-    throw std::runtime_error(error[0] ? error.data() : "the thumbnail renderer failed");
+  if (m.draw(&request, error.data(), error.size()) != 0) throw std::runtime_error(error.data());
 }
 
 }  // namespace batch
