@@ -10,6 +10,7 @@
 #include <cerrno>
 #include <cstdio>
 #include <cstdlib>
+#include <fstream>
 #include <stdexcept>
 #include <string>
 
@@ -22,6 +23,17 @@ namespace hgdcli {
 struct UsageError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
+
+/// This process's peak resident memory in MB (VmHWM in /proc/self/status), 0 where it cannot be
+/// read. Not getrusage's ru_maxrss: that also counts the image this process was forked from
+/// before its exec (a benchmark or a script holding gigabytes would show as ours).
+inline double peakResidentMb() {
+  std::ifstream status("/proc/self/status");
+  std::string line;
+  while (std::getline(status, line))
+    if (line.rfind("VmHWM:", 0) == 0) return std::strtod(line.c_str() + 6, nullptr) / 1024.0;  // kB
+  return 0;
+}
 
 /// `tool version`, e.g. "hgdeform deform 0.2.0".
 inline std::string versionLine(const std::string& tool) {

@@ -48,17 +48,6 @@ const char* kUsage =
     "\n"
     "Exit status: 0 on success, 1 when the work failed, 2 on usage errors.\n";
 
-/// This program's peak resident memory in MB (VmHWM in /proc/self/status), 0 where it cannot be
-/// read. Not getrusage's ru_maxrss: that also counts the image this process was forked from
-/// before its exec (a benchmark or a script holding gigabytes would show as ours).
-double peakResidentMb() {
-  std::ifstream status("/proc/self/status");
-  std::string line;
-  while (std::getline(status, line))
-    if (line.rfind("VmHWM:", 0) == 0) return std::strtod(line.c_str() + 6, nullptr) / 1024.0;  // kB
-  return 0;
-}
-
 // --- parsing: the command line into a struct, nothing else -------------------------------------
 
 /// `hgdeform field`'s command line.
@@ -278,7 +267,7 @@ int runDeform(const DeformArgs& a) {
   hgd::DeformReport report;
   try {
     report = run.report();
-    report.peak_rss_mb = peakResidentMb();
+    report.peak_rss_mb = hgdcli::peakResidentMb();
     if (report_path == "-") {
       const std::string json = hgd::reportJson(report);
       // A reader that went away (a closed pipe) is a write error here, not SIGPIPE: the run

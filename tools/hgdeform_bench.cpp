@@ -82,18 +82,6 @@ bool restartPeakRss() {
   return std::fclose(f) == 0 && ok;
 }
 
-/// VmHWM in MB, or -1.
-double peakRssMb() {
-  FILE* f = std::fopen("/proc/self/status", "r");
-  if (!f) return -1;
-  char line[256];
-  double kb = -1;
-  while (std::fgets(line, sizeof line, f))
-    if (std::strncmp(line, "VmHWM:", 6) == 0) kb = std::atof(line + 6);
-  std::fclose(f);
-  return kb < 0 ? -1 : kb / 1024.0;
-}
-
 nlohmann::json runSize(const std::string& model, const std::string& armadillo, std::size_t n, int repeat,
                        const std::vector<long>& cluster_counts, bool phases, bool command) {
   using nlohmann::json;
@@ -170,7 +158,7 @@ nlohmann::json runSize(const std::string& model, const std::string& armadillo, s
   double deformer_peak = -1;
   // The peak from here on: the Deformer's, with the cloud it deforms (what `hgdeform deform`
   // holds), not the references' or the full-resolution field's above.
-  const double peak_before = peakRssMb();  // (restarting the count restarts getrusage's too)
+  const double peak_before = hgdcli::peakResidentMb();  // (restarting the count restarts getrusage's too)
   const bool peak_restarted = restartPeakRss();
   for (long nc : cluster_counts) {
     std::vector<double> build, sampling, clusters, setup, per_iter, interp, frame, interp_linear,
@@ -216,7 +204,7 @@ nlohmann::json runSize(const std::string& model, const std::string& armadillo, s
       if (r + 1 == std::max(1, repeat / 2)) {
         // The peak so far is the Deformer's; then the interpolation (default blend) and the
         // streaming pass alternate, so that a slow spell of the machine weighs on both.
-        if (peak_restarted) deformer_peak = std::max(deformer_peak, peakRssMb());
+        if (peak_restarted) deformer_peak = std::max(deformer_peak, hgdcli::peakResidentMb());
         hgdbench::StreamingReference stream(g.size());
         for (int k = 0; k < 15; ++k) {
           d.setBlend(hgd::Blend::Rotation);
