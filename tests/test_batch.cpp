@@ -427,6 +427,24 @@ TEST(Batch, MissingRendererModuleSkipsThumbnailsOnly) {
   EXPECT_TRUE(contains(j.at("warnings")[0].get<std::string>(), "could not be loaded"));
   EXPECT_FALSE(contains(slurp(rep / "index.html"), "<img"));
 }
+
+// A library that is not the thumbnail module (here hgdeform's own) is refused by name, before any
+// call into it; the report is written without pictures.
+TEST(Batch, ALibraryThatIsNotTheModuleIsRefused) {
+  const fs::path other = fs::path(HGD_TOOL).parent_path().parent_path() / "libhgdeform.so";
+  if (!fs::exists(other)) GTEST_SKIP() << "no " << other << " (a static build)";
+  const Reference& ref = reference();
+  TempDir dir;
+  const fs::path rep = dir.path() / "report";
+  const Result r = shell("HGDEFORM_THUMBNAILS_MODULE=" + q(other) + " " + quote(HGD_TOOL) + " " +
+                         batch(ref.in, dir.path() / "out", "--recursive --report " + q(rep)));
+  EXPECT_EQ(r.code, 1) << r.out << r.err;  // the folder's two bad scans, as without the module
+  EXPECT_EQ(countOf(r.err, "hgdeform batch: warning: no thumbnails: " + other.string() +
+                               " has no hgd_thumbnails_abi (not hgdeform's thumbnail module?)"),
+            1u)
+      << r.err;
+  EXPECT_FALSE(contains(slurp(rep / "index.html"), "<img"));
+}
 #endif
 
 TEST(Batch, DeformsLikeDeformAndReportsFailures) {
