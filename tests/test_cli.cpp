@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <csignal>
@@ -20,6 +21,7 @@
 #include <initializer_list>
 #include <limits>
 #include <nlohmann/json.hpp>
+#include <random>
 #include <set>
 #include <sstream>
 #include <string>
@@ -277,19 +279,10 @@ TEST(CliFieldReplaces, ExistingFieldAndColoursAreSaid) {
   EXPECT_TRUE(contains(err, pcd + ": its field 'harmonic' is replaced in ")) << err;
 }
 
-// The parallel passes (kNN, graph, multigrid sums, clustering) give the same result whatever
-// the thread count: a 60k-point sphere (multilevel solve, parallel paths) deformed with one
-// thread and with two writes byte-identical files.
-TEST(CliDeform, SameResultOnOneAndTwoThreads) {
-  TempDir dir;
-  const std::string input = dir.file("sphere.ply"), scenario = dir.file("s.json");
-  hgd::writeShape(input, hgd::shapes::bumpySphere(60000));
-  writeText(scenario, R"({
-  "format": "hgdeform-scenario/1",
-  "fixed": [ { "box": { "min": [-2, -2, -2], "max": [2, 2, -0.85] } } ],
-  "manipulated": { "box": { "min": [0.9, -2, -2], "max": [2, 2, 2] } },
-  "move": { "drag": { "from": [1, 0, 0], "to": [1, 0, 0.25] } }
-})");
+namespace {
+
+// Deforms `input` by `scenario` with one thread and with two; the files must be byte-identical.
+void expectSameOnOneAndTwoThreads(TempDir& dir, const std::string& input, const std::string& scenario) {
   std::string first;
   for (const int threads : {1, 2}) {
     const std::string out = dir.file("out" + std::to_string(threads) + ".ply");
@@ -303,6 +296,70 @@ TEST(CliDeform, SameResultOnOneAndTwoThreads) {
     else
       EXPECT_TRUE(bytes == first) << "one and two threads gave different outputs";
   }
+}
+
+const char* const kSphereScenario = R"({
+  "format": "hgdeform-scenario/1",
+  "fixed": [ { "box": { "min": [-2, -2, -2], "max": [2, 2, -0.85] } } ],
+  "manipulated": { "box": { "min": [0.9, -2, -2], "max": [2, 2, 2] } },
+  "move": { "drag": { "from": [1, 0, 0], "to": [1, 0, 0.25] } }
+})";
+
+}  // namespace
+
+// The parallel passes (kNN, graph, multigrid sums, clustering) give the same result whatever
+// the thread count: a 60k-point sphere (multilevel solve, parallel paths) deformed with one
+// thread and with two writes byte-identical files.
+TEST(CliDeform, SameResultOnOneAndTwoThreads) {
+  TempDir dir;
+  const std::string input = dir.file("sphere.ply"), scenario = dir.file("s.json");
+  hgd::writeShape(input, hgd::shapes::bumpySphere(60000));
+  writeText(scenario, kSphereScenario);
+  expectSameOnOneAndTwoThreads(dir, input, scenario);
+}
+
+// The same for a mid-sized scan, whose coarse level (a tenth of its points) is small enough
+// that the loops over its rows go parallel only from kParallelMinCostly (2,048), and whose
+// strays are more than that (their nearest coarse point searched on every thread): 160,000
+// points of a noisy sphere in random order, no normals, and 5,000 strays around it.
+TEST(CliDeform, SameResultOnOneAndTwoThreadsOnAMidSizedScanWithStrays) {
+  TempDir dir;
+  std::mt19937 rng(7);
+  std::normal_distribution<float> gauss(0.0f, 1.0f);
+  std::uniform_real_distribution<float> box(-1.6f, 1.6f);
+  std::vector<Eigen::Vector3f> points;
+  while (points.size() < 160000) {
+    const Eigen::Vector3f d(gauss(rng), gauss(rng), gauss(rng));
+    if (d.norm() < 1e-3f) continue;
+    points.push_back(d.normalized() * (1.0f + 0.003f * gauss(rng)));
+  }
+  for (int s = 0; s < 5000;) {
+    const Eigen::Vector3f p(box(rng), box(rng), box(rng));
+    if (p.norm() < 1.2f) continue;
+    points.push_back(p);
+    ++s;
+  }
+  std::shuffle(points.begin(), points.end(), rng);
+  const std::string input = dir.file("scan.ply"), scenario = dir.file("s.json");
+  hgd::writeShape(input, hgd::shapes::cloudShape(points, {}));
+  // (The boxes apart: strays lie in the corners too.)
+  writeText(scenario, R"({
+  "format": "hgdeform-scenario/1",
+  "fixed": [ { "box": { "min": [-2, -2, -2], "max": [0.5, 2, -0.85] } } ],
+  "manipulated": { "box": { "min": [0.9, -2, -0.8], "max": [2, 2, 2] } },
+  "move": { "drag": { "from": [1, 0, 0], "to": [1, 0, 0.25] } }
+})");
+  {
+    // The shape takes the paths meant: a coarse level between 2,048 and 20,000 points, and
+    // over 2,048 strays.
+    hgd::ScenarioRunner run = hgd::ScenarioRunner::read(input);
+    run.setScenario(hgd::readScenario(scenario));
+    const hgd::CoarseLevel& coarse = run.deformer().coarseLevel();
+    EXPECT_GT(coarse.points.size(), 2048u);
+    EXPECT_LT(coarse.points.size(), 20000u);
+    EXPECT_GT(coarse.strays.size(), 2048u);
+  }
+  expectSameOnOneAndTwoThreads(dir, input, scenario);
 }
 
 // --- deform ----------------------------------------------------------------------------------

@@ -88,7 +88,7 @@ SampleGraph sampleGraph(const NeighborGraph& graph, const std::vector<int>& samp
   const std::size_t ns = sg.sites.size();
   // Cell pairs across edges, per thread, then sorted and made one graph.
   std::vector<std::pair<int, int>> pairs;
-#pragma omp parallel if (nn > kParallelMin)
+#pragma omp parallel if (nn > kParallelMinCostly)
   {
     std::vector<std::pair<int, int>> mine;
 #pragma omp for schedule(static) nowait

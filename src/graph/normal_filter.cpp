@@ -56,7 +56,7 @@ NeighborGraph knnGraph(const KnnTable& knn, int k, const pcl::PointCloud<pcl::No
   // Not zero-filled: every slot read is written first (the rows in parallel, first touch).
   std::unique_ptr<int[]> fwd(new int[n * ukk]), fwd_count(new int[n]);
   if (dropped) dropped->clear();
-#pragma omp parallel if (nn > kParallelMin)
+#pragma omp parallel if (nn > kParallelMinCostly)
   {
     std::vector<std::pair<int, int>> mine;  // dropped pairs: few, listed by the thread that met them
 #pragma omp for schedule(static) nowait
@@ -147,12 +147,12 @@ NeighborGraph knnGraph(const KnnTable& knn, int k, const pcl::PointCloud<pcl::No
   };
   NeighborGraph g;
   g.offsets.assign(n + 1, 0);
-#pragma omp parallel for schedule(static) if (nn > kParallelMin)
+#pragma omp parallel for schedule(static) if (nn > kParallelMinCostly)
   for (long long i = 0; i < nn; ++i)
     g.offsets[static_cast<std::size_t>(i) + 1] = merge(static_cast<std::size_t>(i), nullptr);
   for (std::size_t i = 0; i < n; ++i) g.offsets[i + 1] += g.offsets[i];
   g.adj.resize(static_cast<std::size_t>(g.offsets[n]));
-#pragma omp parallel for schedule(static) if (nn > kParallelMin)
+#pragma omp parallel for schedule(static) if (nn > kParallelMinCostly)
   for (long long i = 0; i < nn; ++i)
     merge(static_cast<std::size_t>(i), g.adj.data() + g.offsets[static_cast<std::size_t>(i)]);
   if (dropped) {  // the rule is symmetric: a pair dropped from one side is dropped from both

@@ -161,7 +161,7 @@ bool consistentlyOriented(const pcl::PointCloud<pcl::PointXYZ>& points,
   const std::size_t gap = n / runs;  // run r starts at r * gap
   const long long nn = static_cast<long long>(runs * run_len);
   long long beside = 0, disagree = 0;
-#pragma omp parallel for schedule(static) reduction(+ : beside, disagree) if (nn > kParallelMin)
+#pragma omp parallel for schedule(static) reduction(+ : beside, disagree) if (nn > kParallelMinCostly)
   for (long long ii = 0; ii < nn; ++ii) {
     const auto i = static_cast<std::size_t>(ii) / run_len * gap + static_cast<std::size_t>(ii) % run_len;
     const Eigen::Vector3f ni = normals[i].getNormalVector3fMap();

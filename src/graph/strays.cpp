@@ -52,7 +52,7 @@ std::vector<char> findOutliers(const pcl::PointCloud<pcl::PointXYZ>& points, con
   // is someone's neighbour; a stray between two parts of the surface (the prongs of a fork),
   // within the noise's reach of both and so not far by the rule above, is nobody's, and joined
   // to both it would carry the field across the gap.
-#pragma omp parallel for schedule(static) if (nn > kParallelMin)
+#pragma omp parallel for schedule(static) if (nn > kParallelMinCostly)
   for (long long ii = 0; ii < nn; ++ii) {
     const auto i = static_cast<std::size_t>(ii);
     if (!std::isfinite(nearest[i])) continue;
@@ -85,7 +85,9 @@ std::vector<int> nearestAmong(const pcl::PointCloud<pcl::PointXYZ>& points, cons
   index.buildIndex();
   flann::Matrix<float> mq(q.data(), queries.size(), 3), md(d2.data(), queries.size(), 1);
   flann::Matrix<int> mi(hit.data(), queries.size(), 1);
-  const flann::SearchParams params(flann::FLANN_CHECKS_UNLIMITED, 0.0f, true);
+  flann::SearchParams params(flann::FLANN_CHECKS_UNLIMITED, 0.0f, true);
+  // Exact, and each query on its own: the same hits on any number of threads.
+  params.cores = static_cast<long long>(queries.size()) > kParallelMinCostly ? omp_get_max_threads() : 1;
   index.knnSearch(mq, mi, md, 1, params);
   return hit;
 }

@@ -362,7 +362,7 @@ std::vector<float> prolongField(const pcl::PointCloud<pcl::PointXYZ>& points, co
   const std::size_t m = level.points.size();
   std::vector<Linear> model(m);
   const long long mm = static_cast<long long>(m);
-#pragma omp parallel for schedule(static) if (mm > kParallelMin)
+#pragma omp parallel for schedule(static) if (mm > kParallelMinCostly)
   for (long long aa = 0; aa < mm; ++aa) {
     const auto a = static_cast<std::size_t>(aa);
     Linear& l = model[a];
