@@ -532,8 +532,9 @@ std::string objOfStlSize(const std::string& lines, std::uint32_t n, char filler)
 // Found by fuzz_obj: a binary STL is known by its size alone, and an OBJ (whose comments keep
 // any bytes) can match it. Read as STL, the file had 2 points where the OBJ it was had 1, and
 // hgdeform could write an OBJ that it then read back as something else. A file named for a text
-// format, whose text says that format or whose bytes after the would-be header are text, stays
-// text; the STL test still wins for a real binary STL of any name.
+// format, whose text says that format (for an OBJ, a vertex or face on any line) or whose bytes
+// after the would-be header are text, stays text; the STL test still wins for a real binary STL
+// of any name.
 TEST(Sniff, TextWhoseSizeFitsABinaryStlStaysText) {
   TempDir dir;
   // The fuzzer's case: a vertex, then a comment holding the count 1 (bytes 01 00 00 00).
@@ -555,6 +556,18 @@ TEST(Sniff, TextWhoseSizeFitsABinaryStlStaysText) {
   s = hgd::readShape(p);
   EXPECT_EQ(s.format, hgd::FileFormat::Obj);
   EXPECT_EQ(s.size(), 2u);
+
+  // Found by fuzz_obj again: a first line that names no format and bytes after the would-be
+  // header that are not text (an OBJ keeps any bytes in a statement it does not know). A
+  // vertex statement on any line makes it an OBJ; read as STL it was three points of junk, and
+  // hgdeform wrote OBJs it could not read back as they were.
+  hgdtest::writeText(p, objOfStlSize("s 1\nv 1 2 3\n", 1, '\x01'));
+  s = hgd::readShape(p);
+  EXPECT_EQ(s.format, hgd::FileFormat::Obj);
+  EXPECT_EQ(s.size(), 1u);
+  hgd::writeShape(q, s);
+  EXPECT_EQ(hgdtest::slurp(q), hgdtest::slurp(p));
+  EXPECT_EQ(hgd::readShape(q).size(), 1u);
 
   // A real binary STL named .obj is still an STL (its records are not text), with the warning.
   std::mt19937 rng(5);

@@ -71,6 +71,17 @@ bool textAfterStlHeader(std::string_view head) {
   return true;
 }
 
+/// Whether some line of `head` is an OBJ vertex or face statement. An OBJ may open with any
+/// statement (an unknown one is kept and written back), so its first line need not say OBJ.
+bool hasObjStatement(std::string_view head) {
+  Lexer lex(head, 0);
+  while (lex.nextLine()) {
+    const std::string_view w = lex.token();
+    if (w == "v" || w == "f" || w == "vn" || w == "vt") return true;
+  }
+  return false;
+}
+
 /// The format of a file's first bytes (`size`: the whole file's); nullopt if none matches.
 /// `binary_stl`: whether a size that fits a binary STL makes it one.
 std::optional<FileFormat> sniff(std::string_view head, std::uint64_t size, bool binary_stl = true) {
@@ -139,11 +150,12 @@ Shape readShape(const std::string& path) {
     by_content = sniff(head, size);
     // A binary STL is known by its size alone, which a text file can match by chance (bytes
     // 80-83 read as a triangle count; an OBJ's comment can hold any bytes). A file named for a
-    // text format stays one when its text says so too, or when what follows the would-be
-    // header is text, which no triangle record is.
+    // text format stays one when its text says so too (for an OBJ, a vertex or face statement
+    // on any line: its first may be one the format does not know), or when what follows the
+    // would-be header is text, which no triangle record is.
     if (by_content == FileFormat::Stl && by_ext && by_ext != FileFormat::Stl) {
       const std::optional<FileFormat> as_text = sniff(head, size, /*binary_stl=*/false);
-      if (as_text == by_ext)
+      if (as_text == by_ext || (by_ext == FileFormat::Obj && hasObjStatement(head)))
         by_content = by_ext;
       else if (textAfterStlHeader(head))
         by_content = as_text ? as_text : by_ext;
