@@ -770,6 +770,45 @@ double largestDifference(const std::vector<hgd::NormalisedTransform>& a,
 
 }  // namespace
 
+// The reweighted E_Prop (GaussNewtonOptions::reweight_rounds) starts every solve from uniform
+// weights: a solve from a start gives the same transforms whatever the solver solved before,
+// and it is not the paper's solve (the weights do change the result).
+TEST(Deform, ReweightedSolveDependsOnlyOnItsStart) {
+  const int mc = 6;
+  hgd::NormalisedTransform move;
+  move.A = Eigen::AngleAxisd(0.5, Eigen::Vector3d(0.2, 0.3, 1).normalized()).toRotationMatrix();
+  move.t = Eigen::Vector3d(0.05, 0.12, -0.03);
+  std::vector<hgd::NormalisedTransform> start(7), other(7);
+  start[mc] = move;
+  other[mc].t = Eigen::Vector3d(-0.1, 0.02, 0.08);
+  hgd::GaussNewtonOptions reweighted;
+  reweighted.reweight_rounds = 8;
+
+  hgd::ClusterSolver fresh;
+  fresh.setup(limbClusters(true), kLimbEdges, mc, hgd::SolverWeights{});
+  fresh.setTransforms(start);
+  const hgd::SolveStats st = fresh.solve(reweighted);
+  EXPECT_TRUE(st.converged);
+
+  hgd::ClusterSolver used;
+  used.setup(limbClusters(true), kLimbEdges, mc, hgd::SolverWeights{});
+  used.setTransforms(other);
+  used.solve(reweighted);
+  used.setTransforms(start);
+  used.solve(reweighted);
+  EXPECT_LT(largestDifference(used.transforms(), fresh.transforms()), 1e-12);
+  // The energy reported is the paper's, of the result.
+  EXPECT_NEAR(st.energy.total(), fresh.energies().total(), 1e-12 * st.energy.total());
+
+  hgd::ClusterSolver paper;
+  paper.setup(limbClusters(true), kLimbEdges, mc, hgd::SolverWeights{});
+  paper.setTransforms(start);
+  paper.solve();
+  EXPECT_GT(largestDifference(paper.transforms(), fresh.transforms()), 1e-3);
+  // The paper's solve minimises the paper's energy: the reweighted result has more of it.
+  EXPECT_GT(fresh.energies().total(), paper.energies().total());
+}
+
 // A frame move holds the manipulated cluster (ClusterSolver::hold) in the solver that drags it,
 // instead of setting up a second solver in which it is constant. Both must give the same
 // transforms and the same energy (its own Rot and the pair whose ends both stand still are

@@ -32,7 +32,8 @@ struct Outcome {
 // handles and targets, iterated until its distortion settles.
 Outcome deformAndMeasure(const hgd::Shape& shape, const std::vector<std::vector<int>>& fixed_file,
                          const std::vector<int>& manipulated_file, const Eigen::Vector3d& move,
-                         const std::vector<int>& other_file, bool arap) {
+                         const std::vector<int>& other_file, bool arap,
+                         const hgd::DeformOptions& options = hgd::DeformOptions{}) {
   const hgd::Geometry g = hgd::extractGeometry(shape);
   const auto ours = [&](std::vector<int> file) {
     for (int& i : file) i = g.finite_index[static_cast<std::size_t>(i)];
@@ -44,7 +45,7 @@ Outcome deformAndMeasure(const hgd::Shape& shape, const std::vector<std::vector<
   const std::vector<int> other = ours(other_file);
   std::vector<Eigen::Vector3d> rest(g.size()), deformed(g.size());
   for (std::size_t i = 0; i < g.size(); ++i) rest[i] = g.world(i);
-  hgd::Deformer d(g, h);
+  hgd::Deformer d(g, h, options);
   d.setHandleTransform(Eigen::Affine3d(Eigen::Translation3d(move)));
   for (std::size_t i = 0; i < g.size(); ++i) deformed[i] = d.deformedWorld(i);
   // The handle went where it was sent: the measure below compares like with like.
@@ -107,6 +108,31 @@ TEST(Quality, QuadrupedDistortionAndTheOtherLeg) {
   EXPECT_LT(o.other, 0.0566);
   if (o.arap > 0) {
     EXPECT_LT(o.distortion, 1.25 * o.arap);
+  }
+}
+
+// The opt-in reweighted E_Prop (GaussNewtonOptions::reweight_rounds; 32 isovalues, 8 rounds,
+// as the bench reports it) on the same quadruped and move: the bending gathers at the hip and
+// near the foot, as ARAP's does, so the distortion falls below ARAP's and the other leg stays.
+TEST(Quality, ReweightedPropBendsTheQuadrupedLikeArap) {
+  const hgd::Shape q = hgd::shapes::quadruped(0.03f);
+  hgd::DeformOptions options;
+  options.clusters.isovalues = 32;
+  options.gauss_newton.reweight_rounds = 8;
+  const Outcome o = deformAndMeasure(
+      q,
+      {hgd::shapes::quadrupedFoot(q, 0), hgd::shapes::quadrupedFoot(q, 1), hgd::shapes::quadrupedFoot(q, 3)},
+      hgd::shapes::quadrupedFoot(q, 2), Eigen::Vector3d(-0.25, 0.2, 0), hgd::shapes::quadrupedShin(q, 3),
+      kRunArap, options);
+  std::printf(
+      "reweighted quadruped: distortion %.5f, other hind shin %.2f%% of the move; ARAP %.5f, %.2f%%\n",
+      o.distortion, 100 * o.other, o.arap, 100 * o.arap_other);
+  // Measured 0.00809 and 0.14% (the default: 0.01440 and 5.49%); bounds 3% above and 0.5% (the
+  // issue's goal is 1.5%). CGAL's ARAP, settled: 0.01180, so 0.69x ARAP (bound 0.75x).
+  EXPECT_LT(o.distortion, 0.00833);
+  EXPECT_LT(o.other, 0.005);
+  if (o.arap > 0) {
+    EXPECT_LT(o.distortion, 0.75 * o.arap);
   }
 }
 

@@ -215,7 +215,7 @@ Energies ClusterSolver::evaluate(const Eigen::VectorXd& x) const {
     const double prop = (ui * p.sii * ui.transpose()).trace() - 2 * (ui * p.sij * uj.transpose()).trace() +
                         (uj * p.sjj * uj.transpose()).trace() + 2 * d.dot(ui * p.mi - uj * p.mj) +
                         p.count * d.squaredNorm();
-    e.prop += w_.prop * std::max(prop, 0.0);
+    e.prop += w_.prop * p.omega * std::max(prop, 0.0);
     const Eigen::Vector3d gap = d + translationOf(x, p.i) - translationOf(x, p.j);
     const double r = gap.norm() - p.rest_length;
     e.length += w_.length * r * r;
@@ -377,7 +377,7 @@ void ClusterSolver::assembleConstant() {
   for (int b = 0; b < nb; ++b) addBlock(b, b, (b == held ? 1.0 : 1e-9) * Mat12::Identity());
   for (const auto& p : pairs_) {
     const bool fi = var_[static_cast<std::size_t>(p.i)] >= 0, fj = var_[static_cast<std::size_t>(p.j)] >= 0;
-    const double wi = moves(p.i) ? w_.prop : 0, wj = moves(p.j) ? w_.prop : 0;
+    const double wi = moves(p.i) ? w_.prop * p.omega : 0, wj = moves(p.j) ? w_.prop * p.omega : 0;
     if (fi) addBlock(block(p.i), block(p.i), wi * kron(p.sii));
     if (fj) addBlock(block(p.j), block(p.j), wj * kron(p.sjj));
     if (fi && fj) {
@@ -427,6 +427,63 @@ void ClusterSolver::analyzePattern() {
 }
 
 SolveStats ClusterSolver::solve(const GaussNewtonOptions& options) {
+  if (options.reweight_rounds <= 0) return solveOnce(options);
+  Stopwatch sw;
+  // Every solve from uniform weights: a result does not depend on the solves before it.
+  for (auto& p : pairs_) p.omega = 1;
+  constant_ready_ = false;
+  SolveStats st = solveOnce(options);
+  int iterations = st.iterations;
+  for (int r = 0; r < options.reweight_rounds && reweightPairs(); ++r) {
+    constant_ready_ = false;  // E_Prop's part of the normal equations changed
+    st = solveOnce(options);
+    iterations += st.iterations;
+  }
+  for (auto& p : pairs_) p.omega = 1;
+  constant_ready_ = false;
+  st.iterations = iterations;
+  st.energy = evaluate(x_);  // the paper's energy of the result
+  st.ms = sw.ms();
+  return st;
+}
+
+bool ClusterSolver::reweightPairs() {
+  // Each pair's mean squared mismatch (E_Prop over its points, over their count).
+  std::vector<double> mismatch(pairs_.size(), 0.0);
+  double mean = 0, count = 0;
+  for (std::size_t k = 0; k < pairs_.size(); ++k) {
+    const Pair& p = pairs_[k];
+    if (!moves(p.i) && !moves(p.j)) continue;  // a constant term: its weight changes nothing
+    const Mat34 ui = toU(transforms_[static_cast<std::size_t>(p.i)]);
+    const Mat34 uj = toU(transforms_[static_cast<std::size_t>(p.j)]);
+    const Eigen::Vector3d d = clusters_[static_cast<std::size_t>(p.i)].barycentre -
+                              clusters_[static_cast<std::size_t>(p.j)].barycentre;
+    const double prop = (ui * p.sii * ui.transpose()).trace() - 2 * (ui * p.sij * uj.transpose()).trace() +
+                        (uj * p.sjj * uj.transpose()).trace() + 2 * d.dot(ui * p.mi - uj * p.mj) +
+                        p.count * d.squaredNorm();
+    if (!(p.count > 0)) continue;
+    mismatch[k] = std::max(prop, 0.0) / p.count;
+    mean += mismatch[k] * p.count;
+    count += p.count;
+  }
+  if (!(count > 0) || !(mean > 1e-300) || !std::isfinite(mean)) return false;  // nothing bends
+  mean /= count;
+  // Inverse square roots (a least-squares step towards the sum of the mismatches' roots, which
+  // gathers the bending), the mismatch floored so that a pair in perfect agreement weighs at
+  // most 100 times the mean; then normalised to a count-weighted mean of 1.
+  double sum = 0;
+  for (std::size_t k = 0; k < pairs_.size(); ++k) {
+    Pair& p = pairs_[k];
+    if ((!moves(p.i) && !moves(p.j)) || !(p.count > 0)) continue;
+    p.omega = 1 / std::sqrt(std::max(mismatch[k], 1e-4 * mean));
+    sum += p.omega * p.count;
+  }
+  for (auto& p : pairs_)
+    if ((moves(p.i) || moves(p.j)) && p.count > 0) p.omega *= count / sum;
+  return true;
+}
+
+SolveStats ClusterSolver::solveOnce(const GaussNewtonOptions& options) {
   Stopwatch sw;
   SolveStats st;
   const int nv = static_cast<int>(x_.size());
@@ -470,11 +527,11 @@ SolveStats ClusterSolver::solve(const GaussNewtonOptions& options) {
                 vj = mj ? var_[static_cast<std::size_t>(p.j)] : -1;
       if (vi >= 0) {
         const Mat34 gi = ui * p.sii - uj * p.sij.transpose() + d * p.mi.transpose();
-        grad.segment<12>(vi) += w_.prop * Eigen::Map<const Vec12>(gi.data());
+        grad.segment<12>(vi) += w_.prop * p.omega * Eigen::Map<const Vec12>(gi.data());
       }
       if (vj >= 0) {
         const Mat34 gj = uj * p.sjj - ui * p.sij - d * p.mj.transpose();
-        grad.segment<12>(vj) += w_.prop * Eigen::Map<const Vec12>(gj.data());
+        grad.segment<12>(vj) += w_.prop * p.omega * Eigen::Map<const Vec12>(gj.data());
       }
       const Eigen::Vector3d gap = d + translationOf(x_, p.i) - translationOf(x_, p.j);
       const double len = gap.norm();
