@@ -134,8 +134,8 @@ TEST(Cli, FieldHelpListsOptions) {
 TEST(Cli, DeformHelpListsOptions) {
   const Result r = cli("deform --help");
   EXPECT_EQ(r.code, 0) << r.err;
-  for (const char* opt : {"--scenario", "--output", "--report", "--clusters", "--k", "--samples", "--solver",
-                          "--ascii", "--quiet", "--help"})
+  for (const char* opt : {"--scenario", "--output", "--report", "--clusters", "--k", "--samples",
+                          "--reweight", "--solver", "--ascii", "--quiet", "--help"})
     EXPECT_TRUE(contains(r.out, opt)) << opt << " missing from:\n" << r.out;
 }
 
@@ -363,6 +363,45 @@ TEST(CliDeform, SameResultOnOneAndTwoThreadsOnAMidSizedScanWithStrays) {
 }
 
 // --- deform ----------------------------------------------------------------------------------
+
+// --reweight is the solver's option (GaussNewtonOptions::reweight_rounds) and nothing else: 0
+// (the default) writes what no flag does; 8 rounds with 32 isovalues write what the library
+// writes with those options, and something else than the paper's solve; a count outside 0-100
+// is a usage error.
+TEST(CliDeform, ReweightIsTheSolversOptionAndOnlyWhenAsked) {
+  TempDir dir;
+  const std::string input = dir.file("sphere.ply"), scenario = dir.file("s.json");
+  hgd::writeShape(input, hgd::shapes::bumpySphere(20000));
+  writeText(scenario, kSphereScenario);
+  const auto run = [&](const std::string& flags, const std::string& name) {
+    const std::string out = dir.file(name);
+    const Result r = shell(quote(HGD_TOOL) + " deform " + quote(input) + " -s " + quote(scenario) +
+                           " -q -o " + quote(out) + flags);
+    EXPECT_EQ(r.code, 0) << flags << r.err;
+    return slurp(out);
+  };
+  const std::string plain = run("", "plain.ply");
+  EXPECT_TRUE(run(" --reweight 0", "zero.ply") == plain);
+  const std::string reweighted = run(" --reweight 8 -c 32", "reweighted.ply");
+  EXPECT_FALSE(reweighted == plain);
+  EXPECT_FALSE(reweighted == run(" -c 32", "c32.ply"));  // the rounds, not the isovalues alone
+  hgd::RunOptions ro;
+  ro.clusters = 32;
+  ro.deform.gauss_newton.reweight_rounds = 8;
+  hgd::ScenarioRunner lib = hgd::ScenarioRunner::read(input, ro);
+  lib.setScenario(hgd::readScenario(scenario));
+  lib.applyMoves();
+  const std::string lib_out = dir.file("library.ply");
+  lib.write(lib_out);
+  EXPECT_TRUE(slurp(lib_out) == reweighted) << "the CLI's --reweight is not the library's option";
+  for (const char* bad : {" --reweight -1", " --reweight 101", " --reweight x"}) {
+    const Result r = shell(quote(HGD_TOOL) + " deform " + quote(input) + " -s " + quote(scenario) +
+                           " -q -o " + quote(dir.file("bad.ply")) + bad);
+    EXPECT_EQ(r.code, 2) << bad << r.err;
+    EXPECT_TRUE(contains(r.err, "--reweight")) << r.err;
+    EXPECT_FALSE(std::filesystem::exists(dir.file("bad.ply"))) << bad;
+  }
+}
 
 // Above 131,072 points deform builds on a coarse level and says so in the report; --full-field
 // keeps every point in the field. The two outputs agree within a bound (the Multires tests

@@ -65,6 +65,7 @@ struct DeformArgs {
   int k = hgd::FieldOptions().k_neighbors;
   int samples = hgd::DeformOptions().clusters.samples;
   int joint_clusters = hgd::DeformOptions().clusters.joint_isovalues;
+  int reweight = 0;   // GaussNewtonOptions::reweight_rounds
   std::string blend;  // empty: the scenario's
   std::string solver = "auto";
   bool mesh_ring = false, full_field = false, ascii = false, quiet = false;
@@ -132,6 +133,10 @@ int parseDeform(int argc, const char* const* argv, DeformArgs& a) {
   app.add_option("--blend", a.blend, "rotation (default) | linear: how points blend cluster transforms")
       ->check(hgdcli::oneOf({"linear", "rotation"}))
       ->type_name("MODE");
+  hgdcli::addCount(app, "--reweight", a.reweight,
+                   "reweight E_Prop per cluster pair over N rounds (default 0, the paper's solve): bends\n"
+                   "at joints, closer to ARAP, each frame several times slower (docs/method.md)",
+                   0, 100);
   hgdcli::addCount(app, "--joint-clusters", a.joint_clusters,
                    "skeletal mode: isovalues inside each joint (default 3)", 1, 100);
   addSolver(app, a.solver, "field solver: ");
@@ -249,6 +254,7 @@ int runDeform(const DeformArgs& a) {
   if (a.full_field) opt.multires_above = 0;
   opt.clusters.samples = a.samples;
   opt.clusters.joint_isovalues = a.joint_clusters;
+  opt.gauss_newton.reweight_rounds = a.reweight;
   if (a.clusters > 0) ro.clusters = a.clusters;
   if (!a.blend.empty()) {  // the command line wins over the scenario
     hgd::Blend blend;

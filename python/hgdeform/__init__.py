@@ -117,7 +117,7 @@ def deform(points, scenario, normals=None, faces=None, **options):
     scenario: a Scenario, a dict or JSON text in the hgdeform-scenario/1 format, or a path.
     normals: (N, 3) or None (arrays only); turned with the shape when given.
     faces: (M, 3) integers, a list of index lists, or None (arrays only).
-    options: clusters, blend ('rotation' or 'linear'), k, samples, joint_clusters,
+    options: clusters, blend ('rotation' or 'linear'), k, samples, joint_clusters, reweight,
         solver ('auto', 'exact', 'multilevel'), mesh_ring, full_field: the command line's.
 
     Returns (points, report) with points (N, 3) float64, or (points, normals, report) when

@@ -174,7 +174,8 @@ std::vector<pcl::Vertices> facesArg(const py::handle& obj, std::size_t n) {
 
 // --- options and scenarios -------------------------------------------------------------------
 
-const char* const kOptionNames = "clusters, blend, k, samples, joint_clusters, solver, mesh_ring, full_field";
+const char* const kOptionNames =
+    "clusters, blend, k, samples, joint_clusters, reweight, solver, mesh_ring, full_field";
 
 int intOption(const py::handle& v, const std::string& key, int lo, int hi) {
   if (!PyIndex_Check(v.ptr()) || py::isinstance<py::bool_>(v))
@@ -213,6 +214,8 @@ hgd::RunOptions runOptions(const py::dict& options) {
       opt.clusters.samples = intOption(v, key, 10, 10000000);
     } else if (key == "joint_clusters") {
       opt.clusters.joint_isovalues = intOption(v, key, 1, 100);
+    } else if (key == "reweight") {
+      opt.gauss_newton.reweight_rounds = intOption(v, key, 0, 100);
     } else if (key == "blend") {
       hgd::Blend blend;
       if (!py::isinstance<py::str>(v) || !hgd::parseBlend(v.cast<std::string>(), blend))

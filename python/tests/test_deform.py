@@ -181,6 +181,17 @@ def test_options_override_the_scenario(tube_points):
     assert report["isovalues"] == 4 and default["isovalues"] == 8
 
 
+def test_reweight_is_the_solvers_option_and_off_by_default(tube_points):
+    points, _ = tube_points
+    default, _ = hgdeform.deform(points, tube_scenario())
+    zero, _ = hgdeform.deform(points, tube_scenario(), reweight=0)
+    assert same_bits(zero, default)
+    rounds, _ = hgdeform.deform(points, tube_scenario(), reweight=8)
+    assert not same_bits(rounds, default)
+    with pytest.raises(ValueError, match=r"^option reweight must be 0 to 100, got 101$"):
+        hgdeform.deform(points, tube_scenario(), reweight=101)
+
+
 def test_the_package_has_its_stub_and_imports_from_elsewhere(tmp_path):
     package = pathlib.Path(hgdeform.__file__).parent
     assert (package / "__init__.pyi").is_file()
