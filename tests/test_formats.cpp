@@ -578,6 +578,20 @@ TEST(Sniff, TextWhoseSizeFitsABinaryStlStaysText) {
   expectTriangles(s, tris);
   ASSERT_EQ(s.warnings.size(), 1u);
   EXPECT_NE(s.warnings[0].find("read as STL"), std::string::npos) << s.warnings[0];
+
+  // Even when its records' bytes spell a line starting "v " (x = 10.0288, the bytes 0A 76 20
+  // 41: a newline, 'v', a blank, 'A'): only a whole vertex or face line in text before the
+  // first byte that is not text makes an OBJ (the review's case; it was read as a broken OBJ).
+  float x = 0;
+  const unsigned char spell[4] = {0x0A, 0x76, 0x20, 0x41};
+  std::memcpy(&x, spell, 4);
+  const std::vector<Tri> spelling = {
+      Tri{{{0, 0, 0}, {0, 10, 0}, {x, 0, 0}}}, Tri{{{0, 0, 0}, {x, 0, 0}, {0, 0, 10}}},
+      Tri{{{0, 0, 0}, {0, 0, 10}, {0, 10, 0}}}, Tri{{{x, 0, 0}, {0, 10, 0}, {0, 0, 10}}}};
+  hgdtest::writeText(p, binaryStl(spelling, 4));
+  s = hgd::readShape(p);
+  EXPECT_EQ(s.format, hgd::FileFormat::Stl);
+  expectTriangles(s, spelling);
 }
 
 TEST(Sniff, FileOfItsOwnFormatGetsThatFormatsErrors) {

@@ -60,24 +60,47 @@ bool sizeOfBinaryStl(std::string_view head, std::uint64_t size) {
   return 84 + 50 * std::uint64_t{n} == size;
 }
 
+/// Whether a byte is text as a text format has it (printable ASCII or a blank).
+bool isTextByte(char ch) {
+  const auto c = static_cast<unsigned char>(ch);
+  return (c >= 0x20 && c < 0x7f) || c == '\n' || c == '\r' || c == '\t';
+}
+
 /// Whether the bytes after a binary STL's 84-byte header are all text (printable ASCII or
 /// blanks). Triangle records are floats: a normal or a coordinate of 0, or any of many
 /// others, has bytes that are not text.
 bool textAfterStlHeader(std::string_view head) {
-  for (std::size_t k = 84; k < head.size(); ++k) {
-    const auto c = static_cast<unsigned char>(head[k]);
-    if (!(c >= 0x20 && c < 0x7f) && c != '\n' && c != '\r' && c != '\t') return false;
-  }
+  for (std::size_t k = 84; k < head.size(); ++k)
+    if (!isTextByte(head[k])) return false;
   return true;
 }
 
-/// Whether some line of `head` is an OBJ vertex or face statement. An OBJ may open with any
-/// statement (an unknown one is kept and written back), so its first line need not say OBJ.
+/// Whether `head` holds a well-formed OBJ vertex ("v" and three or more numbers) or face ("f"
+/// and three or more indices) on a whole line before its first byte that is not text. An OBJ
+/// may open with any statement (an unknown one is kept and written back), so its first line
+/// need not say OBJ; a binary STL's triangle records are floats, whose bytes can spell "\nv "
+/// but not a whole such line in text before any other byte.
 bool hasObjStatement(std::string_view head) {
-  Lexer lex(head, 0);
+  std::size_t text = 0;
+  while (text < head.size() && isTextByte(head[text])) ++text;
+  const std::size_t last_line_end = head.substr(0, text).rfind('\n');
+  if (last_line_end == std::string_view::npos) return false;
+  Lexer lex(head.substr(0, last_line_end + 1), 0);
   while (lex.nextLine()) {
     const std::string_view w = lex.token();
-    if (w == "v" || w == "f" || w == "vn" || w == "vt") return true;
+    if (w != "v" && w != "f") continue;
+    std::size_t values = 0;
+    bool ok = true;
+    for (std::string_view t = lex.token(); ok && !t.empty(); t = lex.token(), ++values) {
+      if (w == "v") {
+        double d = 0;
+        ok = parseFloating(t, &d);
+      } else {  // an index, maybe negative, maybe with /vt/vn
+        const std::size_t digit = t[0] == '-' ? 1 : 0;
+        ok = t.size() > digit && t[digit] >= '0' && t[digit] <= '9';
+      }
+    }
+    if (ok && values >= 3) return true;
   }
   return false;
 }
