@@ -40,10 +40,6 @@ struct QualityReference {
 };
 const QualityReference kQualityReference[] = {{"armadillo", 0.01490}, {"quadruped", 0.01466}};
 
-/// One quality case: hgdeform (default options) and CGAL's ARAP run to convergence on the same
-/// mesh, handles and rigid move (the handle translated by `move`, exactly, in both). Local
-/// distortion (support/quality.h) of both, and the mean motion of `other` (a branch no handle
-/// is on) over the move's length.
 /// The opt-in mode closest to ARAP that the bench reports beside the default: 32 isovalues and
 /// E_Prop reweighted over 8 rounds (docs/method.md, "Shape quality").
 hgd::DeformOptions reweightedOptions() {
@@ -66,6 +62,10 @@ std::vector<Eigen::Vector3d> movedShape(const hgd::Geometry& g, const hgd::Handl
   return out;
 }
 
+/// One quality case: hgdeform (default options, and the opt-in reweighted mode) and CGAL's ARAP
+/// run to convergence on the same mesh, handles and rigid move (the handle translated by
+/// `move`, exactly, in all). Local distortion (support/quality.h) of each, and the mean motion
+/// of `other` (a branch no handle is on) over the move's length.
 nlohmann::json qualityCase(const std::string& name, const hgd::Shape& shape, const hgd::Handles& h,
                            const Eigen::Vector3d& move, const std::vector<int>& other) {
   const hgd::Geometry g = hgd::extractGeometry(shape);

@@ -135,7 +135,8 @@ int parseDeform(int argc, const char* const* argv, DeformArgs& a) {
       ->type_name("MODE");
   hgdcli::addCount(app, "--reweight", a.reweight,
                    "reweight E_Prop per cluster pair over N rounds (default 0, the paper's solve): bends\n"
-                   "at joints, closer to ARAP, each frame several times slower (docs/method.md)",
+                   "at joints, closer to ARAP, each frame several times slower; a sharp bend of a thin\n"
+                   "part can be pulled apart (the report says where; docs/method.md)",
                    0, 100);
   hgdcli::addCount(app, "--joint-clusters", a.joint_clusters,
                    "skeletal mode: isovalues inside each joint (default 3)", 1, 100);

@@ -87,7 +87,9 @@ std::vector<int> nearestAmong(const pcl::PointCloud<pcl::PointXYZ>& points, cons
   flann::Matrix<int> mi(hit.data(), queries.size(), 1);
   flann::SearchParams params(flann::FLANN_CHECKS_UNLIMITED, 0.0f, true);
   // Exact, and each query on its own: the same hits on any number of threads.
+#ifdef _OPENMP
   params.cores = static_cast<long long>(queries.size()) > kParallelMinCostly ? omp_get_max_threads() : 1;
+#endif
   index.knnSearch(mq, mi, md, 1, params);
   return hit;
 }

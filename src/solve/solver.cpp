@@ -429,18 +429,28 @@ void ClusterSolver::analyzePattern() {
 SolveStats ClusterSolver::solve(const GaussNewtonOptions& options) {
   if (options.reweight_rounds <= 0) return solveOnce(options);
   Stopwatch sw;
-  // Every solve from uniform weights: a result does not depend on the solves before it.
-  for (auto& p : pairs_) p.omega = 1;
-  constant_ready_ = false;
+  // Every solve from uniform weights, and back to them however it ends (a throw included): a
+  // result depends only on its start, and a later solve without rounds is the paper's.
+  struct Uniform {
+    ClusterSolver& s;
+    void operator()() const {
+      for (auto& p : s.pairs_) p.omega = 1;
+      s.constant_ready_ = false;
+    }
+    ~Uniform() { (*this)(); }
+  } uniform{*this};
+  uniform();
   SolveStats st = solveOnce(options);
   int iterations = st.iterations;
   for (int r = 0; r < options.reweight_rounds && reweightPairs(); ++r) {
     constant_ready_ = false;  // E_Prop's part of the normal equations changed
-    st = solveOnce(options);
-    iterations += st.iterations;
+    const SolveStats round = solveOnce(options);
+    iterations += round.iterations;
+    if (!round.decreased) break;  // no step lowers this round's energy: the last result stays
   }
-  for (auto& p : pairs_) p.omega = 1;
-  constant_ready_ = false;
+  uniform();
+  // Whether the handle could be followed is the paper's solve's to say; the rounds only move
+  // the bending between pairs.
   st.iterations = iterations;
   st.energy = evaluate(x_);  // the paper's energy of the result
   st.ms = sw.ms();
@@ -466,8 +476,11 @@ bool ClusterSolver::reweightPairs() {
     mean += mismatch[k] * p.count;
     count += p.count;
   }
-  if (!(count > 0) || !(mean > 1e-300) || !std::isfinite(mean)) return false;  // nothing bends
+  if (!(count > 0) || !std::isfinite(mean)) return false;
   mean /= count;
+  // Nothing bends: a mismatch of 10^-7 of the diagonal (squared, in the normalised frame) is
+  // rounding, and weights from rounding would only stir it.
+  if (!(mean > 1e-14)) return false;
   // Inverse square roots (a least-squares step towards the sum of the mismatches' roots, which
   // gathers the bending), the mismatch floored so that a pair in perfect agreement weighs at
   // most 100 times the mean; then normalised to a count-weighted mean of 1.

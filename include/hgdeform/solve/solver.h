@@ -61,7 +61,10 @@ struct GaussNewtonOptions {
   /// of its mean squared mismatch (normalised to a mean of 1 over the pairs that move; a floor
   /// at 10^-4 of the mean) and solve again. The bending gathers at a few pairs, as ARAP's does
   /// at joints: closer to ARAP (docs/method.md, "Shape quality"), at several times a frame's
-  /// cost, and less stable under resampling. Each solve starts from uniform weights.
+  /// cost, less stable under resampling, and a sharp bend of a thin part can be pulled apart
+  /// (the report says where). Each solve starts from uniform weights; the rounds stop when the
+  /// mismatch is rounding or a round cannot lower its energy; the stats' energy is the paper's
+  /// and whether it decreased is the first solve's.
   int reweight_rounds = 0;
 };
 
