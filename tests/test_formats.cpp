@@ -544,10 +544,11 @@ TEST(Sniff, TextWhoseSizeFitsABinaryStlStaysText) {
   EXPECT_EQ(s.format, hgd::FileFormat::Obj);
   EXPECT_EQ(s.size(), 1u);
   EXPECT_TRUE(s.warnings.empty());
-  // Written back (the comment kept as it was) and read again: the same one point.
+  // Written back (the comment kept as it was, and one more line end so that the file no longer
+  // has a binary STL's size) and read again: the same one point.
   const std::string q = dir.file("again.obj");
   hgd::writeShape(q, s);
-  EXPECT_EQ(hgdtest::slurp(q), hgdtest::slurp(p));
+  EXPECT_EQ(hgdtest::slurp(q), hgdtest::slurp(p) + "\n");
   EXPECT_EQ(hgd::readShape(q).size(), 1u);
 
   // A first line that names no format ('s', a smoothing group): the bytes after the would-be
@@ -566,8 +567,22 @@ TEST(Sniff, TextWhoseSizeFitsABinaryStlStaysText) {
   EXPECT_EQ(s.format, hgd::FileFormat::Obj);
   EXPECT_EQ(s.size(), 1u);
   hgd::writeShape(q, s);
-  EXPECT_EQ(hgdtest::slurp(q), hgdtest::slurp(p));
+  EXPECT_EQ(hgdtest::slurp(q), hgdtest::slurp(p) + "\n");
   EXPECT_EQ(hgd::readShape(q).size(), 1u);
+
+  // And a third time: non-text bytes before the vertex line, in a file read as OBJ by its name
+  // (its size is no STL's), which the writer's dropping of a leading blank brought to an STL's
+  // size: the writer adds a line end to any OBJ of that size, so what it writes reads back.
+  std::string odd = objOfStlSize("s 1\ng\xe0\x92 x\nv 1 2 3\n", 1, '\x01');
+  odd.insert(4, " ");  // " g...": one byte more here, and the count at bytes 81-84
+  hgdtest::writeText(p, odd);
+  s = hgd::readShape(p);
+  EXPECT_EQ(s.format, hgd::FileFormat::Obj);
+  ASSERT_EQ(s.size(), 1u);
+  hgd::writeShape(q, s);
+  const hgd::Shape back = hgd::readShape(q);
+  EXPECT_EQ(back.format, hgd::FileFormat::Obj);
+  EXPECT_EQ(back.size(), 1u);
 
   // A real binary STL named .obj is still an STL (its records are not text), with the warning.
   std::mt19937 rng(5);

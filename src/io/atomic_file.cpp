@@ -171,6 +171,18 @@ AtomicWriter::~AtomicWriter() {
 
 void AtomicWriter::write(const void* p, std::size_t n) {
   if (n && std::fwrite(p, 1, n, file_) != n) failWrite(errno);
+  const auto* bytes = static_cast<const unsigned char*>(p);
+  for (std::uint64_t k = std::max<std::uint64_t>(written_, 80); k < 84 && k < written_ + n; ++k)
+    count_bytes_[k - 80] = bytes[k - written_];
+  written_ += n;
+}
+
+bool AtomicWriter::hasBinaryStlSize() const {
+  if (written_ < 84) return false;
+  std::uint32_t n = 0;
+  std::memcpy(&n, count_bytes_, 4);
+  if (kHostBigEndian) n = __builtin_bswap32(n);
+  return 84 + 50 * std::uint64_t{n} == written_;
 }
 
 void AtomicWriter::commit() {

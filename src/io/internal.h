@@ -300,11 +300,16 @@ class AtomicWriter {
   void write(const void* p, std::size_t n);
   void write(std::string_view s) { write(s.data(), s.size()); }
   void commit();
+  /// Whether what was written so far has a binary STL's size (84 + 50 n bytes, n in bytes
+  /// 80-83), which makes a reader that knows formats by their content take it for one.
+  bool hasBinaryStlSize() const;
 
  private:
   [[noreturn]] void failWrite(int e);
-  std::string target_;     ///< as given (for messages)
-  std::string rename_to_;  ///< the file the temporary one replaces (a link's target)
+  std::uint64_t written_ = 0;
+  unsigned char count_bytes_[4] = {0, 0, 0, 0};  ///< bytes 80-83 of the output
+  std::string target_;                           ///< as given (for messages)
+  std::string rename_to_;                        ///< the file the temporary one replaces (a link's target)
   std::string tmp_;
   std::FILE* file_ = nullptr;
   int slot_ = -1;

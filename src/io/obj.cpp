@@ -163,6 +163,14 @@ std::vector<FileExtras::TextColumn> xyzDecimals(const Shape& shape, const XyzFie
   return decimalsOf(shape.extras, {&f[xyz.x], &f[xyz.y], &f[xyz.z]});
 }
 
+/// An OBJ is text, but a reader that knows formats by their content takes any file of a binary
+/// STL's size for one (84 + 50 n bytes with n in bytes 80-83; hgdeform's own does, unless the
+/// text says OBJ before its first byte that is not text, and a kept statement can hold any
+/// bytes). One more line end, which every OBJ reader skips, makes the size another.
+void padPastBinaryStlSize(AtomicWriter& w) {
+  if (w.hasBinaryStlSize()) w.write("\n");
+}
+
 /// An OBJ written line by line as it was read: 'v' lines with the cloud's x/y/z (the rest of
 /// the line, colours or a weight, as it was), 'vn' lines with the turned normals, every other
 /// line (vt, g, o, usemtl, mtllib, s, l, comments, faces with their v/vt/vn corners) unchanged.
@@ -203,6 +211,7 @@ bool writeObjLines(const std::string& path, const Shape& shape, const XyzFields&
     flushIfFull(w, buf);
   }
   w.write(buf);
+  padPastBinaryStlSize(w);
   w.commit();
   return true;
 }
@@ -249,6 +258,7 @@ void writeObj(const std::string& path, const Shape& shape) {
     flushIfFull(w, buf);
   }
   w.write(buf);
+  padPastBinaryStlSize(w);
   w.commit();
 }
 
