@@ -178,11 +178,7 @@ void AtomicWriter::write(const void* p, std::size_t n) {
 }
 
 bool AtomicWriter::hasBinaryStlSize() const {
-  if (written_ < 84) return false;
-  std::uint32_t n = 0;
-  std::memcpy(&n, count_bytes_, 4);
-  if (kHostBigEndian) n = __builtin_bswap32(n);
-  return 84 + 50 * std::uint64_t{n} == written_;
+  return written_ >= 84 && binaryStlSizeFits(count_bytes_, written_);
 }
 
 void AtomicWriter::commit() {

@@ -290,6 +290,10 @@ struct TextFile {
 /// /dev/stderr, /dev/fd/N, /proc/self/fd/N: descriptorPath) is written to that descriptor,
 /// whatever it is open on. Destroyed without commit(), it removes
 /// the temporary file: a failed write leaves no output. (atomic_file.cpp)
+/// Whether `size` bytes make a binary STL whose bytes 80-83 (`count`, little-endian) are its
+/// triangle count: an 80-byte header, the count, 50 bytes per triangle, nothing else.
+bool binaryStlSizeFits(const unsigned char* count, std::uint64_t size);
+
 class AtomicWriter {
  public:
   explicit AtomicWriter(const std::string& target);

@@ -54,10 +54,7 @@ std::size_t numericColumns(std::string_view line) {
 /// (an 80-byte header, the count, 50 bytes per triangle, nothing else).
 bool sizeOfBinaryStl(std::string_view head, std::uint64_t size) {
   if (size < 84 || head.size() < 84) return false;
-  std::uint32_t n = 0;
-  std::memcpy(&n, head.data() + 80, 4);
-  if (kHostBigEndian) n = __builtin_bswap32(n);
-  return 84 + 50 * std::uint64_t{n} == size;
+  return binaryStlSizeFits(reinterpret_cast<const unsigned char*>(head.data()) + 80, size);
 }
 
 /// Whether a byte is text as a text format has it (printable ASCII or a blank).
@@ -144,6 +141,13 @@ std::optional<FileFormat> sniff(std::string_view head, std::uint64_t size, bool 
 }
 
 }  // namespace
+
+bool io_internal::binaryStlSizeFits(const unsigned char* count, std::uint64_t size) {
+  std::uint32_t n = 0;
+  std::memcpy(&n, count, 4);
+  if (kHostBigEndian) n = __builtin_bswap32(n);
+  return 84 + 50 * std::uint64_t{n} == size;
+}
 
 FileFormat formatFromPath(const std::string& path) {
   const std::string ext = lower(fs::path(path).extension().string());

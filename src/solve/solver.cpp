@@ -193,6 +193,13 @@ Eigen::Vector3d ClusterSolver::translationOf(const Eigen::VectorXd& x, int clust
   return v >= 0 ? Eigen::Vector3d(x.segment<3>(v + 9)) : transforms_[static_cast<std::size_t>(cluster)].t;
 }
 
+double ClusterSolver::propOf(const Pair& p, const Mat34& ui, const Mat34& uj) const {
+  const Eigen::Vector3d d = clusters_[static_cast<std::size_t>(p.i)].barycentre -
+                            clusters_[static_cast<std::size_t>(p.j)].barycentre;
+  return (ui * p.sii * ui.transpose()).trace() - 2 * (ui * p.sij * uj.transpose()).trace() +
+         (uj * p.sjj * uj.transpose()).trace() + 2 * d.dot(ui * p.mi - uj * p.mj) + p.count * d.squaredNorm();
+}
+
 Energies ClusterSolver::evaluate(const Eigen::VectorXd& x) const {
   auto uOf = [&](int c) -> Mat34 {
     const int v = var_[static_cast<std::size_t>(c)];
@@ -209,13 +216,9 @@ Energies ClusterSolver::evaluate(const Eigen::VectorXd& x) const {
   }
   for (const auto& p : pairs_) {
     if (!moves(p.i) && !moves(p.j)) continue;
-    const Mat34 ui = uOf(p.i), uj = uOf(p.j);
+    e.prop += w_.prop * p.omega * std::max(propOf(p, uOf(p.i), uOf(p.j)), 0.0);
     const Eigen::Vector3d d = clusters_[static_cast<std::size_t>(p.i)].barycentre -
                               clusters_[static_cast<std::size_t>(p.j)].barycentre;
-    const double prop = (ui * p.sii * ui.transpose()).trace() - 2 * (ui * p.sij * uj.transpose()).trace() +
-                        (uj * p.sjj * uj.transpose()).trace() + 2 * d.dot(ui * p.mi - uj * p.mj) +
-                        p.count * d.squaredNorm();
-    e.prop += w_.prop * p.omega * std::max(prop, 0.0);
     const Eigen::Vector3d gap = d + translationOf(x, p.i) - translationOf(x, p.j);
     const double r = gap.norm() - p.rest_length;
     e.length += w_.length * r * r;
@@ -458,20 +461,16 @@ SolveStats ClusterSolver::solve(const GaussNewtonOptions& options) {
 }
 
 bool ClusterSolver::reweightPairs() {
-  // Each pair's mean squared mismatch (E_Prop over its points, over their count).
+  // Each pair's mean squared mismatch (E_Prop over its points, over their count), for the
+  // pairs whose weight matters: a constant term's changes nothing.
+  const auto weighed = [&](const Pair& p) { return (moves(p.i) || moves(p.j)) && p.count > 0; };
   std::vector<double> mismatch(pairs_.size(), 0.0);
   double mean = 0, count = 0;
   for (std::size_t k = 0; k < pairs_.size(); ++k) {
     const Pair& p = pairs_[k];
-    if (!moves(p.i) && !moves(p.j)) continue;  // a constant term: its weight changes nothing
-    const Mat34 ui = toU(transforms_[static_cast<std::size_t>(p.i)]);
-    const Mat34 uj = toU(transforms_[static_cast<std::size_t>(p.j)]);
-    const Eigen::Vector3d d = clusters_[static_cast<std::size_t>(p.i)].barycentre -
-                              clusters_[static_cast<std::size_t>(p.j)].barycentre;
-    const double prop = (ui * p.sii * ui.transpose()).trace() - 2 * (ui * p.sij * uj.transpose()).trace() +
-                        (uj * p.sjj * uj.transpose()).trace() + 2 * d.dot(ui * p.mi - uj * p.mj) +
-                        p.count * d.squaredNorm();
-    if (!(p.count > 0)) continue;
+    if (!weighed(p)) continue;
+    const double prop = propOf(p, toU(transforms_[static_cast<std::size_t>(p.i)]),
+                               toU(transforms_[static_cast<std::size_t>(p.j)]));
     mismatch[k] = std::max(prop, 0.0) / p.count;
     mean += mismatch[k] * p.count;
     count += p.count;
@@ -487,12 +486,12 @@ bool ClusterSolver::reweightPairs() {
   double sum = 0;
   for (std::size_t k = 0; k < pairs_.size(); ++k) {
     Pair& p = pairs_[k];
-    if ((!moves(p.i) && !moves(p.j)) || !(p.count > 0)) continue;
+    if (!weighed(p)) continue;
     p.omega = 1 / std::sqrt(std::max(mismatch[k], 1e-4 * mean));
     sum += p.omega * p.count;
   }
   for (auto& p : pairs_)
-    if ((moves(p.i) || moves(p.j)) && p.count > 0) p.omega *= count / sum;
+    if (weighed(p)) p.omega *= count / sum;
   return true;
 }
 

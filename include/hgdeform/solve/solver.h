@@ -131,6 +131,9 @@ class ClusterSolver {
     double omega = 1;  ///< E_Prop's reweighting (GaussNewtonOptions::reweight_rounds), else 1
   };
   SolveStats solveOnce(const GaussNewtonOptions& options);
+  /// A pair's E_Prop (unweighted; its points' squared mismatch) under the transforms ui, uj.
+  double propOf(const Pair& p, const Eigen::Matrix<double, 3, 4>& ui,
+                const Eigen::Matrix<double, 3, 4>& uj) const;
   /// Sets each pair's omega from its current mismatch; false when nothing bends.
   bool reweightPairs();
   std::vector<SolverCluster> clusters_;
