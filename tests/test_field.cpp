@@ -9,6 +9,7 @@
 #include <string>
 
 #include "../src/graph/grid_knn.h"  // the grid search itself: which clouds it keeps
+#include "../src/graph/nearest.h"   // strays hang from the nearest coarse point
 #include "hgdeform/field/harmonic_field.h"
 #include "hgdeform/graph/knn.h"
 #include "hgdeform/graph/neighbor_graph.h"
@@ -413,6 +414,49 @@ TEST(Knn, CrowdedPiecesStayOnTheGrid) {
     }
     EXPECT_GT(checked, 1000u);
     EXPECT_EQ(wrong, 0u);
+  }
+}
+
+// Few queries are answered against every target, many through a k-d tree: both must give the
+// nearest target, checked in double against every target, on a noisy sphere in random order
+// with far queries, duplicated targets (ties) and query counts on both sides of the switch.
+TEST(Knn, NearestAmongIsTheNearestTargetWhateverTheQueryCount) {
+  std::mt19937 rng(31);
+  std::normal_distribution<float> gauss(0.0f, 1.0f);
+  pcl::PointCloud<pcl::PointXYZ> pts;
+  for (int i = 0; i < 30000; ++i) {
+    Eigen::Vector3f v(gauss(rng), gauss(rng), gauss(rng));
+    v = v.normalized() * (1.0f + 0.01f * gauss(rng));
+    if (i % 97 == 0) v *= 40.0f;  // far strays
+    pts.push_back(pcl::PointXYZ(v.x(), v.y(), v.z()));
+  }
+  std::vector<int> all(pts.size());
+  std::iota(all.begin(), all.end(), 0);
+  std::shuffle(all.begin(), all.end(), rng);
+  std::vector<int> targets(all.begin(), all.begin() + 20000);
+  for (int d = 0; d < 50; ++d) targets.push_back(targets[static_cast<std::size_t>(d) * 7]);  // ties
+  for (const std::size_t count :
+       {std::size_t{1}, std::size_t{63}, std::size_t{64}, std::size_t{65}, std::size_t{3000}}) {
+    std::vector<int> queries(all.begin() + 20000, all.begin() + 20000 + static_cast<long>(count));
+    queries.push_back(targets[5]);  // a query on a target: distance 0
+    const std::vector<int> hit = hgd::nearestAmong(pts, targets, queries);
+    ASSERT_EQ(hit.size(), queries.size());
+    for (std::size_t m = 0; m < queries.size(); ++m) {
+      const Eigen::Vector3d q = pts[static_cast<std::size_t>(queries[m])].getVector3fMap().cast<double>();
+      double best = INFINITY;
+      for (const int t : targets)
+        best = std::min(best,
+                        (pts[static_cast<std::size_t>(t)].getVector3fMap().cast<double>() - q).squaredNorm());
+      ASSERT_GE(hit[m], 0) << count << " queries, query " << m;
+      ASSERT_LT(static_cast<std::size_t>(hit[m]), targets.size());
+      const double got = (pts[static_cast<std::size_t>(targets[static_cast<std::size_t>(hit[m])])]
+                              .getVector3fMap()
+                              .cast<double>() -
+                          q)
+                             .squaredNorm();
+      // Float distances: equal to the double minimum within float rounding of the squared distance.
+      EXPECT_LE(got, best * (1 + 1e-5) + 1e-12) << count << " queries, query " << m;
+    }
   }
 }
 
