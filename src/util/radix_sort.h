@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include "util/parallel.h"
@@ -20,8 +21,14 @@ void radixSort(std::vector<Key>& keys, std::vector<std::uint32_t>& payload, Key 
   const std::size_t buckets = std::size_t{1} << digit_bits;
   const Key mask = static_cast<Key>(buckets - 1);
   const int blocks = blockCount(static_cast<long long>(n));
-  std::vector<Key> tmp_keys(n);
-  std::vector<std::uint32_t> tmp_payload(n);
+  // The second buffers are left uninitialised (a serial pass zeroing them cost more than a pass
+  // of the sort at 4M points): the first scatter writes them, on every thread.
+  std::unique_ptr<Key[]> tmp_keys(new Key[n]);
+  std::unique_ptr<std::uint32_t[]> tmp_payload(new std::uint32_t[n]);
+  Key* from_keys = keys.data();
+  std::uint32_t* from_payload = payload.data();
+  Key* to_keys = tmp_keys.get();
+  std::uint32_t* to_payload = tmp_payload.get();
   std::vector<std::size_t> count(buckets * static_cast<std::size_t>(blocks));
   for (int shift = 0; shift < static_cast<int>(8 * sizeof(Key)) && (max_key >> shift) != 0;
        shift += digit_bits) {
@@ -29,7 +36,7 @@ void radixSort(std::vector<Key>& keys, std::vector<std::uint32_t>& payload, Key 
       std::size_t* c = count.data() + static_cast<std::size_t>(b) * buckets;
       std::fill(c, c + buckets, std::size_t{0});
       for (int i = begin; i < end; ++i)
-        ++c[static_cast<std::size_t>((keys[static_cast<std::size_t>(i)] >> shift) & mask)];
+        ++c[static_cast<std::size_t>((from_keys[static_cast<std::size_t>(i)] >> shift) & mask)];
     });
     // Where each (digit, block) starts: digits in order, and within a digit the blocks in order.
     std::size_t sum = 0;
@@ -50,13 +57,19 @@ void radixSort(std::vector<Key>& keys, std::vector<std::uint32_t>& payload, Key 
       std::size_t* c = count.data() + static_cast<std::size_t>(b) * buckets;
       for (int i = begin; i < end; ++i) {
         const auto k = static_cast<std::size_t>(i);
-        const std::size_t dst = c[static_cast<std::size_t>((keys[k] >> shift) & mask)]++;
-        tmp_keys[dst] = keys[k];
-        tmp_payload[dst] = payload[k];
+        const std::size_t dst = c[static_cast<std::size_t>((from_keys[k] >> shift) & mask)]++;
+        to_keys[dst] = from_keys[k];
+        to_payload[dst] = from_payload[k];
       }
     });
-    keys.swap(tmp_keys);
-    payload.swap(tmp_payload);
+    std::swap(from_keys, to_keys);
+    std::swap(from_payload, to_payload);
+  }
+  if (from_keys != keys.data()) {  // an odd number of passes: the result is in the buffers
+    forBlocks(static_cast<long long>(n), blocks, [&](int begin, int end, int) {
+      std::copy(from_keys + begin, from_keys + end, keys.data() + begin);
+      std::copy(from_payload + begin, from_payload + end, payload.data() + begin);
+    });
   }
 }
 
