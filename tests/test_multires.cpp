@@ -230,6 +230,61 @@ TEST(Multires, UnreachedPiecesCountEveryPointAndStay) {
   EXPECT_LT(handle_error, 1e-5);
 }
 
+// The report's surface figures on a multi-resolution build are measured on the coarse graph's
+// pairs, between the points that stand for their cells (the full resolution has no graph). A bar
+// turned a quarter with E_Prop reweighted to the end pulls points apart at its bend; the pairs,
+// the largest stretch and the split points must be those counted here over the same pairs.
+TEST(Multires, SurfaceStretchIsMeasuredOnTheCoarseGraphsPairs) {
+  const hgd::Geometry g = hgd::extractGeometry(hgd::shapes::bar(1.0f, 0.1f, 0.004f));
+  const hgd::Handles h = hgdtest::endHandles(g, 0.05, 0.95);
+  DeformOptions o = coarse(3000);
+  o.gauss_newton.reweight_rounds = 100;
+  Deformer d(g, h, o);
+  ASSERT_FALSE(d.coarseLevel().empty());
+  Eigen::Affine3d t = Eigen::Affine3d::Identity();
+  t.translate(Eigen::Vector3d(1.0, 0.0, 0.3));
+  t.rotate(Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitY()));
+  t.translate(Eigen::Vector3d(-1.0, 0.0, 0.0));
+  d.setHandleTransform(t);
+  const hgd::SurfaceStretch s = d.surfaceStretch();
+
+  const auto& rest = *g.points;
+  const auto& moved_to = d.deformedPoints();
+  double moved = 0;
+  for (std::size_t i = 0; i < rest.size(); ++i)
+    moved = std::max(moved, static_cast<double>((moved_to[i] - rest[i].getVector3fMap()).norm()));
+  const hgd::NeighborGraph& graph = d.surfaceGraph().graph();
+  const std::vector<int>& at = d.coarseLevel().points;
+  const std::vector<char>& stray = d.surfaceGraph().outliers();
+  ASSERT_EQ(graph.size(), at.size());
+  std::size_t pairs = 0, split = 0;
+  double worst = 1;
+  for (std::size_t a = 0; a < graph.size(); ++a) {
+    if (!stray.empty() && stray[a]) continue;
+    const auto i = static_cast<std::size_t>(at[a]);
+    bool apart = false;
+    for (const int* b = graph.begin(a); b != graph.end(a); ++b) {
+      if (!stray.empty() && stray[static_cast<std::size_t>(*b)]) continue;
+      const auto j = static_cast<std::size_t>(at[static_cast<std::size_t>(*b)]);
+      const double r0 = (rest[j].getVector3fMap() - rest[i].getVector3fMap()).cast<double>().norm();
+      const double r1 = (moved_to[j] - moved_to[i]).cast<double>().norm();
+      if (!(r0 > 0)) continue;
+      if (static_cast<std::size_t>(*b) > a) {
+        ++pairs;
+        worst = std::max(worst, r1 / r0);
+      }
+      apart = apart || (r1 > 3 * r0 && r1 - r0 > 0.02 * moved);
+    }
+    split += apart;
+  }
+  std::printf("coarse pairs %zu, largest stretch %.3f, split points %zu (report: %zu, %.3f, %zu)\n", pairs,
+              worst, split, s.pairs, s.max_stretch, s.split_points);
+  EXPECT_GT(split, 0u);  // the case pulls points apart
+  EXPECT_EQ(s.pairs, pairs);
+  EXPECT_EQ(s.split_points, split);
+  EXPECT_DOUBLE_EQ(s.max_stretch, worst);
+}
+
 // New handles on a multi-resolution build: the coarse level depends on the handles (their cells
 // are their own), so setHandles() must build it again, and the field's stage must not keep the
 // old level's graph. The result must be what a fresh build with those handles gives, to the bit.
