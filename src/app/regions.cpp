@@ -6,6 +6,7 @@
 #include <stdexcept>
 
 #include "hgdeform/io/fields.h"
+#include "util/parallel.h"
 
 namespace hgd {
 
@@ -65,6 +66,23 @@ std::vector<int> selectByField(const Region& region, const Geometry& geometry, c
   return out;
 }
 
+// The points (ascending) whose local position (in double) passes `test`, on every thread.
+template <typename Test>
+std::vector<int> pointsWhere(const Geometry& geometry, Test&& test) {
+  const long long n = static_cast<long long>(geometry.size());
+  const int blocks = blockCount(n);
+  std::vector<std::vector<int>> part(static_cast<std::size_t>(blocks));
+  forBlocks(n, blocks, [&](int begin, int end, int b) {
+    for (int i = begin; i < end; ++i)
+      if (test(Eigen::Vector3d(
+              (*geometry.points)[static_cast<std::size_t>(i)].getVector3fMap().cast<double>())))
+        part[static_cast<std::size_t>(b)].push_back(i);
+  });
+  std::vector<int> out;
+  for (const auto& p : part) out.insert(out.end(), p.begin(), p.end());
+  return out;
+}
+
 std::vector<int> select(const Region& region, const Geometry& geometry, const Shape* shape,
                         const std::string& scenario_name) {
   std::vector<int> out;
@@ -73,18 +91,14 @@ std::vector<int> select(const Region& region, const Geometry& geometry, const Sh
     case Region::Kind::Sphere: {
       const double r2 = region.radius * region.radius;
       const Eigen::Vector3d c = region.centre - geometry.origin;
-      for (std::size_t i = 0; i < geometry.size(); ++i)
-        if (((*geometry.points)[i].getVector3fMap().cast<double>() - c).squaredNorm() <= r2)
-          out.push_back(static_cast<int>(i));
+      out = pointsWhere(geometry, [&](const Eigen::Vector3d& p) { return (p - c).squaredNorm() <= r2; });
       break;
     }
     case Region::Kind::Box: {
       const Eigen::Vector3d lo = region.min - geometry.origin, hi = region.max - geometry.origin;
-      for (std::size_t i = 0; i < geometry.size(); ++i) {
-        const Eigen::Vector3d p = (*geometry.points)[i].getVector3fMap().cast<double>();
-        if ((p.array() >= lo.array()).all() && (p.array() <= hi.array()).all())
-          out.push_back(static_cast<int>(i));
-      }
+      out = pointsWhere(geometry, [&](const Eigen::Vector3d& p) {
+        return (p.array() >= lo.array()).all() && (p.array() <= hi.array()).all();
+      });
       break;
     }
     case Region::Kind::Indices: {
@@ -104,11 +118,11 @@ std::vector<int> select(const Region& region, const Geometry& geometry, const Sh
       // Within `radius` of the axis segment, the projection on the axis between its ends.
       const Eigen::Vector3d a = region.start - geometry.origin, d = region.end - region.start;
       const double len2 = d.squaredNorm(), r2 = region.radius * region.radius;
-      for (std::size_t i = 0; i < geometry.size(); ++i) {
-        const Eigen::Vector3d p = (*geometry.points)[i].getVector3fMap().cast<double>() - a;
+      out = pointsWhere(geometry, [&](const Eigen::Vector3d& x) {
+        const Eigen::Vector3d p = x - a;
         const double t = p.dot(d) / len2;
-        if (t >= 0 && t <= 1 && (p - t * d).squaredNorm() <= r2) out.push_back(static_cast<int>(i));
-      }
+        return t >= 0 && t <= 1 && (p - t * d).squaredNorm() <= r2;
+      });
       break;
     }
     case Region::Kind::Field: {

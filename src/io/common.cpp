@@ -7,10 +7,12 @@
 #include <algorithm>
 #include <cctype>
 #include <cerrno>
+#include <cstring>
 #include <limits>
 #include <unordered_map>
 
 #include "io/internal.h"
+#include "util/parallel.h"
 
 namespace hgd::io_internal {
 
@@ -262,13 +264,39 @@ bool computeDense(const pcl::PCLPointCloud2& cloud) {
   const XyzFields xyz = findXyzFields(cloud);
   if (!xyz.hasXyz()) return true;
   const std::size_t n = static_cast<std::size_t>(cloud.width) * cloud.height;
+  // One pass over the records, on every thread (three passes of a value decoder per field cost
+  // 45 ms of a 4M-point read).
+  std::vector<const Field*> fields;
   for (const int idx : {xyz.x, xyz.y, xyz.z}) {
-    const Field& f = cloud.fields[idx];
-    if (f.datatype != Field::FLOAT32 && f.datatype != Field::FLOAT64) continue;
-    for (std::size_t i = 0; i < n; ++i)
-      if (!std::isfinite(readValue(cloud, i, f))) return false;
+    const Field& f = cloud.fields[static_cast<std::size_t>(idx)];
+    if (f.datatype == Field::FLOAT32 || f.datatype == Field::FLOAT64) fields.push_back(&f);
   }
-  return true;
+  if (fields.empty() || n == 0) return true;
+  const std::uint8_t* data = cloud.data.data();
+  const std::size_t step = cloud.point_step;
+  const int blocks = blockCount(static_cast<long long>(n));
+  std::vector<char> finite(static_cast<std::size_t>(blocks), 1);
+  forBlocks(static_cast<long long>(n), blocks, [&](int begin, int end, int b) {
+    for (auto i = static_cast<std::size_t>(begin); i < static_cast<std::size_t>(end); ++i)
+      for (const Field* f : fields) {
+        const std::uint8_t* p = data + i * step + f->offset;
+        bool ok;
+        if (f->datatype == Field::FLOAT32) {
+          float v;
+          std::memcpy(&v, p, sizeof v);
+          ok = std::isfinite(v);
+        } else {
+          double v;
+          std::memcpy(&v, p, sizeof v);
+          ok = std::isfinite(v);
+        }
+        if (!ok) {
+          finite[static_cast<std::size_t>(b)] = 0;
+          return;
+        }
+      }
+  });
+  return std::find(finite.begin(), finite.end(), 0) == finite.end();
 }
 
 pcl::PCLPointCloud2 makeCloud(std::size_t n, const std::vector<std::pair<std::string, std::uint8_t>>& fields,
