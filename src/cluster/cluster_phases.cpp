@@ -12,6 +12,7 @@
 
 #include "hgdeform/cluster/clustering.h"
 #include "util/parallel.h"
+#include "util/phases.h"
 #include "util/timer.h"
 
 namespace hgd {
@@ -535,18 +536,24 @@ Clustering buildClusters(const pcl::PointCloud<pcl::PointXYZ>& points, const Nei
   p.c.bands = Clustering::makeBands(phi, handles.joints, options, &p.c.notes);
   p.nb = static_cast<int>(p.c.bands.size());
   p.top = p.nb - 1;
+  PhaseClock clock;
   p.placePoints();
+  clock.lap("cluster.place");
   p.handleClusters();
   p.startLabels();
   p.bones();
   p.seedFromBands();
+  clock.lap("cluster.seeds");
   p.isoclusters();
+  clock.lap("cluster.isoclusters");
   p.spreadIntoGaps();
   p.labelTheRest();
   p.piecesWithoutHandle();
+  clock.lap("cluster.labels");
   p.barycentres();
   p.blendFactors();
   p.adjacency();
+  clock.lap("cluster.blend");
   p.c.lower = std::move(p.lower);
   p.c.upper = std::move(p.upper);
   return std::move(p.c);
