@@ -460,6 +460,37 @@ TEST(Knn, NearestAmongIsTheNearestTargetWhateverTheQueryCount) {
   }
 }
 
+// Among targets at the same distance (a lattice's, duplicates) the k-d tree keeps the one its
+// descent meets first. The scan of a few queries must give the very same hits: a call of 10
+// queries (the scan's size) against the same 10 followed by 90 more (the tree's).
+TEST(Knn, NearestAmongKeepsTheTreesChoiceAmongEquals) {
+  pcl::PointCloud<pcl::PointXYZ> pts;
+  std::vector<int> targets, queries;
+  for (int x = 0; x < 32; ++x)
+    for (int y = 0; y < 4; ++y) {
+      targets.push_back(static_cast<int>(pts.size()));
+      pts.push_back(pcl::PointXYZ(static_cast<float>(x), static_cast<float>(y), 0.0f));
+    }
+  targets.push_back(targets[40]);  // a duplicate target
+  std::mt19937 rng(5);
+  std::uniform_int_distribution<int> cell(0, 30);
+  for (int k = 0; k < 100; ++k) {
+    // Half-way between lattice points along x, y or both: two or four targets tie.
+    const float x = static_cast<float>(cell(rng)) + 0.5f,
+                y = static_cast<float>(k % 3) + (k % 2 ? 0.5f : 0.0f);
+    queries.push_back(static_cast<int>(pts.size()));
+    pts.push_back(pcl::PointXYZ(x, y, 0.0f));
+  }
+  const std::vector<int> few(queries.begin(), queries.begin() + 10);
+  const std::vector<int> by_scan = hgd::nearestAmong(pts, targets, few);
+  const std::vector<int> by_tree = hgd::nearestAmong(pts, targets, queries);
+  for (std::size_t m = 0; m < few.size(); ++m) EXPECT_EQ(by_scan[m], by_tree[m]) << "query " << m;
+  // A duplicated target queried at its own position: the tree's choice of the two, too.
+  const std::vector<int> on_dup = hgd::nearestAmong(pts, targets, {targets[40]});
+  std::vector<int> many(70, targets[40]);
+  EXPECT_EQ(on_dup[0], hgd::nearestAmong(pts, targets, many)[0]);
+}
+
 TEST(Knn, GraphIsTheSymmetricFilteredRelation) {
   const hgd::Geometry inner = hgd::extractGeometry(hgd::shapes::bumpySphere(15000, 0.0f));
   std::vector<Eigen::Vector3f> p, nv;

@@ -86,22 +86,31 @@ std::vector<int> nearestAmong(const pcl::PointCloud<pcl::PointXYZ>& points, cons
       q[m * 3 + static_cast<std::size_t>(a)] = points[static_cast<std::size_t>(queries[m])].data[a];
   // A few queries (a scan's stray or two) are cheaper against every target than a k-d tree's
   // build over them (16 ms for 68,000 targets, on one thread, for a single stray at 4M points).
+  // The scan answers only when each query's nearest is clearly nearer than every other target:
+  // of targets at (nearly) the same distance the tree keeps the one its descent meets first,
+  // which a scan cannot tell, so such a call is the tree's, as before.
   if (queries.size() <= kBruteForceQueries) {
     const long long nq = static_cast<long long>(queries.size());
+    std::vector<char> clear(queries.size(), 0);
 #pragma omp parallel for schedule(static) if (nq * static_cast <long long>(targets.size()) > (1 << 20))
     for (long long m = 0; m < nq; ++m) {
       const float* p = &q[static_cast<std::size_t>(m) * 3];
-      float best = std::numeric_limits<float>::infinity();
+      float best = std::numeric_limits<float>::infinity(), second = best;
       for (std::size_t t = 0; t < targets.size(); ++t) {
         const float dx = xyz[t * 3] - p[0], dy = xyz[t * 3 + 1] - p[1], dz = xyz[t * 3 + 2] - p[2];
         const float d = dx * dx + dy * dy + dz * dz;
-        if (d < best) {  // the first of equals, on any number of threads
+        if (d < best) {
+          second = best;
           best = d;
           hit[static_cast<std::size_t>(m)] = static_cast<int>(t);
+        } else if (d < second) {
+          second = d;
         }
       }
+      clear[static_cast<std::size_t>(m)] = second > best * (1 + 1e-4f) + std::numeric_limits<float>::min();
     }
-    return hit;
+    if (std::find(clear.begin(), clear.end(), 0) == clear.end()) return hit;
+    std::fill(hit.begin(), hit.end(), -1);
   }
   const flann::Matrix<float> data(xyz.data(), targets.size(), 3);
   flann::Index<flann::L2_Simple<float>> index(data, flann::KDTreeSingleIndexParams(15));
