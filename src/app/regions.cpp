@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cstdint>
 #include <cstring>
+#include <exception>
 #include <stdexcept>
 
 #include "hgdeform/io/fields.h"
@@ -66,18 +67,24 @@ std::vector<int> selectByField(const Region& region, const Geometry& geometry, c
   return out;
 }
 
-// The points (ascending) whose local position (in double) passes `test`, on every thread.
+// The points (ascending) for which test(i) holds, on every thread (a block's failure, as running
+// out of memory, is rethrown here, not lost in a worker).
 template <typename Test>
 std::vector<int> pointsWhere(const Geometry& geometry, Test&& test) {
   const long long n = static_cast<long long>(geometry.size());
   const int blocks = blockCount(n);
   std::vector<std::vector<int>> part(static_cast<std::size_t>(blocks));
+  std::vector<std::exception_ptr> failed(static_cast<std::size_t>(blocks));
   forBlocks(n, blocks, [&](int begin, int end, int b) {
-    for (int i = begin; i < end; ++i)
-      if (test(Eigen::Vector3d(
-              (*geometry.points)[static_cast<std::size_t>(i)].getVector3fMap().cast<double>())))
-        part[static_cast<std::size_t>(b)].push_back(i);
+    try {
+      for (int i = begin; i < end; ++i)
+        if (test(static_cast<std::size_t>(i))) part[static_cast<std::size_t>(b)].push_back(i);
+    } catch (...) {
+      failed[static_cast<std::size_t>(b)] = std::current_exception();
+    }
   });
+  for (const auto& e : failed)
+    if (e) std::rethrow_exception(e);
   std::vector<int> out;
   for (const auto& p : part) out.insert(out.end(), p.begin(), p.end());
   return out;
@@ -91,12 +98,15 @@ std::vector<int> select(const Region& region, const Geometry& geometry, const Sh
     case Region::Kind::Sphere: {
       const double r2 = region.radius * region.radius;
       const Eigen::Vector3d c = region.centre - geometry.origin;
-      out = pointsWhere(geometry, [&](const Eigen::Vector3d& p) { return (p - c).squaredNorm() <= r2; });
+      out = pointsWhere(geometry, [&](std::size_t i) {
+        return ((*geometry.points)[i].getVector3fMap().cast<double>() - c).squaredNorm() <= r2;
+      });
       break;
     }
     case Region::Kind::Box: {
       const Eigen::Vector3d lo = region.min - geometry.origin, hi = region.max - geometry.origin;
-      out = pointsWhere(geometry, [&](const Eigen::Vector3d& p) {
+      out = pointsWhere(geometry, [&](std::size_t i) {
+        const Eigen::Vector3d p = (*geometry.points)[i].getVector3fMap().cast<double>();
         return (p.array() >= lo.array()).all() && (p.array() <= hi.array()).all();
       });
       break;
@@ -118,8 +128,8 @@ std::vector<int> select(const Region& region, const Geometry& geometry, const Sh
       // Within `radius` of the axis segment, the projection on the axis between its ends.
       const Eigen::Vector3d a = region.start - geometry.origin, d = region.end - region.start;
       const double len2 = d.squaredNorm(), r2 = region.radius * region.radius;
-      out = pointsWhere(geometry, [&](const Eigen::Vector3d& x) {
-        const Eigen::Vector3d p = x - a;
+      out = pointsWhere(geometry, [&](std::size_t i) {
+        const Eigen::Vector3d p = (*geometry.points)[i].getVector3fMap().cast<double>() - a;
         const double t = p.dot(d) / len2;
         return t >= 0 && t <= 1 && (p - t * d).squaredNorm() <= r2;
       });

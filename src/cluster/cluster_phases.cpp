@@ -526,6 +526,7 @@ Clustering buildClusters(const pcl::PointCloud<pcl::PointXYZ>& points, const Nei
                          const std::vector<int>& unreachable, const std::vector<int>& sample,
                          const ClusterOptions& options, const std::vector<int>& follow,
                          const std::vector<char>& outliers) {
+  PhaseClock clock;
   const std::size_t n = points.size();
   const std::vector<char> no_outliers(outliers.size() == n ? 0 : n, 0);
   ClusterPhases p(points, graph, phi, handles, unreachable, sample, options, follow,
@@ -536,7 +537,6 @@ Clustering buildClusters(const pcl::PointCloud<pcl::PointXYZ>& points, const Nei
   p.c.bands = Clustering::makeBands(phi, handles.joints, options, &p.c.notes);
   p.nb = static_cast<int>(p.c.bands.size());
   p.top = p.nb - 1;
-  PhaseClock clock;
   p.placePoints();
   clock.lap("cluster.place");
   p.handleClusters();

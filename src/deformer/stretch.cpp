@@ -74,6 +74,8 @@ std::string stretchWarning(const SurfaceStretch& s) {
 SurfaceStretch measureSurfaceStretch(const Geometry& geometry, const std::vector<Eigen::Vector3f>& deformed,
                                      const SurfaceGraph& graph, const CoarseLevel& coarse, double min_move) {
   const auto& rest = *geometry.points;
+  if (deformed.size() != rest.size())
+    throw std::invalid_argument("measureSurfaceStretch: rest and deformed differ in size");
   // The scale of "grew by more than 2% of the move": the largest displacement of any point
   // (the handle's own can be near zero when it turns about its centre while the limb beyond it
   // swings).

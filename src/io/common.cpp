@@ -276,8 +276,12 @@ bool computeDense(const pcl::PCLPointCloud2& cloud) {
   const std::size_t step = cloud.point_step;
   const int blocks = blockCount(static_cast<long long>(n));
   std::vector<char> finite(static_cast<std::size_t>(blocks), 1);
-  forBlocks(static_cast<long long>(n), blocks, [&](int begin, int end, int b) {
-    for (auto i = static_cast<std::size_t>(begin); i < static_cast<std::size_t>(end); ++i)
+  // (Block bounds in 64 bits: a PLY may hold up to 2^32 - 1 vertices.)
+#pragma omp parallel for schedule(static, 1) num_threads(blocks) if (blocks > 1)
+  for (int b = 0; b < blocks; ++b) {
+    const auto begin = static_cast<std::size_t>(blockStart(static_cast<long long>(n), blocks, b));
+    const auto end = static_cast<std::size_t>(blockStart(static_cast<long long>(n), blocks, b + 1));
+    for (std::size_t i = begin; i < end && finite[static_cast<std::size_t>(b)]; ++i)
       for (const Field* f : fields) {
         const std::uint8_t* p = data + i * step + f->offset;
         bool ok;
@@ -292,10 +296,10 @@ bool computeDense(const pcl::PCLPointCloud2& cloud) {
         }
         if (!ok) {
           finite[static_cast<std::size_t>(b)] = 0;
-          return;
+          break;
         }
       }
-  });
+  }
   return std::find(finite.begin(), finite.end(), 0) == finite.end();
 }
 
