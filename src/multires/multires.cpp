@@ -13,6 +13,7 @@
 #include "util/parallel.h"
 #include "util/phases.h"
 #include "util/radix_sort.h"
+#include "util/uninit.h"
 
 namespace hgd {
 
@@ -38,16 +39,16 @@ struct Grid {
   }
 };
 
-std::size_t countCells(const pcl::PointCloud<pcl::PointXYZ>& points, const std::vector<std::uint16_t>& cls,
-                       const Grid& grid, std::size_t stride, std::uint64_t max_key) {
-  const std::size_t m = (points.size() + stride - 1) / stride;
+// The cells a grid would have over the sampled points (positions and classes, packed).
+std::size_t countCells(const std::vector<Eigen::Vector3f>& points, const std::vector<std::uint16_t>& cls,
+                       const Grid& grid, std::uint64_t max_key) {
+  const std::size_t m = points.size();
   std::vector<std::uint64_t> keys(m);
   const long long mm = static_cast<long long>(m);
 #pragma omp parallel for schedule(static) if (mm > kParallelMin)
-  for (long long k = 0; k < mm; ++k) {
-    const std::size_t i = static_cast<std::size_t>(k) * stride;
-    keys[static_cast<std::size_t>(k)] = grid.key(points[i].getVector3fMap(), cls[i]);
-  }
+  for (long long k = 0; k < mm; ++k)
+    keys[static_cast<std::size_t>(k)] =
+        grid.key(points[static_cast<std::size_t>(k)], cls[static_cast<std::size_t>(k)]);
   std::vector<std::uint32_t> payload(m, 0);
   radixSort(keys, payload, max_key, 11);
   return static_cast<std::size_t>(std::unique(keys.begin(), keys.end()) - keys.begin());
@@ -60,8 +61,8 @@ std::size_t countCells(const pcl::PointCloud<pcl::PointXYZ>& points, const std::
 // within three times the typical distance to the second nearest (at most a cell side) is a
 // stray: no coarse point (as findOutliers' strays hang from the surface at full resolution).
 std::vector<char> findStrays(const pcl::PointCloud<pcl::PointXYZ>& points, const Grid& grid,
-                             std::size_t classes, const std::vector<std::uint64_t>& keys,
-                             const std::vector<std::uint32_t>& order,
+                             std::size_t classes, const UninitVector<std::uint64_t>& keys,
+                             const UninitVector<std::uint32_t>& order,
                              const std::vector<std::size_t>& starts) {
   const std::size_t n = keys.size(), cells = starts.size() - 1;
   std::vector<char> stray(n, 0);
@@ -101,11 +102,14 @@ std::vector<char> findStrays(const pcl::PointCloud<pcl::PointXYZ>& points, const
         }
       }
   };
-  // The typical distance to the second nearest point, over about 2,000 points of full cells.
-  std::vector<float> typical;
+  // The typical distance to the second nearest point, over about 2,000 points of full cells
+  // (on every thread, kept in sample order).
   const std::size_t stride = std::max<std::size_t>(1, n / 2000);
-  for (std::size_t k = 0; k < n; k += stride) {
-    const std::size_t i = order[k];
+  const long long samples = static_cast<long long>((n + stride - 1) / stride);
+  std::vector<float> second(static_cast<std::size_t>(samples), INFINITY);
+#pragma omp parallel for schedule(dynamic, 16) if (samples > 256 && n > kParallelMin)
+  for (long long s = 0; s < samples; ++s) {
+    const std::size_t i = order[static_cast<std::size_t>(s) * stride];
     float d1 = INFINITY, d2 = INFINITY;
     around(i, [&](std::size_t j) {
       if (j == i) return true;
@@ -118,8 +122,11 @@ std::vector<char> findStrays(const pcl::PointCloud<pcl::PointXYZ>& points, const
       }
       return true;
     });
-    if (std::isfinite(d2) && d2 > 0) typical.push_back(d2);
+    second[static_cast<std::size_t>(s)] = d2;
   }
+  std::vector<float> typical;
+  for (const float d2 : second)
+    if (std::isfinite(d2) && d2 > 0) typical.push_back(d2);
   if (typical.empty()) return stray;
   // Three times the median distance, but never under the sparsest 3%'s (a scan whose density
   // falls off with range has no strays for that, as findOutliers rules), at most a cell side.
@@ -140,6 +147,14 @@ std::vector<char> findStrays(const pcl::PointCloud<pcl::PointXYZ>& points, const
     for (std::size_t k = starts[c]; k < starts[c + 1]; ++k) {
       const std::size_t i = order[k];
       int near = 0;
+      // Its own cell first: two near points there settle it (most points of a sparse cell at
+      // the surface's edge), without the search of the 27 cells of every class.
+      for (std::size_t m = starts[c]; m < starts[c + 1] && near < 2; ++m) {
+        const std::size_t j = order[m];
+        near += j != i && (points[j].getVector3fMap() - points[i].getVector3fMap()).squaredNorm() <= limit2;
+      }
+      if (near >= 2) continue;  // (stray[i] stays 0)
+      near = 0;
       around(i, [&](std::size_t j) {
         if (j != i && (points[j].getVector3fMap() - points[i].getVector3fMap()).squaredNorm() <= limit2)
           ++near;
@@ -156,7 +171,8 @@ std::vector<char> findStrays(const pcl::PointCloud<pcl::PointXYZ>& points, const
 /// the points come in Morton order, so a cell's points lie in a few runs (357,000 runs for
 /// 1,000,000 points at 15 points a cell). Runs are cut at block boundaries; the sort is stable, so
 /// the pieces of a run stay in order.
-void sortByRuns(std::vector<std::uint64_t>& keys, std::vector<std::uint32_t>& order, std::uint64_t max_key) {
+void sortByRuns(UninitVector<std::uint64_t>& keys, UninitVector<std::uint32_t>& order,
+                std::uint64_t max_key) {
   const std::size_t n = keys.size();
   const int blocks = blockCount(static_cast<long long>(n));
   std::vector<std::vector<std::uint32_t>> part(static_cast<std::size_t>(blocks));
@@ -172,24 +188,31 @@ void sortByRuns(std::vector<std::uint64_t>& keys, std::vector<std::uint32_t>& or
   run_start.push_back(static_cast<std::uint32_t>(n));
   std::vector<std::uint64_t> run_key(runs);
   std::vector<std::uint32_t> run(runs);
-  for (std::size_t r = 0; r < runs; ++r) {
-    run_key[r] = keys[run_start[r]];
-    run[r] = static_cast<std::uint32_t>(r);
-  }
-  radixSort(run_key, run, max_key, 11);
-  // Where each sorted run goes, then the runs written out in parallel.
-  std::vector<std::uint32_t> to(runs + 1, 0);
-  for (std::size_t r = 0; r < runs; ++r) to[r + 1] = to[r] + (run_start[run[r] + 1] - run_start[run[r]]);
   const long long rr = static_cast<long long>(runs);
 #pragma omp parallel for schedule(static) if (static_cast <long long>(n) > kParallelMin)
   for (long long r = 0; r < rr; ++r) {
-    const auto s = static_cast<std::size_t>(r);
-    std::uint32_t w = to[s];
-    for (std::uint32_t k = run_start[run[s]]; k < run_start[run[s] + 1]; ++k) {
-      keys[w] = run_key[s];
-      order[w++] = k;
-    }
+    run_key[static_cast<std::size_t>(r)] = keys[run_start[static_cast<std::size_t>(r)]];
+    run[static_cast<std::size_t>(r)] = static_cast<std::uint32_t>(r);
   }
+  radixSort(run_key, run, max_key, 11);
+  // Where each block of sorted runs starts (its runs' lengths, read at random, summed on every
+  // thread), then each block's runs written out.
+  std::vector<std::uint32_t> block_to(static_cast<std::size_t>(blocks) + 1, 0);
+  auto length = [&](std::size_t s) { return run_start[run[s] + 1] - run_start[run[s]]; };
+  forBlocks(rr, blocks, [&](int begin, int end, int b) {
+    std::uint32_t sum = 0;
+    for (auto s = static_cast<std::size_t>(begin); s < static_cast<std::size_t>(end); ++s) sum += length(s);
+    block_to[static_cast<std::size_t>(b) + 1] = sum;
+  });
+  for (std::size_t b = 0; b < static_cast<std::size_t>(blocks); ++b) block_to[b + 1] += block_to[b];
+  forBlocks(rr, blocks, [&](int begin, int end, int b) {
+    std::uint32_t w = block_to[static_cast<std::size_t>(b)];
+    for (auto s = static_cast<std::size_t>(begin); s < static_cast<std::size_t>(end); ++s)
+      for (std::uint32_t k = run_start[run[s]]; k < run_start[run[s] + 1]; ++k) {
+        keys[w] = run_key[s];
+        order[w++] = k;
+      }
+  });
 }
 
 }  // namespace
@@ -233,8 +256,19 @@ CoarseLevel coarsen(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles&
   // a strided subset of about four points per wanted cell (a cell the subset misses is rare).
   setH(diag / std::sqrt(static_cast<float>(target)));
   const std::size_t stride = std::max<std::size_t>(1, n / (4 * target));
+  // Gathered once (a strided read of every round's subset cost a cache miss a point).
+  const std::size_t sampled = (n + stride - 1) / stride;
+  std::vector<Eigen::Vector3f> sample_at(sampled);
+  std::vector<std::uint16_t> sample_cls(sampled);
+  const long long ns = static_cast<long long>(sampled);
+#pragma omp parallel for schedule(static) if (ns > kParallelMin)
+  for (long long k = 0; k < ns; ++k) {
+    const std::size_t i = static_cast<std::size_t>(k) * stride;
+    sample_at[static_cast<std::size_t>(k)] = points[i].getVector3fMap();
+    sample_cls[static_cast<std::size_t>(k)] = cls[i];
+  }
   for (int round = 0; round < 8; ++round) {
-    const double ratio = static_cast<double>(countCells(points, cls, grid, stride, maxKey())) / target;
+    const double ratio = static_cast<double>(countCells(sample_at, sample_cls, grid, maxKey())) / target;
     if (ratio > 0.85 && ratio < 1.15) break;
     const float before = grid.h;
     // Curves grow as 1/h, volumes as 1/h^3; the square root is a safe middle.
@@ -244,8 +278,9 @@ CoarseLevel coarsen(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles&
 
   clock.lap("coarsen.grid");
   // Every point's cell; the cells in key order (neighbouring cells stay near in memory).
-  std::vector<std::uint64_t> keys(n);
-  std::vector<std::uint32_t> order(n);
+  // (Uninitialised: every key is computed below, every position written by sortByRuns.)
+  UninitVector<std::uint64_t> keys(n);
+  UninitVector<std::uint32_t> order(n);
   const long long nn = static_cast<long long>(n);
 #pragma omp parallel for schedule(static) if (nn > kParallelMin)
   for (long long i = 0; i < nn; ++i)
