@@ -119,6 +119,7 @@ void solveDirichlet(const NeighborGraph& graph, const std::vector<char>& constra
     if (!solveMultilevel(a, b, x, options, timings.iterations))
       throw std::runtime_error("harmonic field: multilevel solver did not converge in " +
                                std::to_string(options.max_iterations) + " iterations");
+    clock.skip();  // (the multilevel solve records its own phases)
   }
   if (!x.allFinite()) throw std::runtime_error("harmonic field: solver produced non-finite values");
   for (int r = 0; r < nf; ++r)

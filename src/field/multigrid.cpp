@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "util/parallel.h"
+#include "util/phases.h"
 #include "util/timer.h"
 
 namespace hgd {
@@ -354,9 +355,11 @@ class Hierarchy {
 // cannot be factorised.
 bool solveMultilevel(const RowMat& a, const Eigen::VectorXd& b, Eigen::VectorXd& x, const FieldOptions& opt,
                      int& iterations) {
+  PhaseClock clock;
   Hierarchy h;
   if (!h.build(a))
     throw std::runtime_error("harmonic field: the coarsest level's Cholesky factorisation failed");
+  clock.lap("field.mg_levels");
   h.coarseGuess(b, x);
   const long long n = b.size();
   Eigen::VectorXd r(n), z, d, q(n);
@@ -410,6 +413,7 @@ bool solveMultilevel(const RowMat& a, const Eigen::VectorXd& b, Eigen::VectorXd&
     rz = rz_new;
     ++iterations;
   }
+  clock.lap("field.mg_iterations");
   return rnorm / bnorm <= tolerance * 10;
 }
 
