@@ -38,7 +38,15 @@ namespace hgdcli {
 void singleThreadBlas() {
   if (std::getenv("OPENBLAS_NUM_THREADS")) return;
   using SetThreads = void (*)(int);
-  if (const auto set = reinterpret_cast<SetThreads>(dlsym(RTLD_DEFAULT, "openblas_set_num_threads"))) set(1);
+  const auto set = reinterpret_cast<SetThreads>(dlsym(RTLD_DEFAULT, "openblas_set_num_threads"));
+  if (!set) return;
+  set(1);
+  // The worker OpenBLAS started when it was loaded goes on spinning for about 2^28 cycles (0.13 s
+  // here) after that: the first parallel loops (the geometry's Morton sort at 200k points: 56 ms
+  // instead of 4) waited for the core it held. Its own shutdown (what OpenBLAS does before a
+  // fork) ends it; with one thread set, no BLAS call starts it again.
+  using Shutdown = int (*)();
+  if (const auto stop = reinterpret_cast<Shutdown>(dlsym(RTLD_DEFAULT, "blas_thread_shutdown_"))) stop();
 }
 
 std::string reserveBlasBuffer(char** argv) {

@@ -15,10 +15,12 @@
 
 namespace hgdcli {
 
-/// OpenBLAS on one thread unless OPENBLAS_NUM_THREADS says otherwise. hgdeform's BLAS work is
-/// CHOLMOD on the field's coarse system (10k unknowns at 173k points, 61k at 1M), where a
-/// second BLAS thread gains little, while OpenBLAS's idle threads spin (sched_yield) on the core the
-/// OpenMP team needs: at 173k points that cost the kNN and the field solve up to 2x.
+/// OpenBLAS on one thread unless OPENBLAS_NUM_THREADS says otherwise, and the worker thread it
+/// started at load time stopped. hgdeform's BLAS work is CHOLMOD on the field's coarse system
+/// (10k unknowns at 173k points, 61k at 1M), where a second BLAS thread gains little, while
+/// OpenBLAS's idle threads spin (sched_yield) on the core the OpenMP team needs: at 173k points
+/// that cost the kNN and the field solve up to 2x, and the first 0.13 s of every run (the worker
+/// started at load spins that long) about 100 ms of a 200k-point command on two threads.
 void singleThreadBlas();
 
 /// `argv` as main received it (for the exec). Returns "" when it is safe to go on, otherwise the message to
