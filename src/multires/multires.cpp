@@ -230,13 +230,18 @@ CoarseLevel coarsen(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles&
   const int class_bits = bitsFor(classes - 1);
   constexpr int kMaxAxisBits = 17;
   if (3 * kMaxAxisBits + class_bits >= 64 || classes > 65535) return out;
+  // (Each list on every thread, the lists in this order: a later class wins, as before.)
   std::vector<std::uint16_t> cls(n, 0);
+  const auto mark = [&cls](const std::vector<int>& list, std::size_t value) {
+    const long long m = static_cast<long long>(list.size());
+#pragma omp parallel for schedule(static) if (m > kParallelMin)
+    for (long long k = 0; k < m; ++k)
+      cls[static_cast<std::size_t>(list[static_cast<std::size_t>(k)])] = static_cast<std::uint16_t>(value);
+  };
   for (std::size_t k = 0; k < handles.joints.size(); ++k)
-    for (int i : handles.joints[k])
-      cls[static_cast<std::size_t>(i)] = static_cast<std::uint16_t>(2 + handles.fixed.size() + k);
-  for (std::size_t k = 0; k < handles.fixed.size(); ++k)
-    for (int i : handles.fixed[k]) cls[static_cast<std::size_t>(i)] = static_cast<std::uint16_t>(2 + k);
-  for (int i : handles.manipulated) cls[static_cast<std::size_t>(i)] = 1;
+    mark(handles.joints[k], 2 + handles.fixed.size() + k);
+  for (std::size_t k = 0; k < handles.fixed.size(); ++k) mark(handles.fixed[k], 2 + k);
+  mark(handles.manipulated, 1);
 
   const Eigen::AlignedBox3f box = boundingBox(points);
   const Eigen::Vector3f lo = box.min(), hi = box.max();
