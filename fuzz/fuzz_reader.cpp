@@ -80,7 +80,10 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     hgd::writeShape(out, shape);
     const hgd::Shape again = hgd::readShape(out);
     checkShape(again);
-    check(again.size() == shape.size());
+    // Every point comes back, but where the format cannot hold some and says so (a file of
+    // another format read by its content, written as STL: its loose and coincident vertices).
+    const bool said = !hgd::extrasLost(shape, hgd::formatFromPath(out)).empty();
+    check(again.size() == shape.size() || (said && again.size() < shape.size()));
   } catch (const hgd::IoError&) {
   }
   return 0;

@@ -1203,7 +1203,7 @@ TEST_F(IoTest, PackedColoursBecomeRedGreenBlueInTextFormats) {
 }
 
 // What a target format cannot hold is said (the runner prints it and puts it in the report):
-// faces written as PCD or XYZ, fields OBJ and OFF have no place for.
+// faces written as PCD or XYZ, fields OBJ and OFF have no place for, vertices STL has none for.
 TEST_F(IoTest, ConversionsSayWhatTheyDrop) {
   const Shape mesh =
       hgd::readShape(write("m.off", "OFF\n4 2 0\n0 0 0\n1 0 0\n0 1 0\n1 1 0\n3 0 1 2\n3 1 3 2\n"));
@@ -1214,6 +1214,18 @@ TEST_F(IoTest, ConversionsSayWhatTheyDrop) {
                                          "solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\n"
                                          "vertex 1 0 0\nvertex 0 1 0\nendloop\nendfacet\nendsolid t\n"));
   EXPECT_EQ(hgd::extrasLost(stl, hgd::FileFormat::Pcd), "PCD holds points only: the 1 faces are dropped");
+  EXPECT_EQ(hgd::extrasLost(stl, hgd::FileFormat::Stl), "");  // welded already: it comes back whole
+  EXPECT_EQ(hgd::extrasLost(mesh, hgd::FileFormat::Stl), "");
+  // STL holds triangles, not vertices: a vertex on no face is dropped, and two vertices at one
+  // position (a seam; -0 and 0) come back as one. The count read back is what the warning says.
+  const Shape loose = hgd::readShape(
+      write("loose.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 5 5 5\nv -0 0 0\nv 1 1 0\nf 1 2 3\nf 5 2 6\n"));
+  EXPECT_EQ(
+      hgd::extrasLost(loose, hgd::FileFormat::Stl),
+      "STL holds triangles only: the 1 of 6 points on no face are dropped; STL has no shared vertices: 1 "
+      "points at the position of another come back as one with it");
+  hgd::writeShape(path("loose.stl"), loose);
+  EXPECT_EQ(hgd::readShape(path("loose.stl")).size(), 4u);  // 6 - 1 - 1
   // rgb to OBJ: the colours are written (as red green blue in 0..1); intensity is named.
   pcl::PointCloud<pcl::PointXYZRGB> rgb;
   for (const auto& c3 : {std::array<std::uint8_t, 3>{10, 20, 30}, std::array<std::uint8_t, 3>{255, 0, 0}}) {

@@ -282,6 +282,15 @@ struct TextFile {
 // ------------------------------------------------------------------------------------------
 // Output
 
+/// Whether `size` bytes make a binary STL whose bytes 80-83 (`count`, little-endian) are its
+/// triangle count: an 80-byte header, the count, 50 bytes per triangle, nothing else.
+bool binaryStlSizeFits(const unsigned char* count, std::uint64_t size);
+
+/// What an STL of `shape` (a mesh) cannot hold, each as a phrase for extrasLost ("" when
+/// nothing): points on no face, and points at the position (as float, the way STL's reader welds
+/// corners) of another, which come back as one vertex. (stl.cpp)
+std::string stlLosses(const Shape& shape);
+
 /// Writes a file so that no reader ever sees it half written, and no path is replaced by
 /// something else: a regular file (or a new one) is written to a temporary file beside it and
 /// renamed over it; a symbolic link is followed (the temporary file goes beside its target, and
@@ -290,10 +299,6 @@ struct TextFile {
 /// /dev/stderr, /dev/fd/N, /proc/self/fd/N: descriptorPath) is written to that descriptor,
 /// whatever it is open on. Destroyed without commit(), it removes
 /// the temporary file: a failed write leaves no output. (atomic_file.cpp)
-/// Whether `size` bytes make a binary STL whose bytes 80-83 (`count`, little-endian) are its
-/// triangle count: an 80-byte header, the count, 50 bytes per triangle, nothing else.
-bool binaryStlSizeFits(const unsigned char* count, std::uint64_t size);
-
 class AtomicWriter {
  public:
   explicit AtomicWriter(const std::string& target);

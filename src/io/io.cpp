@@ -251,6 +251,8 @@ std::string extrasLost(const Shape& shape, FileFormat format) {
     if (!fields.empty())
       lost.push_back(std::string(formatName(format)) + " cannot hold the fields " + fields);
   }
+  if (format == FileFormat::Stl)
+    if (std::string stl = stlLosses(shape); !stl.empty()) lost.push_back(std::move(stl));
   std::string out;
   for (const std::string& l : lost) out += (out.empty() ? "" : "; ") + l;
   return out;

@@ -2,6 +2,7 @@
 // 50 bytes per triangle). Corners at exactly the same position are welded into one vertex so
 // that the mesh is connected; facet normals are not kept (written ones are computed from the
 // triangle), nor are binary attribute bytes (a warning says so when any is not zero).
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstring>
@@ -24,15 +25,21 @@ struct KeyHash {
   }
 };
 
-/// Corners welded by exact position (-0 and 0 are one position, and so are all NaNs).
+/// A corner's position as welding sees it: -0 and 0 are one position, and so are all NaNs.
+Key weldKey(const float p[3]) {
+  Key k;
+  for (int a = 0; a < 3; ++a) {
+    const float v = p[a] == 0.0f ? 0.0f : std::isnan(p[a]) ? std::numeric_limits<float>::quiet_NaN() : p[a];
+    std::memcpy(&k[static_cast<std::size_t>(a)], &v, 4);
+  }
+  return k;
+}
+
+/// Corners welded by exact position (weldKey).
 class Welder {
  public:
   pcl::index_t add(const float p[3]) {
-    Key k;
-    for (int a = 0; a < 3; ++a) {
-      const float v = p[a] == 0.0f ? 0.0f : std::isnan(p[a]) ? std::numeric_limits<float>::quiet_NaN() : p[a];
-      std::memcpy(&k[static_cast<std::size_t>(a)], &v, 4);
-    }
+    const Key k = weldKey(p);
     const auto [it, fresh] = index_.try_emplace(k, static_cast<pcl::index_t>(xyz_.size() / 3));
     if (fresh) xyz_.insert(xyz_.end(), p, p + 3);
     return it->second;
@@ -148,6 +155,40 @@ Shape readStl(const std::string& path) {
                              ": the binary STL's attribute bytes (per-triangle colours in some exporters) "
                              "were dropped");
   return shape;
+}
+
+std::string stlLosses(const Shape& shape) {
+  const pcl::PCLPointCloud2& c = shape.cloud;
+  const XyzFields xyz = findXyzFields(c);
+  const std::size_t n = shape.size();
+  if (!shape.isMesh() || !xyz.hasXyz() || n == 0) return "";
+  std::vector<char> used(n, 0);
+  for (const auto& poly : shape.polygons)
+    for (const auto v : poly.vertices)
+      if (v >= 0 && static_cast<std::size_t>(v) < n) used[static_cast<std::size_t>(v)] = 1;
+  // The used points' positions as the writer stores them (float) and the reader welds them.
+  std::vector<Key> keys;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!used[i]) continue;
+    float p[3];
+    for (int a = 0; a < 3; ++a)
+      p[a] = static_cast<float>(readValue(c, i,
+                                          c.fields[static_cast<std::size_t>(a == 0   ? xyz.x
+                                                                            : a == 1 ? xyz.y
+                                                                                     : xyz.z)]));
+    keys.push_back(weldKey(p));
+  }
+  const std::size_t on_faces = keys.size();
+  std::sort(keys.begin(), keys.end());
+  const std::size_t distinct = static_cast<std::size_t>(std::unique(keys.begin(), keys.end()) - keys.begin());
+  std::string out;
+  if (on_faces < n)
+    out = "STL holds triangles only: the " + num(n - on_faces) + " of " + num(n) +
+          " points on no face are dropped";
+  if (distinct < on_faces)
+    out += (out.empty() ? "" : "; ") + std::string("STL has no shared vertices: ") +
+           num(on_faces - distinct) + " points at the position of another come back as one with it";
+  return out;
 }
 
 void writeStl(const std::string& path, const Shape& shape, bool ascii) {
