@@ -16,7 +16,7 @@ constexpr long long kParallelMin = 20000;
 constexpr long long kParallelMinCostly = 2048;
 
 /// One block per thread when n is large enough to share (kParallelMin), else one.
-inline int blockCount(long long n) {
+inline int blockCount([[maybe_unused]] long long n) {
   int threads = 1;
 #ifdef _OPENMP
   if (n > kParallelMin) threads = omp_get_max_threads();
