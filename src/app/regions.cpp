@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cstdint>
 #include <cstring>
-#include <exception>
 #include <stdexcept>
 
 #include "hgdeform/io/fields.h"
@@ -67,29 +66,6 @@ std::vector<int> selectByField(const Region& region, const Geometry& geometry, c
   return out;
 }
 
-// The points (ascending) for which test(i) holds, on every thread (a block's failure, as running
-// out of memory, is rethrown here, not lost in a worker).
-template <typename Test>
-std::vector<int> pointsWhere(const Geometry& geometry, Test&& test) {
-  const long long n = static_cast<long long>(geometry.size());
-  const int blocks = blockCount(n);
-  std::vector<std::vector<int>> part(static_cast<std::size_t>(blocks));
-  std::vector<std::exception_ptr> failed(static_cast<std::size_t>(blocks));
-  forBlocks(n, blocks, [&](int begin, int end, int b) {
-    try {
-      for (int i = begin; i < end; ++i)
-        if (test(static_cast<std::size_t>(i))) part[static_cast<std::size_t>(b)].push_back(i);
-    } catch (...) {
-      failed[static_cast<std::size_t>(b)] = std::current_exception();
-    }
-  });
-  for (const auto& e : failed)
-    if (e) std::rethrow_exception(e);
-  std::vector<int> out;
-  for (const auto& p : part) out.insert(out.end(), p.begin(), p.end());
-  return out;
-}
-
 std::vector<int> select(const Region& region, const Geometry& geometry, const Shape* shape,
                         const std::string& scenario_name) {
   std::vector<int> out;
@@ -98,14 +74,14 @@ std::vector<int> select(const Region& region, const Geometry& geometry, const Sh
     case Region::Kind::Sphere: {
       const double r2 = region.radius * region.radius;
       const Eigen::Vector3d c = region.centre - geometry.origin;
-      out = pointsWhere(geometry, [&](std::size_t i) {
+      out = indicesWhere(static_cast<long long>(geometry.size()), [&](std::size_t i) {
         return ((*geometry.points)[i].getVector3fMap().cast<double>() - c).squaredNorm() <= r2;
       });
       break;
     }
     case Region::Kind::Box: {
       const Eigen::Vector3d lo = region.min - geometry.origin, hi = region.max - geometry.origin;
-      out = pointsWhere(geometry, [&](std::size_t i) {
+      out = indicesWhere(static_cast<long long>(geometry.size()), [&](std::size_t i) {
         const Eigen::Vector3d p = (*geometry.points)[i].getVector3fMap().cast<double>();
         return (p.array() >= lo.array()).all() && (p.array() <= hi.array()).all();
       });
@@ -128,7 +104,7 @@ std::vector<int> select(const Region& region, const Geometry& geometry, const Sh
       // Within `radius` of the axis segment, the projection on the axis between its ends.
       const Eigen::Vector3d a = region.start - geometry.origin, d = region.end - region.start;
       const double len2 = d.squaredNorm(), r2 = region.radius * region.radius;
-      out = pointsWhere(geometry, [&](std::size_t i) {
+      out = indicesWhere(static_cast<long long>(geometry.size()), [&](std::size_t i) {
         const Eigen::Vector3d p = (*geometry.points)[i].getVector3fMap().cast<double>() - a;
         const double t = p.dot(d) / len2;
         return t >= 0 && t <= 1 && (p - t * d).squaredNorm() <= r2;

@@ -349,15 +349,8 @@ CoarseLevel coarsen(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles&
   order = {};
   clock.lap("coarsen.anchors");
   if (out.points.empty()) return {};
-  {  // the strays in order, listed on every thread (a serial pass over every point before)
-    const int blocks = blockCount(static_cast<long long>(n));
-    std::vector<std::vector<int>> part(static_cast<std::size_t>(blocks));
-    forBlocks(static_cast<long long>(n), blocks, [&](int begin, int end, int b) {
-      for (int i = begin; i < end; ++i)
-        if (stray[static_cast<std::size_t>(i)]) part[static_cast<std::size_t>(b)].push_back(i);
-    });
-    for (const auto& p : part) out.strays.insert(out.strays.end(), p.begin(), p.end());
-  }
+  // The strays in order, listed on every thread (a serial pass over every point before).
+  out.strays = indicesWhere(static_cast<long long>(n), [&stray](std::size_t i) { return stray[i] != 0; });
   if (out.strays.empty()) return out;
   // A stray hangs from the nearest coarse point.
   const std::vector<int> nearest = nearestAmong(points, out.points, out.strays);

@@ -5,6 +5,10 @@
 #include <omp.h>
 #endif
 
+#include <cstddef>
+#include <exception>
+#include <vector>
+
 namespace hgd {
 
 /// Below this many items a loop runs on one thread: waking a team costs more than it saves
@@ -36,6 +40,28 @@ void forBlocks(long long n, int blocks, Body&& body) {
 #pragma omp parallel for schedule(static, 1) num_threads(blocks) if (blocks > 1)
   for (int t = 0; t < blocks; ++t)
     body(static_cast<int>(blockStart(n, blocks, t)), static_cast<int>(blockStart(n, blocks, t + 1)), t);
+}
+
+/// The indices i in [0, n) for which test(i) holds, ascending, tested on every thread. A block's
+/// exception (running out of memory) is rethrown here, not lost in a worker.
+template <typename Test>
+std::vector<int> indicesWhere(long long n, Test&& test) {
+  const int blocks = blockCount(n);
+  std::vector<std::vector<int>> part(static_cast<std::size_t>(blocks));
+  std::vector<std::exception_ptr> failed(static_cast<std::size_t>(blocks));
+  forBlocks(n, blocks, [&](int begin, int end, int b) {
+    try {
+      for (int i = begin; i < end; ++i)
+        if (test(static_cast<std::size_t>(i))) part[static_cast<std::size_t>(b)].push_back(i);
+    } catch (...) {
+      failed[static_cast<std::size_t>(b)] = std::current_exception();
+    }
+  });
+  for (const auto& e : failed)
+    if (e) std::rethrow_exception(e);
+  std::vector<int> out;
+  for (const auto& p : part) out.insert(out.end(), p.begin(), p.end());
+  return out;
 }
 
 }  // namespace hgd
