@@ -157,6 +157,15 @@ Shape readStl(const std::string& path) {
   return shape;
 }
 
+namespace {
+/// Point i's position as an STL stores it (float).
+Eigen::Vector3f storedCorner(const pcl::PCLPointCloud2& c, const XyzFields& xyz, std::size_t i) {
+  return Eigen::Vector3f(static_cast<float>(readValue(c, i, c.fields[static_cast<std::size_t>(xyz.x)])),
+                         static_cast<float>(readValue(c, i, c.fields[static_cast<std::size_t>(xyz.y)])),
+                         static_cast<float>(readValue(c, i, c.fields[static_cast<std::size_t>(xyz.z)])));
+}
+}  // namespace
+
 std::string stlLosses(const Shape& shape) {
   const pcl::PCLPointCloud2& c = shape.cloud;
   const XyzFields xyz = findXyzFields(c);
@@ -166,18 +175,10 @@ std::string stlLosses(const Shape& shape) {
   for (const auto& poly : shape.polygons)
     for (const auto v : poly.vertices)
       if (v >= 0 && static_cast<std::size_t>(v) < n) used[static_cast<std::size_t>(v)] = 1;
-  // The used points' positions as the writer stores them (float) and the reader welds them.
+  // The used points' positions as the writer stores them and the reader welds them.
   std::vector<Key> keys;
-  for (std::size_t i = 0; i < n; ++i) {
-    if (!used[i]) continue;
-    float p[3];
-    for (int a = 0; a < 3; ++a)
-      p[a] = static_cast<float>(readValue(c, i,
-                                          c.fields[static_cast<std::size_t>(a == 0   ? xyz.x
-                                                                            : a == 1 ? xyz.y
-                                                                                     : xyz.z)]));
-    keys.push_back(weldKey(p));
-  }
+  for (std::size_t i = 0; i < n; ++i)
+    if (used[i]) keys.push_back(weldKey(storedCorner(c, xyz, i).data()));
   const std::size_t on_faces = keys.size();
   std::sort(keys.begin(), keys.end());
   const std::size_t distinct = static_cast<std::size_t>(std::unique(keys.begin(), keys.end()) - keys.begin());
@@ -203,12 +204,7 @@ void writeStl(const std::string& path, const Shape& shape, bool ascii) {
   for (const auto& poly : shape.polygons) count += poly.vertices.size() - 2;  // a fan per polygon
   if (count > std::numeric_limits<std::uint32_t>::max())
     fail(path, "cannot write: too many triangles for STL");
-  const auto point = [&](pcl::index_t i) {
-    const auto k = static_cast<std::size_t>(i);
-    return Eigen::Vector3f(static_cast<float>(readValue(c, k, c.fields[static_cast<std::size_t>(xyz.x)])),
-                           static_cast<float>(readValue(c, k, c.fields[static_cast<std::size_t>(xyz.y)])),
-                           static_cast<float>(readValue(c, k, c.fields[static_cast<std::size_t>(xyz.z)])));
-  };
+  const auto point = [&](pcl::index_t i) { return storedCorner(c, xyz, static_cast<std::size_t>(i)); };
   AtomicWriter w(path);
   std::string buf;
   if (ascii) {
