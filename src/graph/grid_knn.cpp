@@ -278,6 +278,7 @@ bool gridKnnAt(const float* xyz, std::size_t n, int kk, int* idx, float* d2, std
     std::vector<std::uint32_t> my_far;  // this thread's far outliers
     std::vector<float> bd(static_cast<std::size_t>(kk));
     std::vector<int> bi(static_cast<std::size_t>(kk));
+    std::vector<std::uint32_t> prev_slot(static_cast<std::size_t>(kk));
     std::vector<float> cand_x, cand_y, cand_z, dist;
     std::vector<std::uint32_t> cand_id;
     std::vector<std::uint64_t> keys;
@@ -331,6 +332,7 @@ bool gridKnnAt(const float* xyz, std::size_t n, int kk, int* idx, float* d2, std
       keys.resize(nc);
       float prev_x = 0, prev_y = 0, prev_z = 0;
       bool have_prev = false;
+      bool prev_in_block = false;  // the previous query's kk best are all block slots (prev_slot)
       for (std::uint32_t q = q0; q < q1; ++q) {
         if (query && !query[g.order[q]]) continue;
         Best best{bd.data(), bi.data(), kk};
@@ -344,7 +346,12 @@ bool gridKnnAt(const float* xyz, std::size_t n, int kk, int* idx, float* d2, std
         // (bd still holds the previous query's kk best: real points, so its kk-th distance
         // bounds that query's true one from above.)
         float bound = std::numeric_limits<float>::infinity();
-        if (have_prev) {
+        if (prev_in_block) {
+          // Tighter: this query's distance to the previous query's kk best, which are kk
+          // distinct candidates, so the farthest of them bounds this query's kk-th distance.
+          bound = 0;
+          for (int m = 0; m < kk; ++m) bound = std::max(bound, dist[prev_slot[static_cast<std::size_t>(m)]]);
+        } else if (have_prev) {
           const float step = std::sqrt((x - prev_x) * (x - prev_x) + (y - prev_y) * (y - prev_y) +
                                        (z - prev_z) * (z - prev_z));
           bound = (std::sqrt(bd[static_cast<std::size_t>(kk) - 1]) + step) * (1 + 1e-5f);
@@ -363,15 +370,51 @@ bool gridKnnAt(const float* xyz, std::size_t n, int kk, int* idx, float* d2, std
         }
         if (nk >= static_cast<std::size_t>(kk)) {
           // Select on (distance bits, slot): non-negative floats order as their bit patterns.
-          std::nth_element(keys.begin(), keys.begin() + (kk - 1),
-                           keys.begin() + static_cast<std::ptrdiff_t>(nk));
-          std::sort(keys.begin(), keys.begin() + kk);
+          // Many candidates: first keep only the distance buckets (of 32 over [0, the largest])
+          // that hold the kk nearest, as a bucket never decreases with the distance, so that
+          // the sort below sees a few more than kk keys.
+          std::size_t ns = nk;
+          if (nk > static_cast<std::size_t>(kk) + 8) {
+            std::uint64_t top = 0;
+            for (std::size_t m = 0; m < nk; ++m) top = std::max(top, keys[m] >> 32);
+            float range;
+            const auto top_bits = static_cast<std::uint32_t>(top);
+            std::memcpy(&range, &top_bits, sizeof range);
+            const float scale = 32.0f / range;
+            if (range > 0 && std::isfinite(range) && std::isfinite(scale)) {
+              const auto bucket = [scale](std::uint64_t k64) {
+                const auto bits = static_cast<std::uint32_t>(k64 >> 32);
+                float d;
+                std::memcpy(&d, &bits, sizeof d);
+                return static_cast<int>(std::min(d * scale, 32.0f));
+              };
+              std::uint32_t count[33] = {};
+              for (std::size_t m = 0; m < nk; ++m) ++count[bucket(keys[m])];
+              int last = 0;
+              for (std::uint32_t seen = count[0]; seen < static_cast<std::uint32_t>(kk);)
+                seen += count[++last];
+              ns = 0;
+              for (std::size_t m = 0; m < nk; ++m) {
+                keys[ns] = keys[m];
+                ns += bucket(keys[m]) <= last;
+              }
+            }
+          }
+          if (ns > static_cast<std::size_t>(kk) + 16) {
+            std::nth_element(keys.begin(), keys.begin() + (kk - 1),
+                             keys.begin() + static_cast<std::ptrdiff_t>(ns));
+            ns = static_cast<std::size_t>(kk);
+          }
+          std::sort(keys.begin(), keys.begin() + static_cast<std::ptrdiff_t>(ns));
           for (int m = 0; m < kk; ++m) {
             const std::size_t slot = keys[static_cast<std::size_t>(m)] & 0xffffffffu;
             bd[static_cast<std::size_t>(m)] = dist[slot];
             bi[static_cast<std::size_t>(m)] = static_cast<int>(cand_id[slot]);
+            prev_slot[static_cast<std::size_t>(m)] = static_cast<std::uint32_t>(slot);
           }
+          prev_in_block = true;
         } else {
+          prev_in_block = false;
           std::fill(bd.begin(), bd.end(), std::numeric_limits<float>::infinity());
           std::fill(bi.begin(), bi.end(), -1);
           for (std::size_t m = 0; m < nc; ++m) best.insert(dist[m], static_cast<int>(cand_id[m]));
@@ -392,6 +435,7 @@ bool gridKnnAt(const float* xyz, std::size_t n, int kk, int* idx, float* d2, std
         // (Shell r has about 24 r^2 cells: up to shell 8, some 4,900 look-ups.)
         while (!safe(ring) && ring < max_ring) {
           ++ring;
+          prev_in_block = false;  // best may now hold points beyond the block
           for (int dz = -ring; dz <= ring; ++dz)
             for (int dy = -ring; dy <= ring; ++dy) {
               const bool face = std::abs(dz) == ring || std::abs(dy) == ring;
