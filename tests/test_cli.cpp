@@ -364,6 +364,46 @@ TEST(CliDeform, SameResultOnOneAndTwoThreadsOnAMidSizedScanWithStrays) {
 
 // --- deform ----------------------------------------------------------------------------------
 
+// Large inputs run with glibc's huge-page malloc where the kernel gives huge pages on request
+// only: the program restarts itself with glibc.malloc.hugetlb=1 added to GLIBC_TUNABLES, and its
+// report says so. A user's own hugetlb setting is kept (0: no restart), another tunable does not
+// stop it, a small input does not restart, and the bytes written are the same either way.
+TEST(CliDeform, LargeInputsRunWithHugePageMallocAndWriteTheSameBytes) {
+  std::string thp;
+  std::getline(std::ifstream("/sys/kernel/mm/transparent_hugepage/enabled"), thp);
+  const bool on_request = thp.find("[madvise]") != std::string::npos;
+  TempDir dir;
+  // 720,000 points of a noisy sphere in random order: a float x/y/z PLY over 8 MiB.
+  std::mt19937 rng(11);
+  std::normal_distribution<float> gauss(0.0f, 1.0f);
+  std::vector<Eigen::Vector3f> points;
+  while (points.size() < 720000) {
+    const Eigen::Vector3f d(gauss(rng), gauss(rng), gauss(rng));
+    if (d.norm() < 1e-3f) continue;
+    points.push_back(d.normalized() * (1.0f + 0.003f * gauss(rng)));
+  }
+  const std::string big = dir.file("big.ply"), small = dir.file("small.ply"), scenario = dir.file("s.json");
+  hgd::writeShape(big, hgd::shapes::cloudShape(points, {}));
+  ASSERT_GE(std::filesystem::file_size(big), std::uintmax_t{8} << 20);
+  hgd::writeShape(small, hgd::shapes::bumpySphere(20000));
+  writeText(scenario, kSphereScenario);
+  const auto run = [&](const std::string& env, const std::string& input, const std::string& out) {
+    const std::string report = out + ".json";
+    const Result r = shell(env + " " + quote(HGD_TOOL) + " deform " + quote(input) + " -s " +
+                           quote(scenario) + " -q -o " + quote(out) + " --report " + quote(report));
+    EXPECT_EQ(r.code, 0) << r.err;
+    return nlohmann::json::parse(slurp(report)).value("huge_page_malloc", false);
+  };
+  const std::string unset = "env -u GLIBC_TUNABLES";
+  EXPECT_EQ(run(unset, big, dir.file("a.ply")), on_request) << thp;
+  EXPECT_FALSE(run("GLIBC_TUNABLES=glibc.malloc.hugetlb=0", big, dir.file("b.ply")));
+  EXPECT_EQ(run("GLIBC_TUNABLES=glibc.malloc.arena_max=2", big, dir.file("c.ply")), on_request) << thp;
+  EXPECT_FALSE(run(unset, small, dir.file("d.ply")));
+  const std::string a = slurp(dir.file("a.ply"));
+  EXPECT_FALSE(a.empty());
+  EXPECT_TRUE(a == slurp(dir.file("b.ply")) && a == slurp(dir.file("c.ply")));
+}
+
 // --reweight is the solver's option (GaussNewtonOptions::reweight_rounds) and nothing else: 0
 // (the default) writes what no flag does; 8 rounds with 32 isovalues write what the library
 // writes with those options, and something else than the paper's solve; a count outside 0-100

@@ -23,6 +23,7 @@
 #include "hgdeform/io/fields.h"
 #include "hgdeform/io/geometry.h"
 #include "hgdeform/io/io.h"
+#include "huge_pages.h"
 
 namespace hgdcli {
 /// `hgdeform batch` (tools/batch/batch.cpp); argv[0] is "batch", the options follow.
@@ -30,6 +31,11 @@ int runBatch(int argc, char** argv);
 }  // namespace hgdcli
 
 namespace {
+
+// Inputs from this size (a float x/y/z PLY of some 700,000 points) run with glibc's huge-page
+// malloc (huge_pages.h): at 1M points it saved about 48 ms of a 370 ms command, the restart
+// costs about 10 ms, and a 200,000-point run gains less than that.
+constexpr std::uintmax_t kHugePageInput = std::uintmax_t{8} << 20;
 
 const char* kUsage =
     "usage: hgdeform <command> [options]\n"
@@ -275,6 +281,7 @@ int runDeform(const DeformArgs& a) {
   try {
     report = run.report();
     report.peak_rss_mb = hgdcli::peakResidentMb();
+    report.huge_page_malloc = hgdcli::hugePageMallocOn();
     if (report_path == "-") {
       const std::string json = hgd::reportJson(report);
       // A reader that went away (a closed pipe) is a write error here, not SIGPIPE: the run
@@ -345,9 +352,14 @@ int main(int argc, char** argv) {
     if (cmd == "deform") {
       DeformArgs a;
       const int status = parseDeform(argc - 1, argv + 1, a);
-      return status >= 0 ? status : runDeform(a);
+      if (status >= 0) return status;
+      hgdcli::hugePageMallocFor(a.input.c_str(), kHugePageInput, argv);
+      return runDeform(a);
     }
-    if (cmd == "batch") return hgdcli::runBatch(argc - 1, argv + 1);
+    if (cmd == "batch") {
+      hgdcli::hugePageMalloc(argv);  // folders of scans: the restart is paid once
+      return hgdcli::runBatch(argc - 1, argv + 1);
+    }
     std::cerr << "hgdeform: unknown command '" << cmd << "'\n" << kUsage;
     return 2;
   } catch (const hgdcli::UsageError& e) {

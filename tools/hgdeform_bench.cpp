@@ -43,6 +43,7 @@
 #include "hgdeform/deformer/deformer.h"
 #include "hgdeform/io/io.h"
 #include "hgdeform/version.h"
+#include "huge_pages.h"
 #include "support/arap.h"
 #include "support/quality.h"
 #include "support/shapes.h"
@@ -350,6 +351,7 @@ int parseArgs(int argc, char** argv, BenchArgs& a) {
 
 int main(int argc, char** argv) {
   hgd::removeTemporaryFilesOnSignals();  // no partial --json left by an interrupted run
+  hgdcli::hugePageMalloc(argv);          // as hgdeform does for large inputs (huge_pages.h)
   hgdcli::singleThreadBlas();            // as hgdeform does (blas_guard.h)
   BenchArgs args;
   if (const int status = parseArgs(argc, argv, args); status >= 0) return status;
@@ -416,6 +418,7 @@ int main(int argc, char** argv) {
                              ? r["deformer_peak_rss_mb"].get<double>()
                              : r["process_peak_rss_mb"].get<double>();
       r["tool"] = "hgdeform-bench";
+      r["huge_page_malloc"] = hgdcli::hugePageMallocOn();
       r["version"] = hgd::version();
       const auto& f = r["field"];
       const double pcl_ms = r["reference"]["pcl_normal_estimation_ms"].get<double>();
@@ -452,8 +455,11 @@ int main(int argc, char** argv) {
       "blend) / stream, medians of 15 passes of each, alternating, after the drag; "
       "B/pt = peak RSS bytes per point from the Deformer's build on (the cloud included; the references and "
       "the\n"
-      "full-resolution field measured above excluded)\n",
-      repeat);
+      "full-resolution field measured above excluded); malloc: %s\n",
+      repeat,
+      hgdcli::hugePageMallocOn()
+          ? "glibc's huge pages (glibc.malloc.hugetlb=1, as hgdeform deform on large inputs)"
+          : "4 KiB pages");
   for (const auto& r : all)
     if (r.contains("build_phases"))
       hgdbench::printPhaseScaling(r["model"].get<std::string>(), r["points"].get<long>(), r["build_phases"]);

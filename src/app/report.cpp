@@ -73,6 +73,7 @@ nlohmann::json reportToJson(const DeformReport& r) {
                  {"length", r.energy.length},
                  {"total", r.energy.total()}};
   if (r.peak_rss_mb > 0) j["peak_rss_mb"] = r.peak_rss_mb;
+  if (r.huge_page_malloc) j["huge_page_malloc"] = true;
   nlohmann::json& ms = j["ms"];
   ms["normals"] = r.build.field.normals_ms;
   ms["knn"] = r.build.field.knn_ms;

@@ -48,6 +48,10 @@ struct DeformReport {
   /// process image only, not the parent it was forked from). `hgdeform deform` sets it; 0 (left
   /// out of the JSON) elsewhere: a library call shares its process with whatever else runs there.
   double peak_rss_mb = 0;
+  /// Whether the program ran with glibc's huge-page malloc (GLIBC_TUNABLES glibc.malloc.hugetlb,
+  /// which `hgdeform deform` turns on for large inputs): the timings depend on it. Set by the
+  /// program, as peak_rss_mb; false (left out of the JSON) elsewhere.
+  bool huge_page_malloc = false;
 };
 
 /// Options a front end sets beside a scenario. Where both say something, the front end wins:

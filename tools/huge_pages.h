@@ -1,0 +1,30 @@
+#pragma once
+// glibc's huge-page malloc for the programs' large runs.
+//
+// A 1M-point `hgdeform deform` touches some 150 MB of fresh memory. Where the kernel gives
+// transparent huge pages only on request (`/sys/kernel/mm/transparent_hugepage/enabled` reads
+// `[madvise]`, as on this project's machines), that is some 38,000 page faults of 4 KiB, each
+// taking the address space's and the memory cgroup's locks, so that two threads filling buffers
+// fault in turn. glibc asks for huge pages for the heap and for large blocks when told to
+// (GLIBC_TUNABLES=glibc.malloc.hugetlb=1, glibc 2.35 and later): some 6,000 faults. The switch is
+// read when the program starts, so the programs restart themselves with it (about 10 ms).
+
+#include <cstdint>
+
+namespace hgdcli {
+
+/// Restarts the program (execv of /proc/self/exe with `argv`) with glibc.malloc.hugetlb=1 added
+/// to GLIBC_TUNABLES when the kernel's huge pages are `[madvise]` and GLIBC_TUNABLES does not
+/// already set glibc.malloc.hugetlb (a user's own value, 0 included, is kept). Returns when it
+/// does not restart, or when the exec fails (the program then goes on as it is).
+void hugePageMalloc(char** argv);
+
+/// hugePageMalloc() when the file `path` holds at least `min_bytes` (a small run would pay more
+/// for the restart than it saves); nothing for a path that is not a regular file.
+void hugePageMallocFor(const char* path, std::uintmax_t min_bytes, char** argv);
+
+/// Whether this process runs with glibc's huge-page malloc: GLIBC_TUNABLES sets
+/// glibc.malloc.hugetlb to 1 or 2 (its last setting counts, as glibc reads it).
+bool hugePageMallocOn();
+
+}  // namespace hgdcli
