@@ -63,14 +63,40 @@ double forRows(const RowMat& a, bool unit, const Eigen::VectorXd& diag, const Ei
   });
 }
 
+// Calls f(r, (A x)_r) for every row r, as forRows, when nothing is summed: each row on its
+// own, so the rows are shared among the threads from a few thousand on, with the same result
+// (the levels below the finest and the restriction to them, a few thousand rows for a
+// 65,536-point coarse level, ran on one thread under forRows' kParallelMin).
+template <typename F>
+void forEachRow(const RowMat& a, bool unit, const Eigen::VectorXd& diag, const Eigen::VectorXd& x, F&& f) {
+  const int* outer = a.outerIndexPtr();
+  const int* inner = a.innerIndexPtr();
+  const double* val = a.valuePtr();
+  const double* xp = x.data();
+  const double* dp = diag.data();
+  const long long rows = a.rows();
+  if (unit) {
+#pragma omp parallel for schedule(static) if (rows > kParallelMinCostly)
+    for (long long r = 0; r < rows; ++r) {
+      double s = 0;
+      for (int m = outer[r]; m < outer[r + 1]; ++m) s += xp[inner[m]];
+      f(r, (dp[r] + 1.0) * xp[r] - s);
+    }
+  } else {
+#pragma omp parallel for schedule(static) if (rows > kParallelMinCostly)
+    for (long long r = 0; r < rows; ++r) {
+      double s = 0;
+      for (int m = outer[r]; m < outer[r + 1]; ++m) s += val[m] * xp[inner[m]];
+      f(r, s);
+    }
+  }
+}
+
 // y = P x (or P^T x given as a row-major matrix).
 void apply(const RowMat& p, const Eigen::VectorXd& x, Eigen::VectorXd& y) {
   y.resize(p.rows());
   double* yp = y.data();
-  forRows(p, false, x, x, [yp](long long r, double px) {
-    yp[r] = px;
-    return 0.0;
-  });
+  forEachRow(p, false, x, x, [yp](long long r, double px) { yp[r] = px; });
 }
 
 // Coarse points: a maximal distance-2 independent set of the matrix graph (greedy), so that
@@ -294,31 +320,23 @@ class Hierarchy {
     const double* rp = r.data();
     const double* ip = l.inv_diag.data();
     double* zw = z.data();
-#pragma omp parallel for schedule(static) if (n > kParallelMin)
+#pragma omp parallel for schedule(static) if (n > kParallelMinCostly)
     for (long long i = 0; i < n; ++i) zw[i] = omega * ip[i] * rp[i];
     auto sweep = [&]() {
       double* up = l.u.data();
       const double* zp = z.data();
-      forRows(*l.a, l.unit, l.diag, z, [=](long long i, double az) {
-        up[i] = zp[i] + omega * ip[i] * (rp[i] - az);
-        return 0.0;
-      });
+      forEachRow(*l.a, l.unit, l.diag, z,
+                 [=](long long i, double az) { up[i] = zp[i] + omega * ip[i] * (rp[i] - az); });
       z.swap(l.u);
     };
     for (int s = 1; s < sweeps; ++s) sweep();
     for (int c = 0; c < corrections; ++c) {
       double* tp = l.t.data();
-      forRows(*l.a, l.unit, l.diag, z, [=](long long i, double az) {
-        tp[i] = rp[i] - az;
-        return 0.0;
-      });
+      forEachRow(*l.a, l.unit, l.diag, z, [=](long long i, double az) { tp[i] = rp[i] - az; });
       apply(l.pt, l.t, l.rc);
       cycle(li + 1, l.rc, l.zc);
       double* zp = z.data();
-      forRows(l.p, false, l.zc, l.zc, [=](long long i, double pz) {
-        zp[i] += pz;
-        return 0.0;
-      });
+      forEachRow(l.p, false, l.zc, l.zc, [=](long long i, double pz) { zp[i] += pz; });
     }
     for (int s = 0; s < sweeps; ++s) sweep();
   }
