@@ -73,7 +73,7 @@ void Deformer::rebuild() {
   local_.resize(data_.clustering.clusters.size());
   exact_.assign(data_.clustering.clusters.size(), ExactTransform{});
   picked_ = -1;
-  updateShape(/*lazy=*/true);
+  updateShape();
   data_.timings.setup_ms = sw.lap();
   clock.lap("deformer.first_shape");
 }
@@ -115,7 +115,7 @@ void Deformer::pick(const Eigen::Vector3d& world) {
   float best = INFINITY;
   picked_ = handles_.manipulated.front();
   for (int i : handles_.manipulated) {
-    const float d = (deformedPoints()[static_cast<std::size_t>(i)] - local).squaredNorm();
+    const float d = (positions_[static_cast<std::size_t>(i)] - local).squaredNorm();
     if (d < best) {
       best = d;
       picked_ = i;
@@ -350,19 +350,7 @@ void Deformer::setBlend(Blend blend) {
   updateShape();
 }
 
-void Deformer::ensureFirstShape() const {
-  const std::lock_guard<std::mutex> lock(first_shape_.mutex);
-  if (!first_shape_.due) return;
-  // local_ and the blend are still the build's: every change to them comes through updateShape(),
-  // which settles this first.
-  interpolatePositions(data_.table, local_, positions_, first_shape_.blend);
-  first_shape_.due = false;
-}
-
-void Deformer::updateShape(bool lazy) {
-  // A preview frame writes some points only; the others must hold the first shape by then (and
-  // the transforms below replace the ones it is made from).
-  ensureFirstShape();
+void Deformer::updateShape() {
   Stopwatch sw;
   const auto& tr = solver_.transforms();
   for (std::size_t c = 0; c < tr.size(); ++c) {
@@ -380,13 +368,7 @@ void Deformer::updateShape(bool lazy) {
     local_[c].set(e.A.cast<float>(), e.b.cast<float>(), cl.barycentre.cast<float>());
   }
   if (preview_.empty()) {
-    if (lazy) {
-      const std::lock_guard<std::mutex> lock(first_shape_.mutex);
-      first_shape_.due = true;
-      first_shape_.blend = options_.blend;
-    } else {
-      interpolatePositions(data_.table, local_, positions_, options_.blend);
-    }
+    interpolatePositions(data_.table, local_, positions_, options_.blend);
     const std::lock_guard<std::mutex> lock(normals_.mutex);
     normals_.all_due = true;
     normals_.all_transforms = local_;
@@ -405,7 +387,7 @@ void Deformer::updateShape(bool lazy) {
 SurfaceStretch Deformer::surfaceStretch() const {
   // (Never under 1e-4 of the diagonal: a move and back, float noise on near-duplicate points
   // must not count as a split.)
-  return measureSurfaceStretch(*geometry_, deformedPoints(), *data_.graph, data_.coarse, 1e-4 / scale_);
+  return measureSurfaceStretch(*geometry_, positions_, *data_.graph, data_.coarse, 1e-4 / scale_);
 }
 
 void Deformer::updateNormals() const {

@@ -106,17 +106,13 @@ class Deformer {
   /// The points interpolated (setPreview's and the handle's, ascending), or empty: all.
   const std::vector<int>& preview() const { return preview_; }
 
-  const std::vector<Eigen::Vector3f>& deformedPoints() const {
-    ensureFirstShape();
-    return positions_;
-  }
+  const std::vector<Eigen::Vector3f>& deformedPoints() const { return positions_; }
   /// The normals of deformedPoints() (the rest normals turned as their points' transforms
   /// turn). A move transforms positions only; the normals are derived on the first call after
   /// it (safe from concurrent const calls), so a reference kept from an earlier call shows
   /// normals as of that call until this is called again.
   const std::vector<Eigen::Vector3f>& deformedNormals() const;
   Eigen::Vector3d deformedWorld(std::size_t i) const {
-    ensureFirstShape();
     return positions_[i].cast<double>() + geometry_->origin;
   }
   /// Writes the deformed shape into `shape`, which must hold the rest shape this deformer was
@@ -169,7 +165,7 @@ class Deformer {
   SolveStats dragFrame(const Eigen::Vector3d& to);
   SolveStats solveHandle(const Eigen::Affine3d& transform);
   Eigen::Vector3d pickedWorld() const;
-  void updateShape(bool lazy = false);  ///< lazy: the first shape of a build (ensureFirstShape)
+  void updateShape();
   /// Brings out_normals_ up to the last move.
   void updateNormals() const;
   void buildPreviewTable();
@@ -198,16 +194,7 @@ class Deformer {
   // Per-frame buffers.
   std::vector<LocalTransform> local_;
   std::vector<ExactTransform> exact_;  ///< the same transforms in double, for writing
-  // The shape a (re)build starts from is interpolated when first read: a program that moves
-  // at once and writes in double (`hgdeform deform`) never reads it (10 ms at 1M points).
-  mutable std::vector<Eigen::Vector3f> positions_;
-  struct DueShape {
-    std::mutex mutex;  // const readers may interpolate it concurrently
-    bool due = false;
-    Blend blend = Blend::Rotation;  // the build's (setBlend may change options_ first)
-  };
-  mutable DueShape first_shape_;
-  void ensureFirstShape() const;
+  std::vector<Eigen::Vector3f> positions_;
   // Normals are derived when asked for, each point's from the transforms its position came
   // from: the last full frame's (kept here) and, for the preview's points, the current ones.
   mutable std::vector<Eigen::Vector3f> out_normals_;
