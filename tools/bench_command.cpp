@@ -15,6 +15,7 @@
 
 #include "bench_references.h"
 #include "hgdeform/io/io.h"
+#include "huge_pages.h"
 
 namespace hgdbench {
 
@@ -33,13 +34,19 @@ std::pair<double, double> timeChild(const std::vector<std::string>& args) {
   std::vector<char*> argv;
   for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
   argv.push_back(nullptr);
+  // The user's environment, not the bench's restarted one: the command decides on huge pages
+  // itself (and pays its own restart), as it does when a user runs it.
+  const std::vector<std::string> env_entries = hgdcli::userEnvironment();
+  std::vector<char*> env;
+  for (const auto& e : env_entries) env.push_back(const_cast<char*>(e.c_str()));
+  env.push_back(nullptr);
   const auto t0 = std::chrono::steady_clock::now();
   const pid_t pid = fork();
   if (pid == 0) {
     // dup2, not freopen: closing stdout would flush the bench's own unwritten output a second time.
     const int null = open("/dev/null", O_WRONLY);
     if (null < 0 || dup2(null, 1) < 0 || dup2(null, 2) < 0) _exit(127);
-    execv(argv[0], argv.data());
+    execve(argv[0], argv.data(), env.data());
     _exit(127);
   }
   int status = 0;

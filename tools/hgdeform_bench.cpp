@@ -458,7 +458,9 @@ int main(int argc, char** argv) {
       "full-resolution field measured above excluded); malloc: %s\n",
       repeat,
       hgdcli::hugePageMallocOn()
-          ? "glibc's huge pages (glibc.malloc.hugetlb=1, as hgdeform deform on large inputs)"
+          ? "glibc's huge pages (glibc.malloc.hugetlb=1) for the bench's own measurements, as hgdeform "
+            "deform "
+            "for inputs from 8 MiB; the whole command runs in the user's environment and decides itself"
           : "4 KiB pages");
   for (const auto& r : all)
     if (r.contains("build_phases"))

@@ -1,16 +1,26 @@
 #include "huge_pages.h"
 
+#include <gnu/libc-version.h>
+#include <sys/auxv.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
 #include <string>
 
+extern char** environ;
+
 namespace hgdcli {
 
 namespace {
+
+// Set by the restart: that it happened (never twice, whatever glibc made of the tunable), and
+// the user's own GLIBC_TUNABLES when there was one (for the bench's children, userEnvironment).
+constexpr const char* kRestarted = "HGDEFORM_HUGE_PAGE_RESTART";
+constexpr const char* kUserTunables = "HGDEFORM_USER_GLIBC_TUNABLES";
 
 bool hugePagesOnRequestOnly() {
   std::ifstream f("/sys/kernel/mm/transparent_hugepage/enabled");
@@ -18,41 +28,67 @@ bool hugePagesOnRequestOnly() {
   return std::getline(f, line) && line.find("[madvise]") != std::string::npos;
 }
 
+// glibc.malloc.hugetlb is glibc 2.35's.
+bool glibcKnowsHugetlb() {
+  int major = 0, minor = 0;
+  return std::sscanf(gnu_get_libc_version(), "%d.%d", &major, &minor) == 2 &&
+         (major > 2 || (major == 2 && minor >= 35));
+}
+
 }  // namespace
 
 void hugePageMalloc(char** argv) {
+  if (std::getenv(kRestarted) || getauxval(AT_SECURE) != 0 || !glibcKnowsHugetlb()) return;
   const char* old = std::getenv("GLIBC_TUNABLES");
   const std::string tunables = old ? old : "";
   if (tunables.find("glibc.malloc.hugetlb") != std::string::npos) return;  // chosen already
   if (!hugePagesOnRequestOnly()) return;  // `always` gives them anyway; `never` not at all
   const std::string set = tunables.empty() ? "glibc.malloc.hugetlb=1" : tunables + ":glibc.malloc.hugetlb=1";
-  if (setenv("GLIBC_TUNABLES", set.c_str(), 1) != 0) return;
+  if (setenv(kRestarted, "1", 1) != 0 || (old && setenv(kUserTunables, old, 1) != 0) ||
+      setenv("GLIBC_TUNABLES", set.c_str(), 1) != 0)
+    return;
   execv("/proc/self/exe", argv);
   // No /proc, or the program was replaced while it ran: go on without.
+  unsetenv(kRestarted);
+  unsetenv(kUserTunables);
   if (old)
-    setenv("GLIBC_TUNABLES", old, 1);
+    setenv("GLIBC_TUNABLES", tunables.c_str(), 1);
   else
     unsetenv("GLIBC_TUNABLES");
 }
 
 void hugePageMallocFor(const char* path, std::uintmax_t min_bytes, char** argv) {
   struct stat st {};
-  if (path && stat(path, &st) == 0 && S_ISREG(st.st_mode) &&
+  if (path && std::strcmp(path, "-") != 0 && stat(path, &st) == 0 && S_ISREG(st.st_mode) &&
       static_cast<std::uintmax_t>(st.st_size) >= min_bytes)
     hugePageMalloc(argv);
 }
 
 bool hugePageMallocOn() {
   const char* env = std::getenv("GLIBC_TUNABLES");
-  if (!env) return false;
+  if (!env || !glibcKnowsHugetlb()) return false;
   const std::string t = env, key = "glibc.malloc.hugetlb=";
   bool on = false;
   for (std::size_t at = t.find(key); at != std::string::npos; at = t.find(key, at + 1))
     if (at == 0 || t[at - 1] == ':') {
-      const char v = at + key.size() < t.size() ? t[at + key.size()] : '\0';
-      on = v == '1' || v == '2';
+      const std::size_t v = at + key.size();
+      on = v < t.size() && (t[v] == '1' || t[v] == '2') && (v + 1 == t.size() || t[v + 1] == ':');
     }
   return on;
+}
+
+std::vector<std::string> userEnvironment() {
+  std::vector<std::string> env;
+  const bool restarted = std::getenv(kRestarted) != nullptr;
+  for (char** e = environ; *e; ++e) {
+    const std::string entry = *e;
+    const std::string name = entry.substr(0, entry.find('='));
+    if (restarted && (name == "GLIBC_TUNABLES" || name == kRestarted || name == kUserTunables)) continue;
+    env.push_back(entry);
+  }
+  if (restarted)
+    if (const char* user = std::getenv(kUserTunables)) env.push_back(std::string("GLIBC_TUNABLES=") + user);
+  return env;
 }
 
 }  // namespace hgdcli

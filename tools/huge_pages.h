@@ -10,21 +10,30 @@
 // read when the program starts, so the programs restart themselves with it (about 10 ms).
 
 #include <cstdint>
+#include <string>
+#include <vector>
 
 namespace hgdcli {
 
 /// Restarts the program (execv of /proc/self/exe with `argv`) with glibc.malloc.hugetlb=1 added
-/// to GLIBC_TUNABLES when the kernel's huge pages are `[madvise]` and GLIBC_TUNABLES does not
-/// already set glibc.malloc.hugetlb (a user's own value, 0 included, is kept). Returns when it
-/// does not restart, or when the exec fails (the program then goes on as it is).
+/// to GLIBC_TUNABLES when the kernel's huge pages are `[madvise]`, glibc is 2.35 or later and
+/// GLIBC_TUNABLES does not already set glibc.malloc.hugetlb (a user's own value, 0 included, is
+/// kept). Never twice (the restart marks the environment), nor in a setuid program. Returns when
+/// it does not restart, or when the exec fails (the program then goes on as it is).
 void hugePageMalloc(char** argv);
 
 /// hugePageMalloc() when the file `path` holds at least `min_bytes` (a small run would pay more
 /// for the restart than it saves); nothing for a path that is not a regular file.
 void hugePageMallocFor(const char* path, std::uintmax_t min_bytes, char** argv);
 
-/// Whether this process runs with glibc's huge-page malloc: GLIBC_TUNABLES sets
-/// glibc.malloc.hugetlb to 1 or 2 (its last setting counts, as glibc reads it).
+/// Whether this process runs with glibc's huge-page malloc, as far as its environment says:
+/// glibc 2.35 or later and GLIBC_TUNABLES setting glibc.malloc.hugetlb to 1 or 2 (the last
+/// setting counts, as glibc reads it).
 bool hugePageMallocOn();
+
+/// The environment as the user gave it (GLIBC_TUNABLES as it was before hugePageMalloc's
+/// restart, the restart's marks left out), for programs this one starts to be timed as a user
+/// runs them: the bench's `hgdeform deform`. Entries "NAME=value".
+std::vector<std::string> userEnvironment();
 
 }  // namespace hgdcli

@@ -341,14 +341,13 @@ bool gridKnnAt(const float* xyz, std::size_t n, int kk, int* idx, float* d2, std
           const float dx = cand_x[m] - x, dy = cand_y[m] - y, dz = cand_z[m] - z;
           dist[m] = dx * dx + dy * dy + dz * dz;
         }
-        // The previous query's kk-th distance, plus the step from it, bounds this one's
-        // (triangle inequality): only candidates inside that bound take part in the selection.
-        // (bd still holds the previous query's kk best: real points, so its kk-th distance
-        // bounds that query's true one from above.)
+        // Only candidates within a bound on this query's kk-th distance take part in the
+        // selection: the farthest of the previous query's kk best when they are block slots
+        // (kk distinct candidates), else the previous query's kk-th distance plus the step
+        // from it (triangle inequality; bd still holds that query's kk best: real points, so
+        // its kk-th distance bounds that query's true one from above).
         float bound = std::numeric_limits<float>::infinity();
         if (prev_in_block) {
-          // Tighter: this query's distance to the previous query's kk best, which are kk
-          // distinct candidates, so the farthest of them bounds this query's kk-th distance.
           bound = 0;
           for (int m = 0; m < kk; ++m) bound = std::max(bound, dist[prev_slot[static_cast<std::size_t>(m)]]);
         } else if (have_prev) {
