@@ -681,6 +681,39 @@ TEST(Deform, NewHandlesReuseTheGraphAndStatesRestore) {
   for (std::size_t i = 0; i < g.size(); ++i) ASSERT_EQ(d.deformedPoints()[i], bent_points[i]);
 }
 
+// The shape a build starts from is interpolated when first read (hgdeform deform never reads
+// it), and only the handle's points when a move reads just those (its centre, a pick). Whatever
+// is read first, every point ends as reading it at once gives; a drag from it is the same; and
+// under a preview, new handles leave the points it does not draw with the first build's shape,
+// as when that had been read before.
+TEST(Deform, FirstShapeReadLateIsTheShapeReadAtOnce) {
+  const hgd::Geometry g = hgd::extractGeometry(hgd::shapes::bar(1.0f, 0.1f, 0.01f));
+  const hgd::Handles h = endHandles(g, 0.05, 0.95);
+  hgd::Deformer eager(g, h), late(g, h);
+  const std::vector<Eigen::Vector3f> at_once = eager.deformedPoints();
+  const Eigen::Vector3d centre = late.handleCentre();  // the handle's points alone
+  EXPECT_EQ(centre, eager.handleCentre());
+  EXPECT_TRUE(late.deformedPoints() == at_once);
+
+  hgd::Deformer eager_drag(g, h), late_drag(g, h);
+  (void)eager_drag.deformedPoints();
+  eager_drag.dragTo({1.0, 0.0, 0.05}, {0.9, 0.3, 0.05});
+  late_drag.dragTo({1.0, 0.0, 0.05}, {0.9, 0.3, 0.05});
+  EXPECT_TRUE(late_drag.deformedPoints() == eager_drag.deformedPoints());
+
+  std::vector<int> every5;
+  for (std::size_t i = 0; i < g.size(); i += 5) every5.push_back(static_cast<int>(i));
+  hgd::Handles h2 = h;
+  h2.fixed[0] = pointsWhere(g, 0, -1, 0.3);
+  hgd::Deformer eager_preview(g, h), late_preview(g, h);
+  (void)eager_preview.deformedPoints();
+  for (hgd::Deformer* d : {&eager_preview, &late_preview}) {
+    d->setPreview(every5);
+    d->setHandles(h2);
+  }
+  EXPECT_TRUE(late_preview.deformedPoints() == eager_preview.deformedPoints());
+}
+
 }  // namespace
 
 // The Gauss-Newton normal equations are solved by a block Cholesky: on a random positive

@@ -55,6 +55,10 @@ void Deformer::rebuild() {
   // preview the first frame derives them all again.
   if (!preview_.empty()) updateNormals();
   normals_.all_due = normals_.preview_due = false;
+  // A first shape never read: the points a preview frame leaves alone keep it, so it is made
+  // now, from the table and transforms it belongs to; without a preview it is replaced whole.
+  if (!preview_.empty()) ensureFirstShape();
+  first_shape_.due = false;
   if (t_phase_log != &data_.timings.phases) data_.timings.phases.clear();  // (a new handle set)
   PhaseRecording recording(&data_.timings.phases);
   precompute(*geometry_, handles_, options_, data_);
@@ -73,7 +77,7 @@ void Deformer::rebuild() {
   local_.resize(data_.clustering.clusters.size());
   exact_.assign(data_.clustering.clusters.size(), ExactTransform{});
   picked_ = -1;
-  updateShape();
+  updateShape(/*lazy=*/true);
   data_.timings.setup_ms = sw.lap();
   clock.lap("deformer.first_shape");
 }
@@ -114,8 +118,9 @@ void Deformer::pick(const Eigen::Vector3d& world) {
   const Eigen::Vector3f local = (world - geometry_->origin).cast<float>();
   float best = INFINITY;
   picked_ = handles_.manipulated.front();
+  const std::vector<Eigen::Vector3f>& at = handlePositions();
   for (int i : handles_.manipulated) {
-    const float d = (positions_[static_cast<std::size_t>(i)] - local).squaredNorm();
+    const float d = (at[static_cast<std::size_t>(i)] - local).squaredNorm();
     if (d < best) {
       best = d;
       picked_ = i;
@@ -199,7 +204,8 @@ DragResult Deformer::dragTo(const Eigen::Vector3d& from, const Eigen::Vector3d& 
   if (!to.allFinite() || !from.allFinite()) throw std::invalid_argument("drag: target is not finite");
   leaveFrameMode();
   pick(from);
-  const Eigen::Vector3d start = deformedWorld(static_cast<std::size_t>(picked_));
+  const Eigen::Vector3d start =
+      handlePositions()[static_cast<std::size_t>(picked_)].cast<double>() + geometry_->origin;
   last_to_ = from;
   const double diag = 1.0 / scale_;
   // The cursor's path in frames of at most max_drag_step; a target absurdly far away gets at
@@ -235,7 +241,8 @@ SolveStats Deformer::setHandleTransform(const Eigen::Affine3d& transform) {
 
 Eigen::Vector3d Deformer::handleCentre() const {
   Eigen::Vector3d c = Eigen::Vector3d::Zero();
-  for (int i : handles_.manipulated) c += deformedWorld(static_cast<std::size_t>(i));
+  const std::vector<Eigen::Vector3f>& at = handlePositions();
+  for (int i : handles_.manipulated) c += at[static_cast<std::size_t>(i)].cast<double>() + geometry_->origin;
   return c / static_cast<double>(handles_.manipulated.size());
 }
 
@@ -332,17 +339,45 @@ void Deformer::buildPreviewTable() {
   preview_.insert(preview_.end(), handles_.manipulated.begin(), handles_.manipulated.end());
   std::sort(preview_.begin(), preview_.end());
   preview_.erase(std::unique(preview_.begin(), preview_.end()), preview_.end());
-  preview_table_.has_normals = data_.table.has_normals;
-  if (data_.table.has_normals)
-    for (const int i : preview_)
-      preview_table_.normals.push_back(data_.table.restNormal(static_cast<std::size_t>(i)));
-  preview_table_.pairs = data_.table.pairs;
-  preview_table_.pair_centre = data_.table.pair_centre;
-  preview_table_.points.reserve(preview_.size());
-  for (const int i : preview_)
-    preview_table_.points.push_back(data_.table.points[static_cast<std::size_t>(i)]);
+  preview_table_ = subTable(preview_);
   preview_points_.resize(preview_.size());
   preview_normals_.resize(preview_.size());
+}
+
+InterpolationTable Deformer::subTable(const std::vector<int>& points) const {
+  InterpolationTable t;
+  t.has_normals = data_.table.has_normals;
+  if (data_.table.has_normals)
+    for (const int i : points) t.normals.push_back(data_.table.restNormal(static_cast<std::size_t>(i)));
+  t.pairs = data_.table.pairs;
+  t.pair_centre = data_.table.pair_centre;
+  t.points.reserve(points.size());
+  for (const int i : points) t.points.push_back(data_.table.points[static_cast<std::size_t>(i)]);
+  return t;
+}
+
+void Deformer::ensureFirstShape() const {
+  const std::lock_guard<std::mutex> lock(first_shape_.mutex);
+  if (!first_shape_.due) return;
+  // local_ is still the build's: updateShape() and rebuild() settle or drop this first.
+  interpolatePositions(data_.table, local_, positions_, first_shape_.blend);
+  first_shape_.due = false;
+}
+
+const std::vector<Eigen::Vector3f>& Deformer::handlePositions() const {
+  const std::lock_guard<std::mutex> lock(first_shape_.mutex);
+  if (first_shape_.due && !first_shape_.handle_done) {
+    // Row by row what the whole table gives (as a preview frame's points), for these only.
+    std::vector<int> handle = handles_.manipulated;
+    std::sort(handle.begin(), handle.end());
+    handle.erase(std::unique(handle.begin(), handle.end()), handle.end());
+    std::vector<Eigen::Vector3f> moved(handle.size());
+    interpolatePositions(subTable(handle), local_, moved, first_shape_.blend);
+    for (std::size_t k = 0; k < handle.size(); ++k)
+      positions_[static_cast<std::size_t>(handle[k])] = moved[k];
+    first_shape_.handle_done = true;
+  }
+  return positions_;
 }
 
 void Deformer::setBlend(Blend blend) {
@@ -350,7 +385,14 @@ void Deformer::setBlend(Blend blend) {
   updateShape();
 }
 
-void Deformer::updateShape() {
+void Deformer::updateShape(bool lazy) {
+  if (preview_.empty()) {
+    // Every point is (re)made below, or marked due: a pending first shape is not needed.
+    const std::lock_guard<std::mutex> lock(first_shape_.mutex);
+    first_shape_.due = false;
+  } else {
+    ensureFirstShape();  // the points the preview leaves alone must hold it
+  }
   Stopwatch sw;
   const auto& tr = solver_.transforms();
   for (std::size_t c = 0; c < tr.size(); ++c) {
@@ -368,7 +410,14 @@ void Deformer::updateShape() {
     local_[c].set(e.A.cast<float>(), e.b.cast<float>(), cl.barycentre.cast<float>());
   }
   if (preview_.empty()) {
-    interpolatePositions(data_.table, local_, positions_, options_.blend);
+    if (lazy) {
+      const std::lock_guard<std::mutex> lock(first_shape_.mutex);
+      first_shape_.due = true;
+      first_shape_.handle_done = false;
+      first_shape_.blend = options_.blend;
+    } else {
+      interpolatePositions(data_.table, local_, positions_, options_.blend);
+    }
     const std::lock_guard<std::mutex> lock(normals_.mutex);
     normals_.all_due = true;
     normals_.all_transforms = local_;
@@ -387,7 +436,7 @@ void Deformer::updateShape() {
 SurfaceStretch Deformer::surfaceStretch() const {
   // (Never under 1e-4 of the diagonal: a move and back, float noise on near-duplicate points
   // must not count as a split.)
-  return measureSurfaceStretch(*geometry_, positions_, *data_.graph, data_.coarse, 1e-4 / scale_);
+  return measureSurfaceStretch(*geometry_, deformedPoints(), *data_.graph, data_.coarse, 1e-4 / scale_);
 }
 
 void Deformer::updateNormals() const {

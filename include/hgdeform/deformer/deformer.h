@@ -106,13 +106,17 @@ class Deformer {
   /// The points interpolated (setPreview's and the handle's, ascending), or empty: all.
   const std::vector<int>& preview() const { return preview_; }
 
-  const std::vector<Eigen::Vector3f>& deformedPoints() const { return positions_; }
+  const std::vector<Eigen::Vector3f>& deformedPoints() const {
+    ensureFirstShape();
+    return positions_;
+  }
   /// The normals of deformedPoints() (the rest normals turned as their points' transforms
   /// turn). A move transforms positions only; the normals are derived on the first call after
   /// it (safe from concurrent const calls), so a reference kept from an earlier call shows
   /// normals as of that call until this is called again.
   const std::vector<Eigen::Vector3f>& deformedNormals() const;
   Eigen::Vector3d deformedWorld(std::size_t i) const {
+    ensureFirstShape();
     return positions_[i].cast<double>() + geometry_->origin;
   }
   /// Writes the deformed shape into `shape`, which must hold the rest shape this deformer was
@@ -165,7 +169,7 @@ class Deformer {
   SolveStats dragFrame(const Eigen::Vector3d& to);
   SolveStats solveHandle(const Eigen::Affine3d& transform);
   Eigen::Vector3d pickedWorld() const;
-  void updateShape();
+  void updateShape(bool lazy = false);  ///< lazy: the build's first shape (first_shape_)
   /// Brings out_normals_ up to the last move.
   void updateNormals() const;
   void buildPreviewTable();
@@ -194,7 +198,22 @@ class Deformer {
   // Per-frame buffers.
   std::vector<LocalTransform> local_;
   std::vector<ExactTransform> exact_;  ///< the same transforms in double, for writing
-  std::vector<Eigen::Vector3f> positions_;
+  // The shape a (re)build starts from is interpolated when it is first read, and only the
+  // manipulated handle's points when a move reads just those (pick, handleCentre): a program
+  // that moves at once and writes in double (`hgdeform deform`) never reads the rest.
+  mutable std::vector<Eigen::Vector3f> positions_;
+  struct DueShape {
+    std::mutex mutex;               // const readers may settle it concurrently
+    bool due = false;               // positions_ do not hold the build's first shape yet
+    bool handle_done = false;       // ... except the manipulated handle's points
+    Blend blend = Blend::Rotation;  // the build's (setBlend changes options_ first)
+  };
+  mutable DueShape first_shape_;
+  void ensureFirstShape() const;
+  /// positions_, of which only the manipulated handle's points may be read: settles only those.
+  const std::vector<Eigen::Vector3f>& handlePositions() const;
+  /// The rows of data_.table for `points` (ascending), as one table.
+  InterpolationTable subTable(const std::vector<int>& points) const;
   // Normals are derived when asked for, each point's from the transforms its position came
   // from: the last full frame's (kept here) and, for the preview's points, the current ones.
   mutable std::vector<Eigen::Vector3f> out_normals_;
