@@ -57,7 +57,56 @@ std::pair<double, double> timeChild(const std::vector<std::string>& args) {
   return {ms, static_cast<double>(ru.ru_maxrss) / 1024.0};
 }
 
+/// PCL's read + write of `in` in a fresh process of this program (pclIoReference), in the
+/// user's environment: {read ms, write ms}, or {-1, -1} when it failed.
+std::pair<double, double> pclInChild(const std::string& in, const std::string& out) {
+  const std::string self = fs::read_symlink("/proc/self/exe").string();
+  const std::vector<std::string> args = {self, kPclIoFlag, in, out};
+  std::vector<char*> argv;
+  for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  const std::vector<std::string> env_entries = hgdcli::userEnvironment();
+  std::vector<char*> env;
+  for (const auto& e : env_entries) env.push_back(const_cast<char*>(e.c_str()));
+  env.push_back(nullptr);
+  int pipefd[2];
+  if (pipe(pipefd) != 0) return {-1, -1};
+  const pid_t pid = fork();
+  if (pid == 0) {
+    const int null = open("/dev/null", O_WRONLY);
+    if (null < 0 || dup2(pipefd[1], 1) < 0 || dup2(null, 2) < 0) _exit(127);
+    close(pipefd[0]);
+    execve(argv[0], argv.data(), env.data());
+    _exit(127);
+  }
+  close(pipefd[1]);
+  std::string text;
+  char buf[256];
+  for (ssize_t got; pid > 0 && (got = read(pipefd[0], buf, sizeof buf)) > 0;)
+    text.append(buf, static_cast<std::size_t>(got));
+  close(pipefd[0]);
+  int status = 0;
+  if (pid < 0 || waitpid(pid, &status, 0) != pid || !WIFEXITED(status) || WEXITSTATUS(status) != 0)
+    return {-1, -1};
+  double r = -1, w = -1;
+  if (std::sscanf(text.c_str(), "%lf %lf", &r, &w) != 2) return {-1, -1};
+  return {r, w};
+}
+
 }  // namespace
+
+int pclIoReference(const char* in, const char* out) {
+  pcl::PCLPointCloud2 cloud;
+  auto t0 = std::chrono::steady_clock::now();
+  pcl::PLYReader reader;
+  if (reader.read(in, cloud) != 0) return 1;
+  const double read_ms = msSince(t0);
+  t0 = std::chrono::steady_clock::now();
+  pcl::PLYWriter writer;
+  if (writer.writeBinary(out, cloud) != 0) return 1;
+  std::printf("%.6f %.6f\n", read_ms, msSince(t0));
+  return 0;
+}
 
 nlohmann::json commandReference(const hgd::Shape& shape, const std::string& scenario, int repeat) {
   const fs::path cli = fs::read_symlink("/proc/self/exe").parent_path() / "hgdeform";
@@ -87,16 +136,14 @@ nlohmann::json commandReference(const hgd::Shape& shape, const std::string& scen
     }
     peak.push_back(own > 0 ? own : mb);
     fs::remove(out);
-    pcl::PCLPointCloud2 cloud;
-    auto t0 = std::chrono::steady_clock::now();
-    pcl::PLYReader reader;
-    if (reader.read(in, cloud) != 0) continue;
-    read.push_back(msSince(t0));
-    t0 = std::chrono::steady_clock::now();
-    pcl::PLYWriter writer;
-    writer.writeBinary(pcl_out, cloud);
-    write.push_back(msSince(t0));
+    const auto [read_ms, write_ms] = pclInChild(in, pcl_out);
     fs::remove(pcl_out);
+    if (read_ms < 0) {
+      fs::remove_all(dir);
+      return {{"left_out", "PCL could not read and write the bench's file"}};
+    }
+    read.push_back(read_ms);
+    write.push_back(write_ms);
   }
   fs::remove_all(dir);
   const double points = static_cast<double>(shape.size());

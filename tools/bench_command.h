@@ -9,9 +9,18 @@
 
 namespace hgdbench {
 
+/// The bench's first argument that makes it PCL's reference instead (pclIoReference).
+inline constexpr const char* kPclIoFlag = "--pcl-io-reference";
+
+/// Reads `in` with PCL's PLYReader and writes it with PLYWriter (binary) to `out`, and prints
+/// the two times in ms on stdout: what the whole-command row compares with, measured in a fresh
+/// process as a PCL program runs. 0, or 1 when PCL fails.
+int pclIoReference(const char* in, const char* out);
+
 /// Writes `shape` to a temporary binary PLY and `scenario` (JSON text) beside it; then, `repeat`
-/// times alternating: `hgdeform deform` on them (a child process: its wall time and peak RSS)
-/// and PCL's PLYReader + PLYWriter (binary) on the same file. Medians: {"points",
+/// times alternating, each in a fresh process in the user's environment (as a user runs them,
+/// not the bench's: hugePageMalloc): `hgdeform deform` on them (its wall time and peak RSS) and
+/// PCL's PLYReader + PLYWriter (binary) on the same file (their own times). Medians: {"points",
 /// "command_ms", "command_peak_mb", "pcl_read_ms", "pcl_write_ms", "bytes_per_point"}; an
 /// object with "left_out" when the CLI is not beside the bench.
 nlohmann::json commandReference(const hgd::Shape& shape, const std::string& scenario, int repeat);

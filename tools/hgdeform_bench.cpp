@@ -350,6 +350,9 @@ int parseArgs(int argc, char** argv, BenchArgs& a) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // PCL's reference for the whole-command row, run by the bench itself (bench_command.h).
+  if (argc == 4 && std::strcmp(argv[1], hgdbench::kPclIoFlag) == 0)
+    return hgdbench::pclIoReference(argv[2], argv[3]);
   hgd::removeTemporaryFilesOnSignals();  // no partial --json left by an interrupted run
   hgdcli::hugePageMalloc(argv);          // as hgdeform does for large inputs (huge_pages.h)
   hgdcli::singleThreadBlas();            // as hgdeform does (blas_guard.h)
@@ -460,8 +463,9 @@ int main(int argc, char** argv) {
       hgdcli::hugePageMallocOn()
           ? "glibc's huge pages (glibc.malloc.hugetlb=1) for the bench's own measurements, as hgdeform "
             "deform "
-            "for inputs from 8 MiB; the whole command runs in the user's environment and decides itself"
-          : "4 KiB pages");
+            "for inputs from 8 MiB; the whole command and PCL's read + write run in fresh processes in the "
+            "user's environment"
+          : "4 KiB pages; the whole command and PCL's read + write run in fresh processes");
   for (const auto& r : all)
     if (r.contains("build_phases"))
       hgdbench::printPhaseScaling(r["model"].get<std::string>(), r["points"].get<long>(), r["build_phases"]);
