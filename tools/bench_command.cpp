@@ -27,28 +27,32 @@ double msSince(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
-/// Runs argv (stdout and stderr to /dev/null); its wall ms and peak RSS in MB (wait4's
-/// ru_maxrss, which also counts the bench's own image the child was forked from), or -1 ms when
-/// it failed.
-std::pair<double, double> timeChild(const std::vector<std::string>& args) {
-  std::vector<char*> argv;
-  for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-  argv.push_back(nullptr);
-  // The user's environment, not the bench's restarted one: the command decides on huge pages
-  // itself (and pays its own restart), as it does when a user runs it.
+/// Starts args[0] with `args` in the user's environment, not the bench's restarted one (a
+/// program decides on huge pages itself and pays its own restart, as when a user runs it):
+/// stdout to `out_fd` (/dev/null when -1), stderr to /dev/null. Its pid, or -1.
+pid_t spawnAsUser(const std::vector<std::string>& args, int out_fd) {
   const std::vector<std::string> env_entries = hgdcli::userEnvironment();
-  std::vector<char*> env;
+  std::vector<char*> argv, env;
+  for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
   for (const auto& e : env_entries) env.push_back(const_cast<char*>(e.c_str()));
+  argv.push_back(nullptr);
   env.push_back(nullptr);
-  const auto t0 = std::chrono::steady_clock::now();
   const pid_t pid = fork();
   if (pid == 0) {
     // dup2, not freopen: closing stdout would flush the bench's own unwritten output a second time.
     const int null = open("/dev/null", O_WRONLY);
-    if (null < 0 || dup2(null, 1) < 0 || dup2(null, 2) < 0) _exit(127);
+    if (null < 0 || dup2(out_fd >= 0 ? out_fd : null, 1) < 0 || dup2(null, 2) < 0) _exit(127);
     execve(argv[0], argv.data(), env.data());
     _exit(127);
   }
+  return pid;
+}
+
+/// Runs `args` (spawnAsUser); its wall ms and peak RSS in MB (wait4's ru_maxrss, which also
+/// counts the bench's own image the child was forked from), or -1 ms when it failed.
+std::pair<double, double> timeChild(const std::vector<std::string>& args) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const pid_t pid = spawnAsUser(args, -1);
   int status = 0;
   struct rusage ru {};
   if (pid < 0 || wait4(pid, &status, 0, &ru) != pid) return {-1, 0};
@@ -57,28 +61,13 @@ std::pair<double, double> timeChild(const std::vector<std::string>& args) {
   return {ms, static_cast<double>(ru.ru_maxrss) / 1024.0};
 }
 
-/// PCL's read + write of `in` in a fresh process of this program (pclIoReference), in the
-/// user's environment: {read ms, write ms}, or {-1, -1} when it failed.
+/// PCL's read + write of `in` in a fresh process of this program (pclIoReference, spawnAsUser):
+/// {read ms, write ms}, or {-1, -1} when it failed.
 std::pair<double, double> pclInChild(const std::string& in, const std::string& out) {
-  const std::string self = fs::read_symlink("/proc/self/exe").string();
-  const std::vector<std::string> args = {self, kPclIoFlag, in, out};
-  std::vector<char*> argv;
-  for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-  argv.push_back(nullptr);
-  const std::vector<std::string> env_entries = hgdcli::userEnvironment();
-  std::vector<char*> env;
-  for (const auto& e : env_entries) env.push_back(const_cast<char*>(e.c_str()));
-  env.push_back(nullptr);
   int pipefd[2];
-  if (pipe(pipefd) != 0) return {-1, -1};
-  const pid_t pid = fork();
-  if (pid == 0) {
-    const int null = open("/dev/null", O_WRONLY);
-    if (null < 0 || dup2(pipefd[1], 1) < 0 || dup2(null, 2) < 0) _exit(127);
-    close(pipefd[0]);
-    execve(argv[0], argv.data(), env.data());
-    _exit(127);
-  }
+  if (pipe2(pipefd, O_CLOEXEC) != 0) return {-1, -1};
+  const pid_t pid =
+      spawnAsUser({fs::read_symlink("/proc/self/exe").string(), kPclIoFlag, in, out}, pipefd[1]);
   close(pipefd[1]);
   std::string text;
   char buf[256];
