@@ -6,8 +6,10 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <chrono>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -22,6 +24,8 @@ namespace hgdbench {
 namespace fs = std::filesystem;
 
 namespace {
+
+constexpr const char* kPclIoMark = "hgdeform-bench pcl-io ms: ";
 
 double msSince(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
@@ -40,7 +44,7 @@ pid_t spawnAsUser(const std::vector<std::string>& args, int out_fd) {
   const pid_t pid = fork();
   if (pid == 0) {
     // dup2, not freopen: closing stdout would flush the bench's own unwritten output a second time.
-    const int null = open("/dev/null", O_WRONLY);
+    const int null = open("/dev/null", O_WRONLY | O_CLOEXEC);
     if (null < 0 || dup2(out_fd >= 0 ? out_fd : null, 1) < 0 || dup2(null, 2) < 0) _exit(127);
     execve(argv[0], argv.data(), env.data());
     _exit(127);
@@ -66,19 +70,25 @@ std::pair<double, double> timeChild(const std::vector<std::string>& args) {
 std::pair<double, double> pclInChild(const std::string& in, const std::string& out) {
   int pipefd[2];
   if (pipe2(pipefd, O_CLOEXEC) != 0) return {-1, -1};
-  const pid_t pid =
-      spawnAsUser({fs::read_symlink("/proc/self/exe").string(), kPclIoFlag, in, out}, pipefd[1]);
+  // (/proc/self/exe itself: the bench's file may have been rebuilt meanwhile.)
+  const pid_t pid = spawnAsUser({"/proc/self/exe", kPclIoFlag, in, out}, pipefd[1]);
   close(pipefd[1]);
   std::string text;
   char buf[256];
-  for (ssize_t got; pid > 0 && (got = read(pipefd[0], buf, sizeof buf)) > 0;)
-    text.append(buf, static_cast<std::size_t>(got));
+  for (ssize_t got; pid > 0 && ((got = read(pipefd[0], buf, sizeof buf)) > 0 || (got < 0 && errno == EINTR));)
+    if (got > 0) text.append(buf, static_cast<std::size_t>(got));
   close(pipefd[0]);
   int status = 0;
-  if (pid < 0 || waitpid(pid, &status, 0) != pid || !WIFEXITED(status) || WEXITSTATUS(status) != 0)
-    return {-1, -1};
+  pid_t waited = -1;
+  while (pid > 0 && (waited = waitpid(pid, &status, 0)) < 0 && errno == EINTR) {
+  }
+  if (pid < 0 || waited != pid || !WIFEXITED(status) || WEXITSTATUS(status) != 0) return {-1, -1};
+  // The times follow their mark (whatever PCL may have printed before them).
+  const std::size_t at = text.rfind(kPclIoMark);
   double r = -1, w = -1;
-  if (std::sscanf(text.c_str(), "%lf %lf", &r, &w) != 2) return {-1, -1};
+  if (at == std::string::npos ||
+      std::sscanf(text.c_str() + at + std::strlen(kPclIoMark), "%lf %lf", &r, &w) != 2)
+    return {-1, -1};
   return {r, w};
 }
 
@@ -93,7 +103,7 @@ int pclIoReference(const char* in, const char* out) {
   t0 = std::chrono::steady_clock::now();
   pcl::PLYWriter writer;
   if (writer.writeBinary(out, cloud) != 0) return 1;
-  std::printf("%.6f %.6f\n", read_ms, msSince(t0));
+  std::printf("%s%.6f %.6f\n", kPclIoMark, read_ms, msSince(t0));
   return 0;
 }
 

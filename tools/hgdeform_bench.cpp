@@ -351,8 +351,10 @@ int parseArgs(int argc, char** argv, BenchArgs& a) {
 
 int main(int argc, char** argv) {
   // PCL's reference for the whole-command row, run by the bench itself (bench_command.h).
-  if (argc == 4 && std::strcmp(argv[1], hgdbench::kPclIoFlag) == 0)
+  if (argc == 4 && std::strcmp(argv[1], hgdbench::kPclIoFlag) == 0) {
+    hgdcli::singleThreadBlas();  // (a PCL program has no BLAS worker spinning beside it)
     return hgdbench::pclIoReference(argv[2], argv[3]);
+  }
   hgd::removeTemporaryFilesOnSignals();  // no partial --json left by an interrupted run
   hgdcli::hugePageMalloc(argv);          // as hgdeform does for large inputs (huge_pages.h)
   hgdcli::singleThreadBlas();            // as hgdeform does (blas_guard.h)

@@ -17,10 +17,16 @@ namespace hgdcli {
 
 namespace {
 
-// Set by the restart: that it happened (never twice, whatever glibc made of the tunable), and
-// the user's own GLIBC_TUNABLES when there was one (for the bench's children, userEnvironment).
+// Set by the restart: that it happened, as the process id that the exec keeps (never twice,
+// whatever glibc made of the tunable; a mark inherited from elsewhere is another id), and the
+// user's own GLIBC_TUNABLES when there was one (for the bench's children, userEnvironment).
 constexpr const char* kRestarted = "HGDEFORM_HUGE_PAGE_RESTART";
 constexpr const char* kUserTunables = "HGDEFORM_USER_GLIBC_TUNABLES";
+
+bool restarted() {
+  const char* mark = std::getenv(kRestarted);
+  return mark && std::to_string(getpid()) == mark;
+}
 
 bool hugePagesOnRequestOnly() {
   std::ifstream f("/sys/kernel/mm/transparent_hugepage/enabled");
@@ -38,13 +44,14 @@ bool glibcKnowsHugetlb() {
 }  // namespace
 
 void hugePageMalloc(char** argv) {
-  if (std::getenv(kRestarted) || getauxval(AT_SECURE) != 0 || !glibcKnowsHugetlb()) return;
+  if (restarted() || getauxval(AT_SECURE) != 0 || !glibcKnowsHugetlb()) return;
   const char* old = std::getenv("GLIBC_TUNABLES");
   const std::string tunables = old ? old : "";
   if (tunables.find("glibc.malloc.hugetlb") != std::string::npos) return;  // chosen already
   if (!hugePagesOnRequestOnly()) return;  // `always` gives them anyway; `never` not at all
   const std::string set = tunables.empty() ? "glibc.malloc.hugetlb=1" : tunables + ":glibc.malloc.hugetlb=1";
-  if (setenv(kRestarted, "1", 1) != 0 || (old && setenv(kUserTunables, old, 1) != 0) ||
+  if (setenv(kRestarted, std::to_string(getpid()).c_str(), 1) != 0 ||
+      (old ? setenv(kUserTunables, old, 1) : unsetenv(kUserTunables)) != 0 ||
       setenv("GLIBC_TUNABLES", set.c_str(), 1) != 0)
     return;
   execv("/proc/self/exe", argv);
@@ -79,14 +86,14 @@ bool hugePageMallocOn() {
 
 std::vector<std::string> userEnvironment() {
   std::vector<std::string> env;
-  const bool restarted = std::getenv(kRestarted) != nullptr;
+  const bool was_restarted = restarted();
   for (char** e = environ; *e; ++e) {
     const std::string entry = *e;
     const std::string name = entry.substr(0, entry.find('='));
-    if (restarted && (name == "GLIBC_TUNABLES" || name == kRestarted || name == kUserTunables)) continue;
+    if (was_restarted && (name == "GLIBC_TUNABLES" || name == kRestarted || name == kUserTunables)) continue;
     env.push_back(entry);
   }
-  if (restarted)
+  if (was_restarted)
     if (const char* user = std::getenv(kUserTunables)) env.push_back(std::string("GLIBC_TUNABLES=") + user);
   return env;
 }

@@ -738,6 +738,9 @@ class PyHandleDeformation {
   std::shared_ptr<const hgd::Deformer> deformer() {
     std::lock_guard<std::mutex> lock(mutex_);
     ensureBuilt();
+    // The build's first shape is made when first read: here, under the lock, so that a view's
+    // later read only reads (another thread's move or rebuild waits for this lock).
+    (void)deformer_->deformedPoints();
     return deformer_;
   }
   std::vector<Eigen::Vector3f> normals() {

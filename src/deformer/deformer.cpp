@@ -58,7 +58,10 @@ void Deformer::rebuild() {
   // A first shape never read: the points a preview frame leaves alone keep it, so it is made
   // now, from the table and transforms it belongs to; without a preview it is replaced whole.
   if (!preview_.empty()) ensureFirstShape();
-  first_shape_.due = false;
+  {
+    const std::lock_guard<std::mutex> lock(first_shape_.mutex);
+    first_shape_.due.store(false, std::memory_order_release);
+  }
   if (t_phase_log != &data_.timings.phases) data_.timings.phases.clear();  // (a new handle set)
   PhaseRecording recording(&data_.timings.phases);
   precompute(*geometry_, handles_, options_, data_);
@@ -118,14 +121,15 @@ void Deformer::pick(const Eigen::Vector3d& world) {
   const Eigen::Vector3f local = (world - geometry_->origin).cast<float>();
   float best = INFINITY;
   picked_ = handles_.manipulated.front();
-  const std::vector<Eigen::Vector3f>& at = handlePositions();
-  for (int i : handles_.manipulated) {
-    const float d = (at[static_cast<std::size_t>(i)] - local).squaredNorm();
-    if (d < best) {
-      best = d;
-      picked_ = i;
+  readHandlePositions([&](const std::vector<Eigen::Vector3f>& at) {
+    for (int i : handles_.manipulated) {
+      const float d = (at[static_cast<std::size_t>(i)] - local).squaredNorm();
+      if (d < best) {
+        best = d;
+        picked_ = i;
+      }
     }
-  }
+  });
   // Shape matching on (a subsample of) the handle's cluster points plus the picked point.
   const auto& members =
       data_.clustering.clusters[static_cast<std::size_t>(data_.clustering.manipulated)].members;
@@ -204,8 +208,10 @@ DragResult Deformer::dragTo(const Eigen::Vector3d& from, const Eigen::Vector3d& 
   if (!to.allFinite() || !from.allFinite()) throw std::invalid_argument("drag: target is not finite");
   leaveFrameMode();
   pick(from);
-  const Eigen::Vector3d start =
-      handlePositions()[static_cast<std::size_t>(picked_)].cast<double>() + geometry_->origin;
+  Eigen::Vector3d start;
+  readHandlePositions([&](const std::vector<Eigen::Vector3f>& at) {
+    start = at[static_cast<std::size_t>(picked_)].cast<double>() + geometry_->origin;
+  });
   last_to_ = from;
   const double diag = 1.0 / scale_;
   // The cursor's path in frames of at most max_drag_step; a target absurdly far away gets at
@@ -241,8 +247,10 @@ SolveStats Deformer::setHandleTransform(const Eigen::Affine3d& transform) {
 
 Eigen::Vector3d Deformer::handleCentre() const {
   Eigen::Vector3d c = Eigen::Vector3d::Zero();
-  const std::vector<Eigen::Vector3f>& at = handlePositions();
-  for (int i : handles_.manipulated) c += at[static_cast<std::size_t>(i)].cast<double>() + geometry_->origin;
+  readHandlePositions([&](const std::vector<Eigen::Vector3f>& at) {
+    for (int i : handles_.manipulated)
+      c += at[static_cast<std::size_t>(i)].cast<double>() + geometry_->origin;
+  });
   return c / static_cast<double>(handles_.manipulated.size());
 }
 
@@ -356,17 +364,18 @@ InterpolationTable Deformer::subTable(const std::vector<int>& points) const {
   return t;
 }
 
-void Deformer::ensureFirstShape() const {
+void Deformer::settleFirstShape() const {
   const std::lock_guard<std::mutex> lock(first_shape_.mutex);
-  if (!first_shape_.due) return;
+  if (!first_shape_.due.load(std::memory_order_relaxed)) return;
   // local_ is still the build's: updateShape() and rebuild() settle or drop this first.
   interpolatePositions(data_.table, local_, positions_, first_shape_.blend);
-  first_shape_.due = false;
+  first_shape_.due.store(false, std::memory_order_release);
 }
 
-const std::vector<Eigen::Vector3f>& Deformer::handlePositions() const {
+template <typename Read>
+void Deformer::readHandlePositions(Read&& read) const {
   const std::lock_guard<std::mutex> lock(first_shape_.mutex);
-  if (first_shape_.due && !first_shape_.handle_done) {
+  if (first_shape_.due.load(std::memory_order_relaxed) && !first_shape_.handle_done) {
     // Row by row what the whole table gives (as a preview frame's points), for these only.
     std::vector<int> handle = handles_.manipulated;
     std::sort(handle.begin(), handle.end());
@@ -377,7 +386,7 @@ const std::vector<Eigen::Vector3f>& Deformer::handlePositions() const {
       positions_[static_cast<std::size_t>(handle[k])] = moved[k];
     first_shape_.handle_done = true;
   }
-  return positions_;
+  read(static_cast<const std::vector<Eigen::Vector3f>&>(positions_));
 }
 
 void Deformer::setBlend(Blend blend) {
@@ -389,7 +398,7 @@ void Deformer::updateShape(bool lazy) {
   if (preview_.empty()) {
     // Every point is (re)made below, or marked due: a pending first shape is not needed.
     const std::lock_guard<std::mutex> lock(first_shape_.mutex);
-    first_shape_.due = false;
+    first_shape_.due.store(false, std::memory_order_release);
   } else {
     ensureFirstShape();  // the points the preview leaves alone must hold it
   }
@@ -412,9 +421,9 @@ void Deformer::updateShape(bool lazy) {
   if (preview_.empty()) {
     if (lazy) {
       const std::lock_guard<std::mutex> lock(first_shape_.mutex);
-      first_shape_.due = true;
       first_shape_.handle_done = false;
       first_shape_.blend = options_.blend;
+      first_shape_.due.store(true, std::memory_order_release);
     } else {
       interpolatePositions(data_.table, local_, positions_, options_.blend);
     }

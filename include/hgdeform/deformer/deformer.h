@@ -10,6 +10,7 @@
 #pragma once
 
 #include <Eigen/Geometry>
+#include <atomic>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -204,14 +205,20 @@ class Deformer {
   mutable std::vector<Eigen::Vector3f> positions_;
   struct DueShape {
     std::mutex mutex;               // const readers may settle it concurrently
-    bool due = false;               // positions_ do not hold the build's first shape yet
+    std::atomic<bool> due{false};   // positions_ do not hold the build's first shape yet
     bool handle_done = false;       // ... except the manipulated handle's points
     Blend blend = Blend::Rotation;  // the build's (setBlend changes options_ first)
   };
   mutable DueShape first_shape_;
-  void ensureFirstShape() const;
-  /// positions_, of which only the manipulated handle's points may be read: settles only those.
-  const std::vector<Eigen::Vector3f>& handlePositions() const;
+  /// Settles the first shape (a lock only while it is due: readers call this for every point).
+  void ensureFirstShape() const {
+    if (first_shape_.due.load(std::memory_order_acquire)) settleFirstShape();
+  }
+  void settleFirstShape() const;
+  /// Calls read(positions_) for reading the manipulated handle's points only, with only those
+  /// settled, under the first shape's lock (a concurrent settle rewrites them).
+  template <typename Read>
+  void readHandlePositions(Read&& read) const;
   /// The rows of data_.table for `points` (ascending), as one table.
   InterpolationTable subTable(const std::vector<int>& points) const;
   // Normals are derived when asked for, each point's from the transforms its position came
