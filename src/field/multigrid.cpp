@@ -32,6 +32,33 @@ double chunkedSum(long long n, Body&& body) {
   return sum;
 }
 
+// (A x)_r for row r of a row-major sparse matrix, one row at a time (for forRows and
+// forEachRow).
+struct RowProduct {
+  const int* outer;
+  const int* inner;
+  const double* val;
+  const double* xp;
+  const double* dp;
+  RowProduct(const RowMat& a, const Eigen::VectorXd& diag, const Eigen::VectorXd& x)
+      : outer(a.outerIndexPtr()),
+        inner(a.innerIndexPtr()),
+        val(a.valuePtr()),
+        xp(x.data()),
+        dp(diag.data()) {}
+  /// `unit`'s rows (see forRows): the column indices only.
+  double unitRow(long long r) const {
+    double s = 0;
+    for (int m = outer[r]; m < outer[r + 1]; ++m) s += xp[inner[m]];
+    return (dp[r] + 1.0) * xp[r] - s;  // the diagonal's own column was summed with the rest
+  }
+  double row(long long r) const {
+    double s = 0;
+    for (int m = outer[r]; m < outer[r + 1]; ++m) s += val[m] * xp[inner[m]];
+    return s;
+  }
+};
+
 // Calls f(r, (A x)_r) for every row r of a row-major sparse matrix, in parallel, and returns
 // the sum of what f returns (for the dot products that ride along). `unit`: the free block of
 // the graph Laplacian, whose off-diagonal entries are all -1, so only the column indices are
@@ -39,26 +66,13 @@ double chunkedSum(long long n, Body&& body) {
 // into these passes: at a million points it is bound by memory traffic, not arithmetic.
 template <typename F>
 double forRows(const RowMat& a, bool unit, const Eigen::VectorXd& diag, const Eigen::VectorXd& x, F&& f) {
-  const int* outer = a.outerIndexPtr();
-  const int* inner = a.innerIndexPtr();
-  const double* val = a.valuePtr();
-  const double* xp = x.data();
-  const double* dp = diag.data();
+  const RowProduct ax(a, diag, x);
   return chunkedSum(a.rows(), [&](long long begin, long long end) {
     double sum = 0;
-    if (unit) {
-      for (long long r = begin; r < end; ++r) {
-        double s = 0;
-        for (int m = outer[r]; m < outer[r + 1]; ++m) s += xp[inner[m]];
-        sum += f(r, (dp[r] + 1.0) * xp[r] - s);  // the diagonal's own column was summed with the rest
-      }
-    } else {
-      for (long long r = begin; r < end; ++r) {
-        double s = 0;
-        for (int m = outer[r]; m < outer[r + 1]; ++m) s += val[m] * xp[inner[m]];
-        sum += f(r, s);
-      }
-    }
+    if (unit)
+      for (long long r = begin; r < end; ++r) sum += f(r, ax.unitRow(r));
+    else
+      for (long long r = begin; r < end; ++r) sum += f(r, ax.row(r));
     return sum;
   });
 }
@@ -69,26 +83,14 @@ double forRows(const RowMat& a, bool unit, const Eigen::VectorXd& diag, const Ei
 // 65,536-point coarse level, ran on one thread under forRows' kParallelMin).
 template <typename F>
 void forEachRow(const RowMat& a, bool unit, const Eigen::VectorXd& diag, const Eigen::VectorXd& x, F&& f) {
-  const int* outer = a.outerIndexPtr();
-  const int* inner = a.innerIndexPtr();
-  const double* val = a.valuePtr();
-  const double* xp = x.data();
-  const double* dp = diag.data();
+  const RowProduct ax(a, diag, x);
   const long long rows = a.rows();
   if (unit) {
 #pragma omp parallel for schedule(static) if (rows > kParallelMinCostly)
-    for (long long r = 0; r < rows; ++r) {
-      double s = 0;
-      for (int m = outer[r]; m < outer[r + 1]; ++m) s += xp[inner[m]];
-      f(r, (dp[r] + 1.0) * xp[r] - s);
-    }
+    for (long long r = 0; r < rows; ++r) f(r, ax.unitRow(r));
   } else {
 #pragma omp parallel for schedule(static) if (rows > kParallelMinCostly)
-    for (long long r = 0; r < rows; ++r) {
-      double s = 0;
-      for (int m = outer[r]; m < outer[r + 1]; ++m) s += val[m] * xp[inner[m]];
-      f(r, s);
-    }
+    for (long long r = 0; r < rows; ++r) f(r, ax.row(r));
   }
 }
 
