@@ -87,7 +87,8 @@ SampleGraph sampleGraph(const NeighborGraph& graph, const std::vector<int>& samp
     cell[static_cast<std::size_t>(i)] = c == std::numeric_limits<int>::max() ? -1 : c;
   }
   const std::size_t ns = sg.sites.size();
-  // Cell pairs across edges, per thread, then sorted and made one graph.
+  // Cell pairs across edges, per thread, then made one graph (addEdges sorts each site's row
+  // and drops repeats: a sort of every pair first cost more than the rest of the phase).
   std::vector<std::pair<int, int>> pairs;
 #pragma omp parallel if (nn > kParallelMinCostly)
   {
@@ -105,8 +106,6 @@ SampleGraph sampleGraph(const NeighborGraph& graph, const std::vector<int>& samp
 #pragma omp critical
     pairs.insert(pairs.end(), mine.begin(), mine.end());
   }
-  std::sort(pairs.begin(), pairs.end());
-  pairs.erase(std::unique(pairs.begin(), pairs.end()), pairs.end());
   NeighborGraph empty;
   empty.offsets.assign(ns + 1, 0);
   sg.graph = addEdges(empty, pairs);
