@@ -84,10 +84,26 @@ void orientNormals(const pcl::PointCloud<pcl::PointXYZ>& points, const KnnTable&
     if (best < 0 || points[i].x > points[static_cast<std::size_t>(best)].x) best = static_cast<int>(i);
   }
   constexpr int kBuckets = 256;
+  // Each edge's bucket, on every thread: |n_i . n_j| does not depend on the signs the tree
+  // gives, so the serial walk below only looks them up.
+  std::vector<unsigned char> edge_bucket(g.adj.size());
+  const long long nn = static_cast<long long>(n);
+#pragma omp parallel for schedule(static) if (nn > kParallelMinCostly)
+  for (long long ii = 0; ii < nn; ++ii) {
+    const auto i = static_cast<std::size_t>(ii);
+    const auto ni = normals[i].getNormalVector3fMap();
+    for (int m = g.offsets[i]; m < g.offsets[i + 1]; ++m) {
+      const float w =
+          1.0f -
+          std::abs(ni.dot(
+              normals[static_cast<std::size_t>(g.adj[static_cast<std::size_t>(m)])].getNormalVector3fMap()));
+      edge_bucket[static_cast<std::size_t>(m)] =
+          static_cast<unsigned char>(std::min(kBuckets - 1, static_cast<int>(w * kBuckets)));
+    }
+  }
   std::vector<std::vector<std::pair<int, int>>> bucket(kBuckets);  // (to, from)
   int lowest = kBuckets;
-  auto push = [&](float w, int to, int from) {
-    const int b = std::min(kBuckets - 1, static_cast<int>(w * kBuckets));
+  auto push = [&](int b, int to, int from) {
     bucket[static_cast<std::size_t>(b)].emplace_back(to, from);
     lowest = std::min(lowest, b);
   };
@@ -95,7 +111,7 @@ void orientNormals(const pcl::PointCloud<pcl::PointXYZ>& points, const KnnTable&
     if (done[static_cast<std::size_t>(seed)]) continue;
     auto& sn = normals[static_cast<std::size_t>(seed)];
     if (sn.normal_x < 0) sn.getNormalVector3fMap() *= -1.0f;
-    push(0.0f, seed, seed);
+    push(0, seed, seed);
     while (lowest < kBuckets) {
       auto& bk = bucket[static_cast<std::size_t>(lowest)];
       if (bk.empty()) {
@@ -109,10 +125,10 @@ void orientNormals(const pcl::PointCloud<pcl::PointXYZ>& points, const KnnTable&
       auto nt = normals[static_cast<std::size_t>(to)].getNormalVector3fMap();
       if (to != from && nt.dot(normals[static_cast<std::size_t>(from)].getNormalVector3fMap()) < 0)
         nt *= -1.0f;
-      for (const int* j = g.begin(static_cast<std::size_t>(to)); j != g.end(static_cast<std::size_t>(to));
-           ++j) {
-        if (done[static_cast<std::size_t>(*j)]) continue;
-        push(1.0f - std::abs(nt.dot(normals[static_cast<std::size_t>(*j)].getNormalVector3fMap())), *j, to);
+      for (int m = g.offsets[static_cast<std::size_t>(to)]; m < g.offsets[static_cast<std::size_t>(to) + 1];
+           ++m) {
+        const int j = g.adj[static_cast<std::size_t>(m)];
+        if (!done[static_cast<std::size_t>(j)]) push(edge_bucket[static_cast<std::size_t>(m)], j, to);
       }
     }
     lowest = kBuckets;
