@@ -482,13 +482,16 @@ struct ClusterPhases {
     // Blend factors (eq. 1): a gap point's place between the facing ends of its two bands.
     c.alpha.assign(n, 0.0f);
     c.nearest.resize(n);
-    for (std::size_t i = 0; i < n; ++i) {
+#pragma omp parallel for schedule(static) if (nn > kParallelMinCostly)
+    for (long long ii = 0; ii < nn; ++ii) {
+      const auto i = static_cast<std::size_t>(ii);
       if (gap[i] >= 0 && lower[i] != upper[i]) {
         const double a = bands[static_cast<std::size_t>(gap[i])].hi,
                      b = bands[static_cast<std::size_t>(gap[i]) + 1].lo;
         c.alpha[i] = b > a ? static_cast<float>(std::clamp((phi[i] - a) / (b - a), 0.0, 1.0)) : 0.0f;
       }
     }
+    // In order (a point can copy from one that copied before it: an outlier that passed a label on).
     for (std::size_t i = 0; i < n; ++i) {
       if (copy_from[i] >= 0) c.alpha[i] = c.alpha[static_cast<std::size_t>(copy_from[i])];
       c.nearest[i] = c.alpha[i] < 0.5f ? lower[i] : upper[i];
@@ -500,18 +503,27 @@ struct ClusterPhases {
     auto isStatic = [&](int id) {
       return c.clusters[static_cast<std::size_t>(id)].kind == ClusterKind::Static;
     };
-    auto addPair = [&](int a, int b) {  // neighbouring points mostly repeat the last pair
-      const std::pair<int, int> pr(std::min(a, b), std::max(a, b));
-      if (c.adjacency.empty() || c.adjacency.back() != pr) c.adjacency.push_back(pr);
-    };
-    for (std::size_t i = 0; i < n; ++i) {
-      if (lower[i] != upper[i]) addPair(lower[i], upper[i]);
-      if (band[i] < 0) continue;
-      for (const int* j = graph.begin(i); j != graph.end(i); ++j) {
-        const auto u = static_cast<std::size_t>(*j);
-        if (band[u] >= 0 && band[u] != band[i] && !isStatic(lower[i]) && !isStatic(lower[u]))
-          addPair(lower[i], lower[u]);
+    // Per thread, then sorted and made unique: the same list whatever the threads.
+#pragma omp parallel if (nn > kParallelMinCostly)
+    {
+      std::vector<std::pair<int, int>> mine;
+      auto addPair = [&](int a, int b) {  // neighbouring points mostly repeat the last pair
+        const std::pair<int, int> pr(std::min(a, b), std::max(a, b));
+        if (mine.empty() || mine.back() != pr) mine.push_back(pr);
+      };
+#pragma omp for schedule(static) nowait
+      for (long long ii = 0; ii < nn; ++ii) {
+        const auto i = static_cast<std::size_t>(ii);
+        if (lower[i] != upper[i]) addPair(lower[i], upper[i]);
+        if (band[i] < 0) continue;
+        for (const int* j = graph.begin(i); j != graph.end(i); ++j) {
+          const auto u = static_cast<std::size_t>(*j);
+          if (band[u] >= 0 && band[u] != band[i] && !isStatic(lower[i]) && !isStatic(lower[u]))
+            addPair(lower[i], lower[u]);
+        }
       }
+#pragma omp critical
+      c.adjacency.insert(c.adjacency.end(), mine.begin(), mine.end());
     }
     std::sort(c.adjacency.begin(), c.adjacency.end());
     c.adjacency.erase(std::unique(c.adjacency.begin(), c.adjacency.end()), c.adjacency.end());
