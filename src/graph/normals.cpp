@@ -97,8 +97,9 @@ void orientNormals(const pcl::PointCloud<pcl::PointXYZ>& points, const KnnTable&
           1.0f -
           std::abs(ni.dot(
               normals[static_cast<std::size_t>(g.adj[static_cast<std::size_t>(m)])].getNormalVector3fMap()));
+      // (A NaN weight, from a normal the library was given with an infinite component: first.)
       edge_bucket[static_cast<std::size_t>(m)] =
-          static_cast<unsigned char>(std::min(kBuckets - 1, static_cast<int>(w * kBuckets)));
+          w > 0 ? static_cast<unsigned char>(std::min(kBuckets - 1, static_cast<int>(w * kBuckets))) : 0;
     }
   }
   std::vector<std::vector<std::pair<int, int>>> bucket(kBuckets);  // (to, from)
