@@ -104,7 +104,14 @@ void orientNormals(const pcl::PointCloud<pcl::PointXYZ>& points, const KnnTable&
   }
   std::vector<std::vector<std::pair<int, int>>> bucket(kBuckets);  // (to, from)
   int lowest = kBuckets;
+  // A point waiting in bucket b is taken from there before any later entry of a higher
+  // bucket, which would then find it done: such entries are not queued (entries of the same
+  // bucket are, as the last one queued is taken first and decides the flip).
+  std::vector<unsigned char> queued_at(n, static_cast<unsigned char>(kBuckets - 1));
   auto push = [&](int b, int to, int from) {
+    unsigned char& q = queued_at[static_cast<std::size_t>(to)];
+    if (b > q) return;
+    q = static_cast<unsigned char>(b);
     bucket[static_cast<std::size_t>(b)].emplace_back(to, from);
     lowest = std::min(lowest, b);
   };
