@@ -2,7 +2,9 @@
 
 #include <Eigen/Cholesky>
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <memory>
 #include <numeric>
 #include <stdexcept>
 
@@ -366,21 +368,28 @@ CoarseLevel coarsen(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles&
 Handles coarseHandles(const Handles& handles, const CoarseLevel& level) {
   // The anchors in order, each once. A large handle's are marked and collected (sorting every
   // point's anchor cost more than the rest of the coarse level's set-up), a small one's sorted.
-  std::vector<char> mark(level.points.size(), 0);
+  // (Marked on every thread: atomic bytes, as points of one cell mark the same anchor.)
+  const std::size_t m = level.points.size();
+  std::unique_ptr<std::atomic<unsigned char>[]> mark(new std::atomic<unsigned char>[m]);
+  for (std::size_t a = 0; a < m; ++a) mark[a].store(0, std::memory_order_relaxed);
   auto map = [&](const std::vector<int>& idx) {
     std::vector<int> out;
-    if (idx.size() < mark.size() / 16) {
+    if (idx.size() < m / 16) {
       out.reserve(idx.size());
       for (int i : idx) out.push_back(static_cast<int>(level.anchor[static_cast<std::size_t>(i)]));
       std::sort(out.begin(), out.end());
       out.erase(std::unique(out.begin(), out.end()), out.end());
       return out;
     }
-    for (int i : idx) mark[level.anchor[static_cast<std::size_t>(i)]] = 1;
-    for (std::size_t a = 0; a < mark.size(); ++a)
-      if (mark[a]) {
+    const long long count = static_cast<long long>(idx.size());
+#pragma omp parallel for schedule(static) if (count > kParallelMin)
+    for (long long k = 0; k < count; ++k)
+      mark[level.anchor[static_cast<std::size_t>(idx[static_cast<std::size_t>(k)])]].store(
+          1, std::memory_order_relaxed);
+    for (std::size_t a = 0; a < m; ++a)
+      if (mark[a].load(std::memory_order_relaxed)) {
         out.push_back(static_cast<int>(a));
-        mark[a] = 0;
+        mark[a].store(0, std::memory_order_relaxed);
       }
     return out;
   };
