@@ -22,6 +22,25 @@ namespace {
 // reaches, or (k >= 0) on fixed handle k.
 constexpr int kFree = -1, kManipulatedRole = -2, kUnreachable = -3;
 
+// The pairs body(i, add) adds for every i in [0, n), gathered on every thread, in no particular
+// order; add(a, b) keeps a run of one pair once (neighbouring points mostly repeat the last).
+template <typename Body>
+std::vector<std::pair<int, int>> gatherPairs(long long n, Body&& body) {
+  std::vector<std::pair<int, int>> pairs;
+#pragma omp parallel if (n > kParallelMinCostly)
+  {
+    std::vector<std::pair<int, int>> mine;
+    const auto add = [&mine](int a, int b) {
+      if (mine.empty() || mine.back() != std::make_pair(a, b)) mine.emplace_back(a, b);
+    };
+#pragma omp for schedule(static) nowait
+    for (long long i = 0; i < n; ++i) body(static_cast<std::size_t>(i), add);
+#pragma omp critical
+    pairs.insert(pairs.end(), mine.begin(), mine.end());
+  }
+  return pairs;
+}
+
 struct SampleGraph {
   std::vector<int> sites;                    ///< site -> point
   NeighborGraph graph;                       ///< over sites
@@ -89,23 +108,14 @@ SampleGraph sampleGraph(const NeighborGraph& graph, const std::vector<int>& samp
   const std::size_t ns = sg.sites.size();
   // Cell pairs across edges, per thread, then made one graph (addEdges sorts each site's row
   // and drops repeats: a sort of every pair first cost more than the rest of the phase).
-  std::vector<std::pair<int, int>> pairs;
-#pragma omp parallel if (nn > kParallelMinCostly)
-  {
-    std::vector<std::pair<int, int>> mine;
-#pragma omp for schedule(static) nowait
-    for (long long ii = 0; ii < nn; ++ii) {
-      const auto i = static_cast<std::size_t>(ii);
-      const int a = cell[i];
-      if (a < 0) continue;
-      for (const int* j = graph.begin(i); j != graph.end(i); ++j) {
-        const int b = cell[static_cast<std::size_t>(*j)];
-        if (b > a && (mine.empty() || mine.back() != std::make_pair(a, b))) mine.emplace_back(a, b);
-      }
+  const std::vector<std::pair<int, int>> pairs = gatherPairs(nn, [&](std::size_t i, auto&& add) {
+    const int a = cell[i];
+    if (a < 0) return;
+    for (const int* j = graph.begin(i); j != graph.end(i); ++j) {
+      const int b = cell[static_cast<std::size_t>(*j)];
+      if (b > a) add(a, b);
     }
-#pragma omp critical
-    pairs.insert(pairs.end(), mine.begin(), mine.end());
-  }
+  });
   NeighborGraph empty;
   empty.offsets.assign(ns + 1, 0);
   sg.graph = addEdges(empty, pairs);
@@ -503,28 +513,16 @@ struct ClusterPhases {
     auto isStatic = [&](int id) {
       return c.clusters[static_cast<std::size_t>(id)].kind == ClusterKind::Static;
     };
-    // Per thread, then sorted and made unique: the same list whatever the threads.
-#pragma omp parallel if (nn > kParallelMinCostly)
-    {
-      std::vector<std::pair<int, int>> mine;
-      auto addPair = [&](int a, int b) {  // neighbouring points mostly repeat the last pair
-        const std::pair<int, int> pr(std::min(a, b), std::max(a, b));
-        if (mine.empty() || mine.back() != pr) mine.push_back(pr);
-      };
-#pragma omp for schedule(static) nowait
-      for (long long ii = 0; ii < nn; ++ii) {
-        const auto i = static_cast<std::size_t>(ii);
-        if (lower[i] != upper[i]) addPair(lower[i], upper[i]);
-        if (band[i] < 0) continue;
-        for (const int* j = graph.begin(i); j != graph.end(i); ++j) {
-          const auto u = static_cast<std::size_t>(*j);
-          if (band[u] >= 0 && band[u] != band[i] && !isStatic(lower[i]) && !isStatic(lower[u]))
-            addPair(lower[i], lower[u]);
-        }
+    // Gathered on every thread, then sorted and made unique: the same list whatever the threads.
+    c.adjacency = gatherPairs(nn, [&](std::size_t i, auto&& add) {
+      if (lower[i] != upper[i]) add(std::min(lower[i], upper[i]), std::max(lower[i], upper[i]));
+      if (band[i] < 0) return;
+      for (const int* j = graph.begin(i); j != graph.end(i); ++j) {
+        const auto u = static_cast<std::size_t>(*j);
+        if (band[u] >= 0 && band[u] != band[i] && !isStatic(lower[i]) && !isStatic(lower[u]))
+          add(std::min(lower[i], lower[u]), std::max(lower[i], lower[u]));
       }
-#pragma omp critical
-      c.adjacency.insert(c.adjacency.end(), mine.begin(), mine.end());
-    }
+    });
     std::sort(c.adjacency.begin(), c.adjacency.end());
     c.adjacency.erase(std::unique(c.adjacency.begin(), c.adjacency.end()), c.adjacency.end());
   }
