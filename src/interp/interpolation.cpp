@@ -19,13 +19,8 @@ InterpolationTable tableOf(const std::vector<float>& phi, const Handles& handles
   if (points.size() != n || c.lower.size() != n || c.upper.size() != n || c.alpha.size() != n)
     throw std::invalid_argument(
         "buildInterpolation: the field, the points and the clustering's per-point labels differ in size");
-  std::vector<std::pair<int, int>> pairs;  // runs of equal pairs kept once
-  pairs.reserve(c.adjacency.size() * 2 + c.clusters.size());
-  for (std::size_t i = 0; i < n; ++i)
-    if (pairs.empty() || pairs.back() != std::make_pair(c.lower[i], c.upper[i]))
-      pairs.emplace_back(c.lower[i], c.upper[i]);
   return detail::buildTable(
-      handles, c, points, std::move(pairs),
+      handles, c, points, detail::labelPairs(c),
       [&](std::size_t i, int& lo, int& hi, float& alpha) {
         lo = c.lower[i];
         hi = c.upper[i];

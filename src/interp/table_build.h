@@ -15,6 +15,17 @@
 
 namespace hgd::detail {
 
+/// buildTable's candidates from a clustering's per-point labels: (lower, upper) of every point,
+/// a run of one pair kept once (neighbours in space-filling-curve order repeat their pair).
+inline std::vector<std::pair<int, int>> labelPairs(const Clustering& c) {
+  std::vector<std::pair<int, int>> pairs;
+  pairs.reserve(c.adjacency.size() * 2 + c.clusters.size());
+  for (std::size_t i = 0; i < c.lower.size(); ++i)
+    if (pairs.empty() || pairs.back() != std::make_pair(c.lower[i], c.upper[i]))
+      pairs.emplace_back(c.lower[i], c.upper[i]);
+  return pairs;
+}
+
 /// The table of `points` under the clusters of `c` (their barycentres and kinds; not its per-point
 /// labels). `candidates`: every (lower, upper) pair a point may take, in any order, repeats
 /// allowed. `bracket(i, lower, upper, alpha)` gives point i's; it is called in parallel. Then

@@ -561,13 +561,8 @@ InterpolationTable prolongInterpolation(const Clustering& c, const CoarseLevel& 
   if (points.size() != phi.size())
     throw std::invalid_argument("prolongInterpolation: the points and the field differ in size");
   const AlphaRule rule(c, coarse_phi);
-  std::vector<std::pair<int, int>> pairs;  // runs of equal pairs kept once (buildTable sorts them)
-  pairs.reserve(c.adjacency.size() * 2 + c.clusters.size());
-  for (std::size_t a = 0; a < c.lower.size(); ++a)
-    if (pairs.empty() || pairs.back() != std::make_pair(c.lower[a], c.upper[a]))
-      pairs.emplace_back(c.lower[a], c.upper[a]);
   InterpolationTable t = detail::buildTable(
-      handles, c, points, std::move(pairs),
+      handles, c, points, detail::labelPairs(c),
       [&](std::size_t i, int& lo, int& hi, float& alpha) {
         const std::uint32_t a = level.anchor[i];
         lo = c.lower[a];
