@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstring>
 #include <memory>
 #include <numeric>
 #include <stdexcept>
@@ -34,12 +35,157 @@ struct Grid {
   int axis_bits = 0;
   std::uint64_t key(const Eigen::Vector3f& p, int cls) const {
     const Eigen::Vector3f q = ((p - lo) / h).array().floor();
+    return keyOf(q, cls);
+  }
+  /// key(p, cls), and in `centre2` the squared distance from p to its cell's centre, in sides.
+  std::uint64_t key(const Eigen::Vector3f& p, int cls, float& centre2) const {
+    const Eigen::Vector3f r = (p - lo) / h;
+    const Eigen::Vector3f q = r.array().floor();
+    centre2 = (r - q - Eigen::Vector3f::Constant(0.5f)).squaredNorm();
+    return keyOf(q, cls);
+  }
+
+ private:
+  std::uint64_t keyOf(const Eigen::Vector3f& q, int cls) const {
     const std::uint64_t x = static_cast<std::uint64_t>(std::max(0.0f, q.x()));
     const std::uint64_t y = static_cast<std::uint64_t>(std::max(0.0f, q.y()));
     const std::uint64_t z = static_cast<std::uint64_t>(std::max(0.0f, q.z()));
     return (((static_cast<std::uint64_t>(cls) << axis_bits | z) << axis_bits | y) << axis_bits) | x;
   }
 };
+
+// The cells of a grid over a cloud, kept as runs: consecutive points (in the cloud's order) in
+// one cell. A shape's points come in Morton order (Geometry), so a cell's points lie in a few
+// runs (870,000 for 4,000,000 points in 68,000 cells), and the cells are found by sorting the
+// runs, not the points: no key or sorted position is stored per point, and each run keeps its
+// point nearest the cell's centre, found in the same pass.
+struct Cells {
+  // The runs, in the cloud's order (cut where the blocks of the pass that found them end).
+  std::vector<std::uint32_t> run_start;  ///< run r: points run_start[r] .. run_start[r + 1] - 1
+  std::vector<std::uint64_t> run_key;    ///< its cell's key
+  std::vector<std::uint32_t> run_best;   ///< its point nearest the cell's centre (the first of equals)
+  std::vector<float> run_best_d;         ///< that point's squared distance to the centre
+  std::vector<std::uint32_t> run_cell;   ///< its cell
+  // The cells in key order (neighbouring cells near in memory), each with its runs in order.
+  std::vector<std::uint32_t> runs;   ///< run indices, by cell
+  std::vector<std::uint32_t> first;  ///< cell c's runs: runs[first[c]] .. runs[first[c + 1] - 1]
+  std::vector<std::uint64_t> key;    ///< cell c's key
+  std::vector<std::uint32_t> size;   ///< its points
+  std::size_t count() const { return key.size(); }
+  /// Calls fn(i) for each point i of cell c, ascending, until fn returns false; false then.
+  template <typename Fn>
+  bool eachPoint(std::size_t c, Fn&& fn) const {
+    for (std::uint32_t s = first[c]; s < first[c + 1]; ++s)
+      for (std::uint32_t i = run_start[runs[s]]; i < run_start[runs[s] + 1]; ++i)
+        if (!fn(static_cast<std::size_t>(i))) return false;
+    return true;
+  }
+};
+
+// Every point's cell, as runs (each with its point nearest the cell's centre), then the cells
+// from the runs sorted by key (stably: a cell's runs, and so its points, stay in order).
+Cells findCells(const pcl::PointCloud<pcl::PointXYZ>& points, const std::vector<std::uint16_t>& cls,
+                const Grid& grid, std::uint64_t max_key) {
+  Cells out;
+  const long long n = static_cast<long long>(points.size());
+  const int blocks = blockCount(n);
+  // Each block's runs, written without a branch per point: whether a point starts a run, and
+  // whether it is the nearest so far, follow no pattern, and with branches this pass took 82 ms
+  // on 4,000,000 points, without 42 ms (one thread). The run being read is written at its place
+  // on every point; the next run starts one place on. The arrays have room for a run per point;
+  // only the pages of the runs found are touched.
+  struct Part {
+    UninitVector<std::uint32_t> start, best, best_d;  // (best_d: the float's bits, see below)
+    UninitVector<std::uint64_t> key;
+    std::size_t runs = 0;
+  };
+  std::vector<Part> part(static_cast<std::size_t>(blocks));
+  forBlocks(n, blocks, [&](int begin, int end, int b) {
+    Part& p = part[static_cast<std::size_t>(b)];
+    const auto most = static_cast<std::size_t>(end - begin);
+    p.start.resize(most);
+    p.key.resize(most);
+    p.best.resize(most);
+    p.best_d.resize(most);
+    // The squared distances are not negative, so their bits order as they do; a new run's
+    // distance so far is all ones, above every distance. No key is all ones (at most 63 bits).
+    std::size_t r = ~std::size_t{0};
+    std::uint64_t key = ~std::uint64_t{0};
+    std::uint32_t start = 0, best = 0, best_d = 0;
+    for (auto i = static_cast<std::uint32_t>(begin); i < static_cast<std::uint32_t>(end); ++i) {
+      float d = 0;
+      const std::uint64_t k = grid.key(points[i].getVector3fMap(), cls[i], d);
+      std::uint32_t bits = 0;
+      std::memcpy(&bits, &d, sizeof bits);
+      const auto fresh = static_cast<std::uint32_t>(k != key);
+      const std::uint32_t all = 0u - fresh;  // all ones where a run starts
+      r += fresh;
+      key = k;
+      start = (i & all) | (start & ~all);
+      const std::uint32_t so_far = best_d | all;
+      const std::uint32_t nearer = 0u - static_cast<std::uint32_t>(bits < so_far);
+      best = (i & nearer) | (best & ~nearer);
+      best_d = (bits & nearer) | (so_far & ~nearer);
+      p.start[r] = start;
+      p.key[r] = key;
+      p.best[r] = best;
+      p.best_d[r] = best_d;
+    }
+    p.runs = r + 1;  // (none: ~0 + 1)
+  });
+  std::vector<std::size_t> at(static_cast<std::size_t>(blocks) + 1, 0);
+  for (std::size_t b = 0; b < part.size(); ++b) at[b + 1] = at[b] + part[b].runs;
+  const std::size_t runs = at.back();
+  out.run_start.resize(runs + 1);
+  out.run_key.resize(runs);
+  out.run_best.resize(runs);
+  out.run_best_d.resize(runs);
+  std::vector<std::uint64_t> sorted_key(runs);
+  out.runs.resize(runs);
+  forBlocks(n, blocks, [&](int, int, int b) {
+    Part& p = part[static_cast<std::size_t>(b)];
+    const std::size_t o = at[static_cast<std::size_t>(b)];
+    const auto m = static_cast<long>(p.runs);
+    std::copy(p.start.begin(), p.start.begin() + m, out.run_start.begin() + static_cast<long>(o));
+    std::copy(p.key.begin(), p.key.begin() + m, out.run_key.begin() + static_cast<long>(o));
+    std::copy(p.key.begin(), p.key.begin() + m, sorted_key.begin() + static_cast<long>(o));
+    std::copy(p.best.begin(), p.best.begin() + m, out.run_best.begin() + static_cast<long>(o));
+    std::memcpy(out.run_best_d.data() + o, p.best_d.data(), p.runs * sizeof(float));
+    for (std::size_t k = 0; k < p.runs; ++k) out.runs[o + k] = static_cast<std::uint32_t>(o + k);
+    p = Part{};
+  });
+  out.run_start[runs] = static_cast<std::uint32_t>(n);
+  radixSort(sorted_key, out.runs, max_key, 11);
+  // The cells: where the sorted keys change.
+  const long long rr = static_cast<long long>(runs);
+  const int run_blocks = blockCount(rr);
+  std::vector<std::vector<std::uint32_t>> firsts(static_cast<std::size_t>(run_blocks));
+  forBlocks(rr, run_blocks, [&](int begin, int end, int b) {
+    for (auto s = static_cast<std::size_t>(begin); s < static_cast<std::size_t>(end); ++s)
+      if (s == 0 || sorted_key[s] != sorted_key[s - 1])
+        firsts[static_cast<std::size_t>(b)].push_back(static_cast<std::uint32_t>(s));
+  });
+  for (const auto& f : firsts) out.first.insert(out.first.end(), f.begin(), f.end());
+  const std::size_t cells = out.first.size();
+  out.first.push_back(static_cast<std::uint32_t>(runs));
+  out.key.resize(cells);
+  out.size.resize(cells);
+  out.run_cell.resize(runs);
+  const long long cc = static_cast<long long>(cells);
+#pragma omp parallel for schedule(static) if (n > kParallelMin)
+  for (long long c = 0; c < cc; ++c) {
+    const auto cell = static_cast<std::size_t>(c);
+    out.key[cell] = sorted_key[out.first[cell]];
+    std::uint32_t size = 0;
+    for (std::uint32_t s = out.first[cell]; s < out.first[cell + 1]; ++s) {
+      const std::uint32_t r = out.runs[s];
+      out.run_cell[r] = static_cast<std::uint32_t>(cell);
+      size += out.run_start[r + 1] - out.run_start[r];
+    }
+    out.size[cell] = size;
+  }
+  return out;
+}
 
 // The cells a grid would have over the sampled points (positions and classes, packed).
 std::size_t countCells(const std::vector<Eigen::Vector3f>& points, const std::vector<std::uint16_t>& cls,
@@ -63,15 +209,11 @@ std::size_t countCells(const std::vector<Eigen::Vector3f>& points, const std::ve
 // within three times the typical distance to the second nearest (at most a cell side) is a
 // stray: no coarse point (as findOutliers' strays hang from the surface at full resolution).
 std::vector<char> findStrays(const pcl::PointCloud<pcl::PointXYZ>& points, const Grid& grid,
-                             std::size_t classes, const UninitVector<std::uint64_t>& keys,
-                             const UninitVector<std::uint32_t>& order,
-                             const std::vector<std::size_t>& starts) {
-  const std::size_t n = keys.size(), cells = starts.size() - 1;
+                             std::size_t classes, const Cells& cell_points) {
+  const std::size_t n = points.size(), cells = cell_points.count();
   std::vector<char> stray(n, 0);
-  std::vector<std::uint64_t> cell_key(cells);  // searched instead of every point's key
-  for (std::size_t c = 0; c < cells; ++c) cell_key[c] = keys[starts[c]];
-  std::vector<std::size_t> size(cells);
-  for (std::size_t c = 0; c < cells; ++c) size[c] = starts[c + 1] - starts[c];
+  const std::vector<std::uint64_t>& cell_key = cell_points.key;
+  std::vector<std::uint32_t> size = cell_points.size;
   std::nth_element(size.begin(), size.begin() + static_cast<long>(cells / 2), size.end());
   const std::size_t median = size[cells / 2];
   if (median < 4) return stray;
@@ -96,22 +238,28 @@ std::vector<char> findStrays(const pcl::PointCloud<pcl::PointXYZ>& points, const
           const std::uint64_t first = base | static_cast<std::uint64_t>(x0),
                               last = base | static_cast<std::uint64_t>(x1);
           for (auto it = std::lower_bound(cell_key.begin(), cell_key.end(), first);
-               it != cell_key.end() && *it <= last; ++it) {
-            const auto cell = static_cast<std::size_t>(it - cell_key.begin());
-            for (std::size_t k = starts[cell]; k < starts[cell + 1]; ++k)
-              if (!fn(static_cast<std::size_t>(order[k]))) return;
-          }
+               it != cell_key.end() && *it <= last; ++it)
+            if (!cell_points.eachPoint(static_cast<std::size_t>(it - cell_key.begin()), fn)) return;
         }
       }
   };
   // The typical distance to the second nearest point, over about 2,000 points of full cells
-  // (on every thread, kept in sample order).
+  // (on every thread, kept in sample order): every stride-th point, the cells in key order.
   const std::size_t stride = std::max<std::size_t>(1, n / 2000);
   const long long samples = static_cast<long long>((n + stride - 1) / stride);
+  std::vector<std::size_t> cell_at(cells + 1, 0);  // where each cell's points start in that order
+  for (std::size_t c = 0; c < cells; ++c) cell_at[c + 1] = cell_at[c] + cell_points.size[c];
   std::vector<float> second(static_cast<std::size_t>(samples), INFINITY);
 #pragma omp parallel for schedule(dynamic, 16) if (samples > 256 && n > kParallelMin)
   for (long long s = 0; s < samples; ++s) {
-    const std::size_t i = order[static_cast<std::size_t>(s) * stride];
+    const std::size_t at = static_cast<std::size_t>(s) * stride;
+    const auto c =
+        static_cast<std::size_t>(std::upper_bound(cell_at.begin(), cell_at.end(), at) - cell_at.begin()) - 1;
+    std::size_t i = 0, k = cell_at[c];
+    cell_points.eachPoint(c, [&](std::size_t j) {
+      i = j;
+      return k++ < at;
+    });
     float d1 = INFINITY, d2 = INFINITY;
     around(i, [&](std::size_t j) {
       if (j == i) return true;
@@ -144,18 +292,16 @@ std::vector<char> findStrays(const pcl::PointCloud<pcl::PointXYZ>& points, const
 #pragma omp parallel for schedule(dynamic, 256) if (nc > kParallelMin / 16)
   for (long long cc = 0; cc < nc; ++cc) {
     const auto c = static_cast<std::size_t>(cc);
-    if (starts[c + 1] - starts[c] > few || (keys[starts[c]] >> (3 * ab)) != 0)
-      continue;  // full, or a handle's
-    for (std::size_t k = starts[c]; k < starts[c + 1]; ++k) {
-      const std::size_t i = order[k];
+    if (cell_points.size[c] > few || (cell_key[c] >> (3 * ab)) != 0) continue;  // full, or a handle's
+    cell_points.eachPoint(c, [&](std::size_t i) {
       int near = 0;
       // Its own cell first: two near points there settle it (most points of a sparse cell at
       // the surface's edge), without the search of the 27 cells of every class.
-      for (std::size_t m = starts[c]; m < starts[c + 1] && near < 2; ++m) {
-        const std::size_t j = order[m];
+      cell_points.eachPoint(c, [&](std::size_t j) {
         near += j != i && (points[j].getVector3fMap() - points[i].getVector3fMap()).squaredNorm() <= limit2;
-      }
-      if (near >= 2) continue;  // (stray[i] stays 0)
+        return near < 2;
+      });
+      if (near >= 2) return true;  // (stray[i] stays 0)
       near = 0;
       around(i, [&](std::size_t j) {
         if (j != i && (points[j].getVector3fMap() - points[i].getVector3fMap()).squaredNorm() <= limit2)
@@ -163,58 +309,10 @@ std::vector<char> findStrays(const pcl::PointCloud<pcl::PointXYZ>& points, const
         return near < 2;
       });
       stray[i] = near < 2;
-    }
+      return true;
+    });
   }
   return stray;
-}
-
-/// Sorts `keys` (stably) and sets order[k] to the position the k-th sorted key came from, as
-/// radixSort on every point would, but sorting runs of equal consecutive keys instead of points:
-/// the points come in Morton order, so a cell's points lie in a few runs (357,000 runs for
-/// 1,000,000 points at 15 points a cell). Runs are cut at block boundaries; the sort is stable, so
-/// the pieces of a run stay in order.
-void sortByRuns(UninitVector<std::uint64_t>& keys, UninitVector<std::uint32_t>& order,
-                std::uint64_t max_key) {
-  const std::size_t n = keys.size();
-  const int blocks = blockCount(static_cast<long long>(n));
-  std::vector<std::vector<std::uint32_t>> part(static_cast<std::size_t>(blocks));
-  forBlocks(static_cast<long long>(n), blocks, [&](int begin, int end, int b) {
-    auto& starts = part[static_cast<std::size_t>(b)];
-    for (auto k = static_cast<std::size_t>(begin); k < static_cast<std::size_t>(end); ++k)
-      if (k == static_cast<std::size_t>(begin) || keys[k] != keys[k - 1])
-        starts.push_back(static_cast<std::uint32_t>(k));
-  });
-  std::vector<std::uint32_t> run_start;
-  for (const auto& p : part) run_start.insert(run_start.end(), p.begin(), p.end());
-  const std::size_t runs = run_start.size();
-  run_start.push_back(static_cast<std::uint32_t>(n));
-  std::vector<std::uint64_t> run_key(runs);
-  std::vector<std::uint32_t> run(runs);
-  const long long rr = static_cast<long long>(runs);
-#pragma omp parallel for schedule(static) if (static_cast <long long>(n) > kParallelMin)
-  for (long long r = 0; r < rr; ++r) {
-    run_key[static_cast<std::size_t>(r)] = keys[run_start[static_cast<std::size_t>(r)]];
-    run[static_cast<std::size_t>(r)] = static_cast<std::uint32_t>(r);
-  }
-  radixSort(run_key, run, max_key, 11);
-  // Where each block of sorted runs starts (its runs' lengths, read at random, summed on every
-  // thread), then each block's runs written out.
-  std::vector<std::uint32_t> block_to(static_cast<std::size_t>(blocks) + 1, 0);
-  auto length = [&](std::size_t s) { return run_start[run[s] + 1] - run_start[run[s]]; };
-  forBlocks(rr, blocks, [&](int begin, int end, int b) {
-    std::uint32_t sum = 0;
-    for (auto s = static_cast<std::size_t>(begin); s < static_cast<std::size_t>(end); ++s) sum += length(s);
-    block_to[static_cast<std::size_t>(b) + 1] = sum;
-  });
-  for (std::size_t b = 0; b < static_cast<std::size_t>(blocks); ++b) block_to[b + 1] += block_to[b];
-  forBlocks(rr, blocks, [&](int begin, int end, int b) {
-    std::uint32_t w = block_to[static_cast<std::size_t>(b)];
-    for (auto s = static_cast<std::size_t>(begin); s < static_cast<std::size_t>(end); ++s)
-      for (std::uint32_t k = run_start[run[s]]; k < run_start[run[s] + 1]; ++k) {
-        keys[w] = run_key[s];
-        order[w++] = k;
-      }
-  });
 }
 
 }  // namespace
@@ -284,37 +382,29 @@ CoarseLevel coarsen(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles&
   }
 
   clock.lap("coarsen.grid");
-  // Every point's cell; the cells in key order (neighbouring cells stay near in memory).
-  // (Uninitialised: every key is computed below, every position written by sortByRuns.)
-  UninitVector<std::uint64_t> keys(n);
-  UninitVector<std::uint32_t> order(n);
-  const long long nn = static_cast<long long>(n);
-#pragma omp parallel for schedule(static) if (nn > kParallelMin)
-  for (long long i = 0; i < nn; ++i)
-    keys[static_cast<std::size_t>(i)] =
-        grid.key(points[static_cast<std::size_t>(i)].getVector3fMap(), cls[static_cast<std::size_t>(i)]);
-  clock.lap("coarsen.keys");
-  sortByRuns(keys, order, maxKey());
-  clock.lap("coarsen.sort");
+  // Every point's cell, as runs of points; the cells in key order (neighbouring cells stay near
+  // in memory).
+  Cells cell_points = findCells(points, cls, grid, maxKey());
+  clock.lap("coarsen.cells");
   out.cell = grid.h;
-  std::vector<std::size_t> starts;  // of each cell's run in keys / order
-  {
-    const int blocks = blockCount(static_cast<long long>(n));
-    std::vector<std::vector<std::size_t>> part(static_cast<std::size_t>(blocks));
-    forBlocks(static_cast<long long>(n), blocks, [&](int begin, int end, int b) {
-      for (auto k = static_cast<std::size_t>(begin); k < static_cast<std::size_t>(end); ++k)
-        if (k == 0 || keys[k] != keys[k - 1]) part[static_cast<std::size_t>(b)].push_back(k);
-    });
-    for (const auto& p : part) starts.insert(starts.end(), p.begin(), p.end());
-    starts.push_back(n);
-  }
   const std::vector<char> stray =
-      find_strays ? findStrays(points, grid, classes, keys, order, starts) : std::vector<char>(n, 0);
+      find_strays ? findStrays(points, grid, classes, cell_points) : std::vector<char>(n, 0);
   clock.lap("coarsen.strays");
+  // The strays in order, listed on every thread (a serial pass over every point before).
+  out.strays = indicesWhere(static_cast<long long>(n), [&stray](std::size_t i) { return stray[i] != 0; });
+  const std::size_t cells = cell_points.count();
+  std::vector<char> has_stray(cells, 0);
+  for (const int i : out.strays) {
+    const auto r =
+        static_cast<std::size_t>(std::upper_bound(cell_points.run_start.begin(), cell_points.run_start.end(),
+                                                  static_cast<std::uint32_t>(i)) -
+                                 cell_points.run_start.begin()) -
+        1;
+    has_stray[cell_points.run_cell[r]] = 1;
+  }
 
   // The point nearest its cell's centre stands for the cell; every point of the cell (but its
-  // strays) is anchored there.
-  const std::size_t cells = starts.size() - 1;
+  // strays) is anchored there. (A cell without strays: the nearest of its runs' nearest.)
   const long long cc_count = static_cast<long long>(cells);
   std::vector<int> best(cells, -1);
   std::vector<std::uint32_t> count(cells, 0);
@@ -322,16 +412,28 @@ CoarseLevel coarsen(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles&
   for (long long cc = 0; cc < cc_count; ++cc) {
     const auto c = static_cast<std::size_t>(cc);
     float best_d = INFINITY;
-    for (std::size_t k = starts[c]; k < starts[c + 1]; ++k) {
-      if (stray[order[k]]) continue;
-      const Eigen::Vector3f q = (points[order[k]].getVector3fMap() - lo) / grid.h;
+    if (!has_stray[c]) {
+      for (std::uint32_t s = cell_points.first[c]; s < cell_points.first[c + 1]; ++s) {
+        const std::uint32_t r = cell_points.runs[s];
+        if (cell_points.run_best_d[r] < best_d || best[c] < 0) {
+          best_d = cell_points.run_best_d[r];
+          best[c] = static_cast<int>(cell_points.run_best[r]);
+        }
+      }
+      count[c] = cell_points.size[c];
+      continue;
+    }
+    cell_points.eachPoint(c, [&](std::size_t i) {
+      if (stray[i]) return true;
+      const Eigen::Vector3f q = (points[i].getVector3fMap() - lo) / grid.h;
       const float d = (q - q.array().floor().matrix() - Eigen::Vector3f::Constant(0.5f)).squaredNorm();
       if (d < best_d || best[c] < 0) {
         best_d = d;
-        best[c] = static_cast<int>(order[k]);
+        best[c] = static_cast<int>(i);
       }
       ++count[c];
-    }
+      return true;
+    });
   }
   std::vector<std::uint32_t> id(cells, 0);
   for (std::size_t c = 0; c < cells; ++c) {
@@ -340,19 +442,19 @@ CoarseLevel coarsen(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles&
     out.points.push_back(best[c]);
     out.weight.push_back(count[c]);
   }
+  // Anchors run by run, in the cloud's order.
   out.anchor.assign(n, 0);
-#pragma omp parallel for schedule(static) if (cc_count > kParallelMin / 16)
-  for (long long cc = 0; cc < cc_count; ++cc) {
-    const auto c = static_cast<std::size_t>(cc);
-    for (std::size_t k = starts[c]; k < starts[c + 1]; ++k)
-      if (!stray[order[k]]) out.anchor[order[k]] = id[c];
+  const long long runs = static_cast<long long>(cell_points.runs.size());
+#pragma omp parallel for schedule(static) if (runs > kParallelMin / 16)
+  for (long long rr = 0; rr < runs; ++rr) {
+    const auto r = static_cast<std::size_t>(rr);
+    const std::uint32_t a = id[cell_points.run_cell[r]];
+    for (std::uint32_t i = cell_points.run_start[r]; i < cell_points.run_start[r + 1]; ++i)
+      if (!stray[i]) out.anchor[i] = a;
   }
-  keys = {};
-  order = {};
+  cell_points = {};
   clock.lap("coarsen.anchors");
   if (out.points.empty()) return {};
-  // The strays in order, listed on every thread (a serial pass over every point before).
-  out.strays = indicesWhere(static_cast<long long>(n), [&stray](std::size_t i) { return stray[i] != 0; });
   if (out.strays.empty()) return out;
   // A stray hangs from the nearest coarse point.
   const std::vector<int> nearest = nearestAmong(points, out.points, out.strays);
