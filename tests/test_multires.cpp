@@ -3,10 +3,13 @@
 // order, random normal signs, noise, strays) and on a shape with a piece no handle reaches.
 #include <gtest/gtest.h>
 #include <malloc.h>
+#include <omp.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
+#include <map>
 #include <memory>
 #include <numeric>
 #include <random>
@@ -519,4 +522,109 @@ TEST(Multires, TableStraightFromTheCoarseLevelIsTheLabelledRoutes) {
   const hgd::InterpolationTable::Bracket both = straight.bracket(static_cast<std::size_t>(h.fixed[0][0]));
   EXPECT_EQ(both.lower, c.manipulated);
   EXPECT_EQ(both.upper, c.manipulated);
+}
+
+// The coarse level against a reference computed here, point by point: each point's cell is
+// floor((p - lo) / side) (lo: the cloud's lowest corner, side: the level's), split by handle
+// (a later list wins: joints, then fixed, then the manipulated handle); a cell's coarse point is
+// its point nearest the cell's centre (the lowest index of equals), and stands for every point
+// of the cell. Strays (a cloud's) are left out of the rule and hang from a coarse point. On a
+// cloud in the geometry's Morton order and the same cloud shuffled (where every run of points
+// in a cell is one point long), with noise, 1% strays, dense pieces and repeated points, at 1
+// and 2 threads.
+TEST(Multires, EachCellStandsForItsPointsByItsPointNearestTheCentre) {
+  std::mt19937 rng(29);
+  std::vector<Eigen::Vector3f> p, none;
+  {
+    const hgd::Geometry s = hgd::extractGeometry(hgd::shapes::bumpySphere(90000));
+    for (std::size_t i = 0; i < s.size(); ++i) p.push_back(s.world(i).cast<float>());
+  }
+  std::uniform_real_distribution<float> u(-1.4f, 1.4f), noise(-0.004f, 0.004f);
+  for (std::size_t k = 0; k < p.size() / 100; ++k) p.emplace_back(u(rng), u(rng), u(rng));
+  p = hgd::shapes::withDensePieces(std::move(p), 12, 800, 0.01f, 5);
+  for (auto& x : p) x += Eigen::Vector3f(noise(rng), noise(rng), noise(rng));
+  // Repeated points (merged scans): equally near a centre, where the lowest index must win.
+  std::uniform_int_distribution<std::size_t> any(0, p.size() - 1);
+  for (int k = 0; k < 6000; ++k) p.push_back(p[any(rng)]);
+  std::shuffle(p.begin(), p.end(), rng);
+  const hgd::Geometry g = hgd::extractGeometry(hgd::shapes::cloudShape(p, none));
+  pcl::PointCloud<pcl::PointXYZ> shuffled = *g.points;
+  std::shuffle(shuffled.begin(), shuffled.end(), rng);
+
+  for (const pcl::PointCloud<pcl::PointXYZ>* cloud : {g.points.get(), &shuffled}) {
+    const std::size_t n = cloud->size();
+    hgd::Handles h;
+    h.fixed.resize(2);
+    h.joints.resize(1);
+    for (std::size_t i = 0; i < n; ++i) {
+      const Eigen::Vector3f x = (*cloud)[i].getVector3fMap();
+      if (x.z() < -0.75f) h.fixed[0].push_back(static_cast<int>(i));
+      if (x.y() < -0.8f) h.fixed[1].push_back(static_cast<int>(i));  // overlaps the first
+      if (x.x() > 0.8f) h.manipulated.push_back(static_cast<int>(i));
+      if (std::abs(x.x()) < 0.05f) h.joints[0].push_back(static_cast<int>(i));
+    }
+    std::vector<int> cls(n, 0);
+    for (const int i : h.joints[0]) cls[static_cast<std::size_t>(i)] = 4;
+    for (std::size_t k = 0; k < 2; ++k)
+      for (const int i : h.fixed[k]) cls[static_cast<std::size_t>(i)] = 2 + static_cast<int>(k);
+    for (const int i : h.manipulated) cls[static_cast<std::size_t>(i)] = 1;
+    Eigen::Vector3f lo = (*cloud)[0].getVector3fMap();
+    for (const auto& q : *cloud) lo = lo.cwiseMin(q.getVector3fMap());
+
+    for (const bool strays : {false, true})
+      for (const int threads : {1, 2}) {
+        SCOPED_TRACE(std::string(cloud == &shuffled ? "shuffled" : "Morton order") +
+                     (strays ? ", strays" : "") + ", threads " + std::to_string(threads));
+        omp_set_num_threads(threads);
+        const hgd::CoarseLevel level = hgd::coarsen(*cloud, h, 3000, strays);
+        omp_set_num_threads(omp_get_num_procs());
+        ASSERT_FALSE(level.empty());
+        EXPECT_EQ(level.strays.empty(), !strays);
+        std::vector<char> stray(n, 0);
+        for (const int i : level.strays) stray[static_cast<std::size_t>(i)] = 1;
+        // The reference: each cell's points (strays left out), its nearest and its count.
+        struct Cell {
+          int best = -1;
+          float best_d = 0;
+          std::uint32_t count = 0;
+        };
+        std::map<std::array<long, 4>, Cell> cells;
+        std::vector<std::array<long, 4>> cell_of(n);
+        for (std::size_t i = 0; i < n; ++i) {
+          const Eigen::Vector3f r = ((*cloud)[i].getVector3fMap() - lo) / level.cell;
+          const Eigen::Vector3f q = r.array().floor();
+          cell_of[i] = {static_cast<long>(q.x()), static_cast<long>(q.y()), static_cast<long>(q.z()), cls[i]};
+          if (stray[i]) continue;
+          Cell& c = cells[cell_of[i]];
+          const float d = (r - q - Eigen::Vector3f::Constant(0.5f)).squaredNorm();
+          if (c.best < 0 || d < c.best_d) c.best = static_cast<int>(i), c.best_d = d;
+          ++c.count;
+        }
+        ASSERT_EQ(level.points.size(), cells.size());
+        std::vector<std::uint32_t> expected_weight(cells.size(), 0);
+        std::size_t wrong_point = 0, wrong_weight = 0;
+        for (std::size_t i = 0; i < n; ++i) {
+          if (stray[i]) continue;
+          const Cell& c = cells[cell_of[i]];
+          const std::uint32_t a = level.anchor[i];
+          ASSERT_LT(a, level.points.size());
+          wrong_point += level.points[a] != c.best;
+          expected_weight[a] = c.count;
+        }
+        // A stray hangs from a coarse point and adds to its weight.
+        for (const int i : level.strays) {
+          ASSERT_LT(level.anchor[static_cast<std::size_t>(i)], level.points.size());
+          ++expected_weight[level.anchor[static_cast<std::size_t>(i)]];
+        }
+        for (std::size_t a = 0; a < level.points.size(); ++a)
+          wrong_weight += level.weight[a] != expected_weight[a];
+        EXPECT_EQ(wrong_point, 0u);
+        EXPECT_EQ(wrong_weight, 0u);
+        if (strays) {
+          // Strays are few, and each lies far from every coarse point but its own cell's.
+          EXPECT_GT(level.strays.size(), n / 400);
+          EXPECT_LT(level.strays.size(), n / 50);
+        }
+      }
+  }
 }
