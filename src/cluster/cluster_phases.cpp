@@ -492,7 +492,7 @@ struct ClusterPhases {
     // Blend factors (eq. 1): a gap point's place between the facing ends of its two bands.
     c.alpha.assign(n, 0.0f);
     c.nearest.resize(n);
-#pragma omp parallel for schedule(static) if (nn > kParallelMinCostly)
+#pragma omp parallel for schedule(dynamic, kDynamicChunkCostly) if (nn > kParallelMinCostly)
     for (long long ii = 0; ii < nn; ++ii) {
       const auto i = static_cast<std::size_t>(ii);
       if (gap[i] >= 0 && lower[i] != upper[i]) {

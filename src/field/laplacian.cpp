@@ -71,7 +71,7 @@ void solveDirichlet(const NeighborGraph& graph, const std::vector<char>& constra
     int* inner = a.innerIndexPtr();
     double* val = a.valuePtr();
     const long long rows = nf;
-#pragma omp parallel for schedule(static) if (rows > kParallelMin)
+#pragma omp parallel for schedule(dynamic, kDynamicChunkCostly) if (rows > kParallelMin)
     for (long long rr = 0; rr < rows; ++rr) {
       const auto r = static_cast<std::size_t>(rr);
       const auto i = static_cast<std::size_t>(free_points[r]);

@@ -24,7 +24,7 @@ double chunkedSum(long long n, Body&& body) {
   constexpr long long kChunk = 8192;
   const long long chunks = (n + kChunk - 1) / kChunk;
   std::vector<double> partial(static_cast<std::size_t>(chunks), 0.0);
-#pragma omp parallel for schedule(static) if (n > kParallelMin)
+#pragma omp parallel for schedule(dynamic, 1) if (n > kParallelMin)
   for (long long c = 0; c < chunks; ++c)
     partial[static_cast<std::size_t>(c)] = body(c * kChunk, std::min(n, (c + 1) * kChunk));
   double sum = 0;
@@ -86,10 +86,10 @@ void forEachRow(const RowMat& a, bool unit, const Eigen::VectorXd& diag, const E
   const RowProduct ax(a, diag, x);
   const long long rows = a.rows();
   if (unit) {
-#pragma omp parallel for schedule(static) if (rows > kParallelMinCostly)
+#pragma omp parallel for schedule(dynamic, kDynamicChunkCostly) if (rows > kParallelMinCostly)
     for (long long r = 0; r < rows; ++r) f(r, ax.unitRow(r));
   } else {
-#pragma omp parallel for schedule(static) if (rows > kParallelMinCostly)
+#pragma omp parallel for schedule(dynamic, kDynamicChunkCostly) if (rows > kParallelMinCostly)
     for (long long r = 0; r < rows; ++r) f(r, ax.row(r));
   }
 }

@@ -124,7 +124,7 @@ KnnTable knnOfDistinct(const pcl::PointCloud<pcl::PointXYZ>& points, int k, bool
   // as much as the search itself). Buffers are not zero-filled: every slot read is written.
   const long long nn = static_cast<long long>(n);
   std::unique_ptr<float[]> xyz(new float[n * 3]);
-#pragma omp parallel for schedule(static) if (nn > kParallelMin)
+#pragma omp parallel for schedule(dynamic, kDynamicChunk) if (nn > kParallelMin)
   for (long long i = 0; i < nn; ++i) {
     xyz[3 * i] = points[static_cast<std::size_t>(i)].x;
     xyz[3 * i + 1] = points[static_cast<std::size_t>(i)].y;
@@ -154,7 +154,9 @@ KnnTable knnOfDistinct(const pcl::PointCloud<pcl::PointXYZ>& points, int k, bool
   }
   t.index.resize(n * static_cast<std::size_t>(t.k));
   bool any_coincident = false;
-#pragma omp parallel for schedule(static) reduction(|| : any_coincident) if (nn > kParallelMin)
+#pragma omp parallel for schedule(dynamic, kDynamicChunkCostly) \
+    reduction(||                                                \
+              : any_coincident) if (nn > kParallelMin)
   for (long long ii = 0; ii < nn; ++ii) {
     const auto i = static_cast<std::size_t>(ii);
     // Sorted by distance; drop the point itself (wherever duplicates put it).

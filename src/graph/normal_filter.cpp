@@ -147,12 +147,12 @@ NeighborGraph knnGraph(const KnnTable& knn, int k, const pcl::PointCloud<pcl::No
   };
   NeighborGraph g;
   g.offsets.assign(n + 1, 0);
-#pragma omp parallel for schedule(static) if (nn > kParallelMinCostly)
+#pragma omp parallel for schedule(dynamic, kDynamicChunkCostly) if (nn > kParallelMinCostly)
   for (long long i = 0; i < nn; ++i)
     g.offsets[static_cast<std::size_t>(i) + 1] = merge(static_cast<std::size_t>(i), nullptr);
   for (std::size_t i = 0; i < n; ++i) g.offsets[i + 1] += g.offsets[i];
   g.adj.resize(static_cast<std::size_t>(g.offsets[n]));
-#pragma omp parallel for schedule(static) if (nn > kParallelMinCostly)
+#pragma omp parallel for schedule(dynamic, kDynamicChunkCostly) if (nn > kParallelMinCostly)
   for (long long i = 0; i < nn; ++i)
     merge(static_cast<std::size_t>(i), g.adj.data() + g.offsets[static_cast<std::size_t>(i)]);
   if (dropped) {  // the rule is symmetric: a pair dropped from one side is dropped from both

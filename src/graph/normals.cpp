@@ -35,7 +35,7 @@ pcl::PointCloud<pcl::Normal>::Ptr estimateNormals(const pcl::PointCloud<pcl::Poi
 #pragma omp parallel if (nn > kParallelMinCostly)
   {
     pcl::Indices idx;
-#pragma omp for schedule(static)
+#pragma omp for schedule(dynamic, kDynamicChunkCostly)
     for (long long i = 0; i < nn; ++i) {
       idx.assign(1, static_cast<int>(i));
       const int* row = knn.row(static_cast<std::size_t>(i));
@@ -88,7 +88,7 @@ void orientNormals(const pcl::PointCloud<pcl::PointXYZ>& points, const KnnTable&
   // gives, so the serial walk below only looks them up.
   std::vector<unsigned char> edge_bucket(g.adj.size());
   const long long nn = static_cast<long long>(n);
-#pragma omp parallel for schedule(static) if (nn > kParallelMinCostly)
+#pragma omp parallel for schedule(dynamic, kDynamicChunkCostly) if (nn > kParallelMinCostly)
   for (long long ii = 0; ii < nn; ++ii) {
     const auto i = static_cast<std::size_t>(ii);
     const auto ni = normals[i].getNormalVector3fMap();

@@ -25,7 +25,7 @@ std::vector<char> findOutliers(const pcl::PointCloud<pcl::PointXYZ>& points, con
   if (knn.k == 0 || knn.size() != n) return {};
   std::vector<float> nearest(n, INFINITY);  // squared distance to the k-th neighbour
   const long long nn = static_cast<long long>(n);
-#pragma omp parallel for schedule(static) if (nn > kParallelMin)
+#pragma omp parallel for schedule(dynamic, kDynamicChunkCostly) if (nn > kParallelMin)
   for (long long ii = 0; ii < nn; ++ii) {
     const auto i = static_cast<std::size_t>(ii);
     // Rows are sorted by distance.
@@ -52,7 +52,7 @@ std::vector<char> findOutliers(const pcl::PointCloud<pcl::PointXYZ>& points, con
   // is someone's neighbour; a stray between two parts of the surface (the prongs of a fork),
   // within the noise's reach of both and so not far by the rule above, is nobody's, and joined
   // to both it would carry the field across the gap.
-#pragma omp parallel for schedule(static) if (nn > kParallelMinCostly)
+#pragma omp parallel for schedule(dynamic, kDynamicChunkCostly) if (nn > kParallelMinCostly)
   for (long long ii = 0; ii < nn; ++ii) {
     const auto i = static_cast<std::size_t>(ii);
     if (!std::isfinite(nearest[i])) continue;

@@ -56,7 +56,7 @@ InterpolationTable buildTable(const Handles& handles, const Clustering& c,
   clock.lap("table.pairs");
   t.points.resize(n);  // (not zeroed: the records' pages are first written in parallel below)
   const long long nn = static_cast<long long>(n);
-#pragma omp parallel for schedule(static) if (nn > kParallelMin)
+#pragma omp parallel for schedule(dynamic, kDynamicChunk) if (nn > kParallelMin)
   for (long long ii = 0; ii < nn; ++ii) {
     const auto i = static_cast<std::size_t>(ii);
     InterpolationTable::Point& r = t.points[i];

@@ -28,6 +28,17 @@ int bitsFor(std::uint64_t v) {
   return b;
 }
 
+// n zeros, written on every thread (a vector's own zeroing is one serial pass that also takes
+// every page fault of the fresh memory: 4 MB of flags at 4M points).
+template <typename T>
+UninitVector<T> zeros(std::size_t n) {
+  UninitVector<T> v(n);
+  const long long nn = static_cast<long long>(n);
+#pragma omp parallel for schedule(dynamic, kDynamicChunk) if (nn > kParallelMin)
+  for (long long i = 0; i < nn; ++i) v[static_cast<std::size_t>(i)] = T{0};
+  return v;
+}
+
 // Cell keys of a voxel grid: class in the high bits, then z, y, x.
 struct Grid {
   Eigen::Vector3f lo;
@@ -61,13 +72,14 @@ struct Grid {
 // point nearest the cell's centre, found in the same pass.
 struct Cells {
   // The runs, in the cloud's order (cut where the blocks of the pass that found them end).
-  std::vector<std::uint32_t> run_start;  ///< run r: points run_start[r] .. run_start[r + 1] - 1
-  std::vector<std::uint64_t> run_key;    ///< its cell's key
-  std::vector<std::uint32_t> run_best;   ///< its point nearest the cell's centre (the first of equals)
-  std::vector<float> run_best_d;         ///< that point's squared distance to the centre
-  std::vector<std::uint32_t> run_cell;   ///< its cell
+  // (Not zeroed first: every element is written, on every thread, before it is read.)
+  UninitVector<std::uint32_t> run_start;  ///< run r: points run_start[r] .. run_start[r + 1] - 1
+  UninitVector<std::uint64_t> run_key;    ///< its cell's key
+  UninitVector<std::uint32_t> run_best;   ///< its point nearest the cell's centre (the first of equals)
+  UninitVector<float> run_best_d;         ///< that point's squared distance to the centre
+  UninitVector<std::uint32_t> run_cell;   ///< its cell
   // The cells in key order (neighbouring cells near in memory), each with its runs in order.
-  std::vector<std::uint32_t> runs;   ///< run indices, by cell
+  UninitVector<std::uint32_t> runs;  ///< run indices, by cell
   std::vector<std::uint32_t> first;  ///< cell c's runs: runs[first[c]] .. runs[first[c + 1] - 1]
   std::vector<std::uint64_t> key;    ///< cell c's key
   std::vector<std::uint32_t> size;   ///< its points
@@ -84,11 +96,11 @@ struct Cells {
 
 // Every point's cell, as runs (each with its point nearest the cell's centre), then the cells
 // from the runs sorted by key (stably: a cell's runs, and so its points, stay in order).
-Cells findCells(const pcl::PointCloud<pcl::PointXYZ>& points, const std::vector<std::uint16_t>& cls,
+Cells findCells(const pcl::PointCloud<pcl::PointXYZ>& points, const UninitVector<std::uint16_t>& cls,
                 const Grid& grid, std::uint64_t max_key) {
   Cells out;
   const long long n = static_cast<long long>(points.size());
-  const int blocks = blockCount(n);
+  const int blocks = chunkCount(n);
   // Each block's runs, written without a branch per point: whether a point starts a run, and
   // whether it is the nearest so far, follow no pattern, and with branches this pass took 82 ms
   // on 4,000,000 points, without 42 ms (one thread). The run being read is written at its place
@@ -100,7 +112,7 @@ Cells findCells(const pcl::PointCloud<pcl::PointXYZ>& points, const std::vector<
     std::size_t runs = 0;
   };
   std::vector<Part> part(static_cast<std::size_t>(blocks));
-  forBlocks(n, blocks, [&](int begin, int end, int b) {
+  forChunks(n, blocks, [&](int begin, int end, int b) {
     Part& p = part[static_cast<std::size_t>(b)];
     const auto most = static_cast<std::size_t>(end - begin);
     p.start.resize(most);
@@ -140,9 +152,9 @@ Cells findCells(const pcl::PointCloud<pcl::PointXYZ>& points, const std::vector<
   out.run_key.resize(runs);
   out.run_best.resize(runs);
   out.run_best_d.resize(runs);
-  std::vector<std::uint64_t> sorted_key(runs);
+  UninitVector<std::uint64_t> sorted_key(runs);
   out.runs.resize(runs);
-  forBlocks(n, blocks, [&](int, int, int b) {
+  forChunks(n, blocks, [&](int, int, int b) {
     Part& p = part[static_cast<std::size_t>(b)];
     const std::size_t o = at[static_cast<std::size_t>(b)];
     const auto m = static_cast<long>(p.runs);
@@ -172,7 +184,7 @@ Cells findCells(const pcl::PointCloud<pcl::PointXYZ>& points, const std::vector<
   out.size.resize(cells);
   out.run_cell.resize(runs);
   const long long cc = static_cast<long long>(cells);
-#pragma omp parallel for schedule(static) if (n > kParallelMin)
+#pragma omp parallel for schedule(dynamic, kDynamicChunkCostly) if (n > kParallelMin)
   for (long long c = 0; c < cc; ++c) {
     const auto cell = static_cast<std::size_t>(c);
     out.key[cell] = sorted_key[out.first[cell]];
@@ -208,10 +220,10 @@ std::size_t countCells(const std::vector<Eigen::Vector3f>& points, const std::ve
 // where a cell typically holds four or more, a free point with fewer than two other points
 // within three times the typical distance to the second nearest (at most a cell side) is a
 // stray: no coarse point (as findOutliers' strays hang from the surface at full resolution).
-std::vector<char> findStrays(const pcl::PointCloud<pcl::PointXYZ>& points, const Grid& grid,
-                             std::size_t classes, const Cells& cell_points) {
+UninitVector<char> findStrays(const pcl::PointCloud<pcl::PointXYZ>& points, const Grid& grid,
+                              std::size_t classes, const Cells& cell_points) {
   const std::size_t n = points.size(), cells = cell_points.count();
-  std::vector<char> stray(n, 0);
+  UninitVector<char> stray = zeros<char>(n);
   const std::vector<std::uint64_t>& cell_key = cell_points.key;
   std::vector<std::uint32_t> size = cell_points.size;
   std::nth_element(size.begin(), size.begin() + static_cast<long>(cells / 2), size.end());
@@ -331,7 +343,7 @@ CoarseLevel coarsen(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles&
   constexpr int kMaxAxisBits = 17;
   if (3 * kMaxAxisBits + class_bits >= 64 || classes > 65535) return out;
   // (Each list on every thread, the lists in this order: a later class wins, as before.)
-  std::vector<std::uint16_t> cls(n, 0);
+  UninitVector<std::uint16_t> cls = zeros<std::uint16_t>(n);
   const auto mark = [&cls](const std::vector<int>& list, std::size_t value) {
     const long long m = static_cast<long long>(list.size());
 #pragma omp parallel for schedule(static) if (m > kParallelMin)
@@ -387,8 +399,8 @@ CoarseLevel coarsen(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles&
   Cells cell_points = findCells(points, cls, grid, maxKey());
   clock.lap("coarsen.cells");
   out.cell = grid.h;
-  const std::vector<char> stray =
-      find_strays ? findStrays(points, grid, classes, cell_points) : std::vector<char>(n, 0);
+  const UninitVector<char> stray =
+      find_strays ? findStrays(points, grid, classes, cell_points) : zeros<char>(n);
   clock.lap("coarsen.strays");
   // The strays in order, listed on every thread (a serial pass over every point before).
   out.strays = indicesWhere(static_cast<long long>(n), [&stray](std::size_t i) { return stray[i] != 0; });
@@ -408,7 +420,7 @@ CoarseLevel coarsen(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles&
   const long long cc_count = static_cast<long long>(cells);
   std::vector<int> best(cells, -1);
   std::vector<std::uint32_t> count(cells, 0);
-#pragma omp parallel for schedule(static) if (cc_count > kParallelMin / 16)
+#pragma omp parallel for schedule(dynamic, kDynamicChunkCostly) if (cc_count > kParallelMin / 16)
   for (long long cc = 0; cc < cc_count; ++cc) {
     const auto c = static_cast<std::size_t>(cc);
     float best_d = INFINITY;
@@ -445,7 +457,7 @@ CoarseLevel coarsen(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles&
   // Anchors run by run, in the cloud's order.
   out.anchor.assign(n, 0);
   const long long runs = static_cast<long long>(cell_points.runs.size());
-#pragma omp parallel for schedule(static) if (runs > kParallelMin / 16)
+#pragma omp parallel for schedule(dynamic, kDynamicChunkCostly) if (runs > kParallelMin / 16)
   for (long long rr = 0; rr < runs; ++rr) {
     const auto r = static_cast<std::size_t>(rr);
     const std::uint32_t a = id[cell_points.run_cell[r]];
@@ -513,7 +525,7 @@ std::vector<float> prolongField(const pcl::PointCloud<pcl::PointXYZ>& points, co
   const std::size_t m = level.points.size();
   std::vector<Linear> model(m);
   const long long mm = static_cast<long long>(m);
-#pragma omp parallel for schedule(static) if (mm > kParallelMinCostly)
+#pragma omp parallel for schedule(dynamic, kDynamicChunkCostly) if (mm > kParallelMinCostly)
   for (long long aa = 0; aa < mm; ++aa) {
     const auto a = static_cast<std::size_t>(aa);
     Linear& l = model[a];
@@ -545,7 +557,7 @@ std::vector<float> prolongField(const pcl::PointCloud<pcl::PointXYZ>& points, co
   const std::size_t n = level.anchor.size();
   std::vector<float> phi(n);
   const long long nn = static_cast<long long>(n);
-#pragma omp parallel for schedule(static) if (nn > kParallelMin)
+#pragma omp parallel for schedule(dynamic, kDynamicChunk) if (nn > kParallelMin)
   for (long long ii = 0; ii < nn; ++ii) {
     const auto i = static_cast<std::size_t>(ii);
     const std::uint32_t a = level.anchor[i];
@@ -629,7 +641,7 @@ Clustering prolongClustering(Clustering c, const CoarseLevel& level, const std::
   {
     const AlphaRule rule(c, coarse_phi);
     const long long nn = static_cast<long long>(n);
-#pragma omp parallel for schedule(static) if (nn > kParallelMin)
+#pragma omp parallel for schedule(dynamic, kDynamicChunk) if (nn > kParallelMin)
     for (long long ii = 0; ii < nn; ++ii) {
       const auto i = static_cast<std::size_t>(ii);
       const std::uint32_t a = level.anchor[i];
@@ -641,7 +653,7 @@ Clustering prolongClustering(Clustering c, const CoarseLevel& level, const std::
       const auto x = static_cast<std::size_t>(i);
       alpha[x] = c.alpha[level.anchor[x]];
     }
-#pragma omp parallel for schedule(static) if (nn > kParallelMin)
+#pragma omp parallel for schedule(dynamic, kDynamicChunk) if (nn > kParallelMin)
     for (long long ii = 0; ii < nn; ++ii) {
       const auto i = static_cast<std::size_t>(ii);
       nearest[i] = alpha[i] < 0.5f ? lower[i] : upper[i];

@@ -19,6 +19,15 @@ constexpr long long kParallelMin = 20000;
 /// level (20,000 points at 200,000) searched its neighbours on one thread under kParallelMin.
 constexpr long long kParallelMinCostly = 2048;
 
+/// Iterations per chunk of a loop whose chunks are handed out as threads come free
+/// (schedule(dynamic, ...)), so that a thread slowed by something else on its core (another
+/// process, a busy sibling hyperthread, a slower core) takes fewer: for items of a few
+/// nanoseconds (a pass over every point: some 250 chunks at 4M points), and for items that cost
+/// a neighbourhood's work (a coarse level of 65,536 points: 256 chunks). Each item is computed
+/// alone, so the results do not depend on who ran it.
+constexpr int kDynamicChunk = 16384;
+constexpr int kDynamicChunkCostly = 256;
+
 /// One block per thread when n is large enough to share (kParallelMin), else one.
 inline int blockCount([[maybe_unused]] long long n) {
   int threads = 1;
@@ -40,6 +49,26 @@ void forBlocks(long long n, int blocks, Body&& body) {
 #pragma omp parallel for schedule(static, 1) num_threads(blocks) if (blocks > 1)
   for (int t = 0; t < blocks; ++t)
     body(static_cast<int>(blockStart(n, blocks, t)), static_cast<int>(blockStart(n, blocks, t + 1)), t);
+}
+
+/// Blocks for forChunks: eight per thread when n is large enough to share (kParallelMin), else
+/// one.
+inline int chunkCount([[maybe_unused]] long long n) {
+  int chunks = 1;
+#ifdef _OPENMP
+  if (n > kParallelMin && omp_get_max_threads() > 1) chunks = 8 * omp_get_max_threads();
+#endif
+  return chunks;
+}
+
+/// forBlocks, but the blocks (chunkCount's: more than threads) are handed out as threads come
+/// free: a thread slowed by something else on its core (another process, a busy sibling
+/// hyperthread, a slower core) takes fewer. The blocks are the same whoever runs them.
+template <typename Body>
+void forChunks(long long n, int chunks, Body&& body) {
+#pragma omp parallel for schedule(dynamic, 1) if (chunks > 1)
+  for (int c = 0; c < chunks; ++c)
+    body(static_cast<int>(blockStart(n, chunks, c)), static_cast<int>(blockStart(n, chunks, c + 1)), c);
 }
 
 /// The indices i in [0, n) for which test(i) holds, ascending, tested on every thread. A block's

@@ -15,12 +15,13 @@ namespace hgd {
 /// sort with `digit_bits` per pass, as many passes as `max_key` (no key larger) needs, on every
 /// thread: each block of the keys counts its digits, and scatters them (in order) to where the
 /// blocks before it leave off. A pass whose digit is the same for every key is skipped.
-template <typename Key>
-void radixSort(std::vector<Key>& keys, std::vector<std::uint32_t>& payload, Key max_key, int digit_bits) {
+template <typename Key, typename KeyAlloc, typename PayloadAlloc>
+void radixSort(std::vector<Key, KeyAlloc>& keys, std::vector<std::uint32_t, PayloadAlloc>& payload,
+               Key max_key, int digit_bits) {
   const std::size_t n = keys.size();
   const std::size_t buckets = std::size_t{1} << digit_bits;
   const Key mask = static_cast<Key>(buckets - 1);
-  const int blocks = blockCount(static_cast<long long>(n));
+  const int blocks = chunkCount(static_cast<long long>(n));
   // The second buffers are left uninitialised (a serial pass zeroing them cost more than a pass
   // of the sort at 4M points): the first scatter writes them, on every thread.
   std::unique_ptr<Key[]> tmp_keys(new Key[n]);
@@ -32,7 +33,7 @@ void radixSort(std::vector<Key>& keys, std::vector<std::uint32_t>& payload, Key 
   std::vector<std::size_t> count(buckets * static_cast<std::size_t>(blocks));
   for (int shift = 0; shift < static_cast<int>(8 * sizeof(Key)) && (max_key >> shift) != 0;
        shift += digit_bits) {
-    forBlocks(static_cast<long long>(n), blocks, [&](int begin, int end, int b) {
+    forChunks(static_cast<long long>(n), blocks, [&](int begin, int end, int b) {
       std::size_t* c = count.data() + static_cast<std::size_t>(b) * buckets;
       std::fill(c, c + buckets, std::size_t{0});
       for (int i = begin; i < end; ++i)
@@ -53,7 +54,7 @@ void radixSort(std::vector<Key>& keys, std::vector<std::uint32_t>& payload, Key 
       one_digit = one_digit || digit_total == n;
     }
     if (one_digit) continue;  // every key has this digit: the pass would copy them in order
-    forBlocks(static_cast<long long>(n), blocks, [&](int begin, int end, int b) {
+    forChunks(static_cast<long long>(n), blocks, [&](int begin, int end, int b) {
       std::size_t* c = count.data() + static_cast<std::size_t>(b) * buckets;
       for (int i = begin; i < end; ++i) {
         const auto k = static_cast<std::size_t>(i);
@@ -66,7 +67,7 @@ void radixSort(std::vector<Key>& keys, std::vector<std::uint32_t>& payload, Key 
     std::swap(from_payload, to_payload);
   }
   if (from_keys != keys.data()) {  // an odd number of passes: the result is in the buffers
-    forBlocks(static_cast<long long>(n), blocks, [&](int begin, int end, int) {
+    forChunks(static_cast<long long>(n), blocks, [&](int begin, int end, int) {
       std::copy(from_keys + begin, from_keys + end, keys.data() + begin);
       std::copy(from_payload + begin, from_payload + end, payload.data() + begin);
     });
