@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <queue>
 #include <stdexcept>
@@ -73,7 +74,6 @@ void orientNormals(const pcl::PointCloud<pcl::PointXYZ>& points, const KnnTable&
   // in [0, 1], so a bucket queue (256 levels) stands in for the heap: same order up to 1/256,
   // at a fraction of the cost.
   const NeighborGraph g = knnGraph(knn, std::min(kn, 8), nullptr);
-  std::vector<char> done(n, 0);
   // Seeds: each connected piece's outermost point (largest x), whose outward direction is
   // known (one pass over the pieces instead of sorting every point by x).
   std::vector<int> label;
@@ -106,19 +106,28 @@ void orientNormals(const pcl::PointCloud<pcl::PointXYZ>& points, const KnnTable&
   int lowest = kBuckets;
   // A point waiting in bucket b is taken from there before any later entry of a higher
   // bucket, which would then find it done: such entries are not queued (entries of the same
-  // bucket are, as the last one queued is taken first and decides the flip).
-  std::vector<unsigned char> queued_at(n, static_cast<unsigned char>(kBuckets - 1));
+  // bucket are, as the last one queued is taken first and decides the flip). A point's state:
+  // the lowest bucket it waits in (the last at first), or -1 once done, which no entry passes:
+  // one test per neighbour.
+  constexpr std::int16_t kDone = -1;
+  std::vector<std::int16_t> state(n, static_cast<std::int16_t>(kBuckets - 1));
   auto push = [&](int b, int to, int from) {
-    unsigned char& q = queued_at[static_cast<std::size_t>(to)];
+    std::int16_t& q = state[static_cast<std::size_t>(to)];
     if (b > q) return;
-    q = static_cast<unsigned char>(b);
+    q = static_cast<std::int16_t>(b);
     bucket[static_cast<std::size_t>(b)].emplace_back(to, from);
     lowest = std::min(lowest, b);
   };
+  // The walk reads and flips a packed copy (12 bytes a point rather than PCL's 32, so that a
+  // 65,536-point level's normals stay in a core's cache), written back on every thread after.
+  std::vector<Eigen::Vector3f> packed(n);
+#pragma omp parallel for schedule(dynamic, kDynamicChunk) if (nn > kParallelMin)
+  for (long long ii = 0; ii < nn; ++ii)
+    packed[static_cast<std::size_t>(ii)] = normals[static_cast<std::size_t>(ii)].getNormalVector3fMap();
   for (int seed : order) {
-    if (done[static_cast<std::size_t>(seed)]) continue;
-    auto& sn = normals[static_cast<std::size_t>(seed)];
-    if (sn.normal_x < 0) sn.getNormalVector3fMap() *= -1.0f;
+    if (state[static_cast<std::size_t>(seed)] == kDone) continue;
+    auto& sn = packed[static_cast<std::size_t>(seed)];
+    if (sn.x() < 0) sn *= -1.0f;
     push(0, seed, seed);
     while (lowest < kBuckets) {
       auto& bk = bucket[static_cast<std::size_t>(lowest)];
@@ -128,19 +137,21 @@ void orientNormals(const pcl::PointCloud<pcl::PointXYZ>& points, const KnnTable&
       }
       const auto [to, from] = bk.back();
       bk.pop_back();
-      if (done[static_cast<std::size_t>(to)]) continue;
-      done[static_cast<std::size_t>(to)] = 1;
-      auto nt = normals[static_cast<std::size_t>(to)].getNormalVector3fMap();
-      if (to != from && nt.dot(normals[static_cast<std::size_t>(from)].getNormalVector3fMap()) < 0)
-        nt *= -1.0f;
+      if (state[static_cast<std::size_t>(to)] == kDone) continue;
+      state[static_cast<std::size_t>(to)] = kDone;
+      Eigen::Vector3f& nt = packed[static_cast<std::size_t>(to)];
+      if (to != from && nt.dot(packed[static_cast<std::size_t>(from)]) < 0) nt *= -1.0f;
       for (int m = g.offsets[static_cast<std::size_t>(to)]; m < g.offsets[static_cast<std::size_t>(to) + 1];
            ++m) {
         const int j = g.adj[static_cast<std::size_t>(m)];
-        if (!done[static_cast<std::size_t>(j)]) push(edge_bucket[static_cast<std::size_t>(m)], j, to);
+        push(edge_bucket[static_cast<std::size_t>(m)], j, to);
       }
     }
     lowest = kBuckets;
   }
+#pragma omp parallel for schedule(dynamic, kDynamicChunk) if (nn > kParallelMin)
+  for (long long ii = 0; ii < nn; ++ii)
+    normals[static_cast<std::size_t>(ii)].getNormalVector3fMap() = packed[static_cast<std::size_t>(ii)];
 }
 
 pcl::PointCloud<pcl::Normal>::Ptr meshNormals(const pcl::PointCloud<pcl::PointXYZ>& points,
