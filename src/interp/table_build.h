@@ -69,12 +69,16 @@ InterpolationTable buildTable(const Handles& handles, const Clustering& c,
   }
   clock.lap("table.records");
   adjust(t);
-  // Handle points take their handle's transform exactly.
+  // Handle points take their handle's transform exactly (a handle's points on every thread: a
+  // scan's handle can hold a tenth of its points; the handles one after the other).
   auto pin = [&](const std::vector<int>& idx, int cluster) {
     const std::uint32_t pair = pairOf(cluster, cluster);
-    for (const int i : idx) {
-      t.points[static_cast<std::size_t>(i)].pair = pair;
-      t.points[static_cast<std::size_t>(i)].alpha = 0.0f;
+    const long long m = static_cast<long long>(idx.size());
+#pragma omp parallel for schedule(dynamic, kDynamicChunk) if (m > kParallelMin)
+    for (long long k = 0; k < m; ++k) {
+      const auto i = static_cast<std::size_t>(idx[static_cast<std::size_t>(k)]);
+      t.points[i].pair = pair;
+      t.points[i].alpha = 0.0f;
     }
   };
   for (std::size_t k = 0; k < handles.fixed.size(); ++k) pin(handles.fixed[k], fixed_cluster[k]);
