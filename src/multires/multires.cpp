@@ -74,7 +74,6 @@ struct Cells {
   // The runs, in the cloud's order (cut where the blocks of the pass that found them end).
   // (Not zeroed first: every element is written, on every thread, before it is read.)
   UninitVector<std::uint32_t> run_start;  ///< run r: points run_start[r] .. run_start[r + 1] - 1
-  UninitVector<std::uint64_t> run_key;    ///< its cell's key
   UninitVector<std::uint32_t> run_best;   ///< its point nearest the cell's centre (the first of equals)
   UninitVector<float> run_best_d;         ///< that point's squared distance to the centre
   UninitVector<std::uint32_t> run_cell;   ///< its cell
@@ -149,7 +148,6 @@ Cells findCells(const pcl::PointCloud<pcl::PointXYZ>& points, const UninitVector
   for (std::size_t b = 0; b < part.size(); ++b) at[b + 1] = at[b] + part[b].runs;
   const std::size_t runs = at.back();
   out.run_start.resize(runs + 1);
-  out.run_key.resize(runs);
   out.run_best.resize(runs);
   out.run_best_d.resize(runs);
   UninitVector<std::uint64_t> sorted_key(runs);
@@ -159,7 +157,6 @@ Cells findCells(const pcl::PointCloud<pcl::PointXYZ>& points, const UninitVector
     const std::size_t o = at[static_cast<std::size_t>(b)];
     const auto m = static_cast<long>(p.runs);
     std::copy(p.start.begin(), p.start.begin() + m, out.run_start.begin() + static_cast<long>(o));
-    std::copy(p.key.begin(), p.key.begin() + m, out.run_key.begin() + static_cast<long>(o));
     std::copy(p.key.begin(), p.key.begin() + m, sorted_key.begin() + static_cast<long>(o));
     std::copy(p.best.begin(), p.best.begin() + m, out.run_best.begin() + static_cast<long>(o));
     std::memcpy(out.run_best_d.data() + o, p.best_d.data(), p.runs * sizeof(float));
