@@ -33,13 +33,15 @@ for t in "${targets[@]}"; do
   rc=0
   seed=()
   [ -n "${SEED:-}" ] && seed=(-seed="$SEED")
+  # The reader targets' scratch directory (fuzz_reader.cpp: hgd-fuzz-<pid> in /dev/shm or the
+  # temporary directory): libFuzzer ends without running atexit handlers when its time is up or
+  # it finds a crash, so it is removed here, and so is the fuzzer if this script is stopped.
   "$build/fuzz/$t" -max_total_time="$secs" -rss_limit_mb=2048 -timeout=10 -print_final_stats=1 "${seed[@]}" \
     -artifact_prefix="$artifacts" "${dict[@]}" "$work" "fuzz/corpus/$name" >"$log" 2>&1 &
   pid=$!
+  trap 'kill "$pid" 2>/dev/null; rm -rf "/dev/shm/hgd-fuzz-$pid" "${TMPDIR:-/tmp}/hgd-fuzz-$pid"; exit 130' INT TERM
   wait "$pid" || rc=$?
-  # The reader targets' scratch directory (fuzz_reader.cpp: hgd-fuzz-<pid> in /dev/shm or the
-  # temporary directory): libFuzzer ends without running atexit handlers when its time is up or
-  # it finds a crash, so it is removed here.
+  trap - INT TERM
   rm -rf "/dev/shm/hgd-fuzz-$pid" "${TMPDIR:-/tmp}/hgd-fuzz-$pid"
   execs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log" | tail -1)
   if [ "$rc" -ne 0 ]; then

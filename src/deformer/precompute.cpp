@@ -156,7 +156,7 @@ void coarseResolution(const Geometry& geometry, const Handles& handles, const De
     const auto& normals = data.graph->normals();
     table.normals.resize(pts.size());
     const long long n = static_cast<long long>(pts.size());
-#pragma omp parallel for schedule(dynamic, kDynamicChunk) if (n > kParallelMin)
+#pragma omp parallel for schedule(dynamic, dynamicChunk(n)) if (n > kParallelMin)
     for (long long i = 0; i < n; ++i)
       table.normals[static_cast<std::size_t>(i)] =
           normals[coarse.anchor[static_cast<std::size_t>(i)]].getNormalVector3fMap();

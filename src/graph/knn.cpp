@@ -124,7 +124,7 @@ KnnTable knnOfDistinct(const pcl::PointCloud<pcl::PointXYZ>& points, int k, bool
   // as much as the search itself). Buffers are not zero-filled: every slot read is written.
   const long long nn = static_cast<long long>(n);
   std::unique_ptr<float[]> xyz(new float[n * 3]);
-#pragma omp parallel for schedule(dynamic, kDynamicChunk) if (nn > kParallelMin)
+#pragma omp parallel for schedule(dynamic, dynamicChunk(nn)) if (nn > kParallelMin)
   for (long long i = 0; i < nn; ++i) {
     xyz[3 * i] = points[static_cast<std::size_t>(i)].x;
     xyz[3 * i + 1] = points[static_cast<std::size_t>(i)].y;

@@ -121,7 +121,7 @@ void orientNormals(const pcl::PointCloud<pcl::PointXYZ>& points, const KnnTable&
   // The walk reads and flips a packed copy (12 bytes a point rather than PCL's 32, so that a
   // 65,536-point level's normals stay in a core's cache), written back on every thread after.
   std::vector<Eigen::Vector3f> packed(n);
-#pragma omp parallel for schedule(dynamic, kDynamicChunk) if (nn > kParallelMin)
+#pragma omp parallel for schedule(dynamic, dynamicChunk(nn)) if (nn > kParallelMin)
   for (long long ii = 0; ii < nn; ++ii)
     packed[static_cast<std::size_t>(ii)] = normals[static_cast<std::size_t>(ii)].getNormalVector3fMap();
   for (int seed : order) {
@@ -149,7 +149,7 @@ void orientNormals(const pcl::PointCloud<pcl::PointXYZ>& points, const KnnTable&
     }
     lowest = kBuckets;
   }
-#pragma omp parallel for schedule(dynamic, kDynamicChunk) if (nn > kParallelMin)
+#pragma omp parallel for schedule(dynamic, dynamicChunk(nn)) if (nn > kParallelMin)
   for (long long ii = 0; ii < nn; ++ii)
     normals[static_cast<std::size_t>(ii)].getNormalVector3fMap() = packed[static_cast<std::size_t>(ii)];
 }

@@ -56,7 +56,7 @@ InterpolationTable buildTable(const Handles& handles, const Clustering& c,
   clock.lap("table.pairs");
   t.points.resize(n);  // (not zeroed: the records' pages are first written in parallel below)
   const long long nn = static_cast<long long>(n);
-#pragma omp parallel for schedule(dynamic, kDynamicChunk) if (nn > kParallelMin)
+#pragma omp parallel for schedule(dynamic, dynamicChunk(nn)) if (nn > kParallelMin)
   for (long long ii = 0; ii < nn; ++ii) {
     const auto i = static_cast<std::size_t>(ii);
     InterpolationTable::Point& r = t.points[i];
@@ -70,11 +70,17 @@ InterpolationTable buildTable(const Handles& handles, const Clustering& c,
   clock.lap("table.records");
   adjust(t);
   // Handle points take their handle's transform exactly (a handle's points on every thread: a
-  // scan's handle can hold a tenth of its points; the handles one after the other).
+  // scan's handle can hold a tenth of its points; the handles one after the other). On one
+  // thread where a list is not strictly increasing: a point listed twice would be written by
+  // two threads at once.
   auto pin = [&](const std::vector<int>& idx, int cluster) {
     const std::uint32_t pair = pairOf(cluster, cluster);
     const long long m = static_cast<long long>(idx.size());
-#pragma omp parallel for schedule(dynamic, kDynamicChunk) if (m > kParallelMin)
+    bool increasing = true;
+#pragma omp parallel for schedule(static) reduction(&& : increasing) if (m > kParallelMin)
+    for (long long k = 1; k < m; ++k)
+      increasing = increasing && idx[static_cast<std::size_t>(k - 1)] < idx[static_cast<std::size_t>(k)];
+#pragma omp parallel for schedule(dynamic, dynamicChunk(m)) if (increasing && m > kParallelMin)
     for (long long k = 0; k < m; ++k) {
       const auto i = static_cast<std::size_t>(idx[static_cast<std::size_t>(k)]);
       t.points[i].pair = pair;

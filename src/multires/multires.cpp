@@ -5,9 +5,11 @@
 #include <atomic>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <memory>
 #include <numeric>
 #include <stdexcept>
+#include <string>
 
 #include "graph/nearest.h"
 #include "hgdeform/io/geometry.h"
@@ -34,7 +36,7 @@ template <typename T>
 UninitVector<T> zeros(std::size_t n) {
   UninitVector<T> v(n);
   const long long nn = static_cast<long long>(n);
-#pragma omp parallel for schedule(dynamic, kDynamicChunk) if (nn > kParallelMin)
+#pragma omp parallel for schedule(dynamic, dynamicChunk(nn)) if (nn > kParallelMin)
   for (long long i = 0; i < nn; ++i) v[static_cast<std::size_t>(i)] = T{0};
   return v;
 }
@@ -110,14 +112,19 @@ Cells findCells(const pcl::PointCloud<pcl::PointXYZ>& points, const UninitVector
     UninitVector<std::uint64_t> key;
     std::size_t runs = 0;
   };
+  // (Allocated here, not in the loop, so that running out of memory throws to the caller rather
+  // than ending the program from a worker thread; the pages are touched by the loop.)
   std::vector<Part> part(static_cast<std::size_t>(blocks));
-  forChunks(n, blocks, [&](int begin, int end, int b) {
+  for (int b = 0; b < blocks; ++b) {
     Part& p = part[static_cast<std::size_t>(b)];
-    const auto most = static_cast<std::size_t>(end - begin);
+    const auto most = static_cast<std::size_t>(blockStart(n, blocks, b + 1) - blockStart(n, blocks, b));
     p.start.resize(most);
     p.key.resize(most);
     p.best.resize(most);
     p.best_d.resize(most);
+  }
+  forChunks(n, blocks, [&](int begin, int end, int b) {
+    Part& p = part[static_cast<std::size_t>(b)];
     // The squared distances are not negative, so their bits order as they do; a new run's
     // distance so far is all ones, above every distance. No key is all ones (at most 63 bits).
     std::size_t r = ~std::size_t{0};
@@ -331,6 +338,9 @@ CoarseLevel coarsen(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles&
   CoarseLevel out;
   const std::size_t n = points.size();
   if (n == 0 || target == 0) return out;
+  // Points are indexed by int here, as everywhere in the library (handles, coarse points).
+  if (n > static_cast<std::size_t>(std::numeric_limits<int>::max()))
+    throw std::invalid_argument("coarsen: " + std::to_string(n) + " points, more than 2,147,483,647");
   PhaseClock clock;
   // The class of a point: 0 free, 1 the manipulated handle, 2 + k the fixed handle k, then the
   // joints (free points of joint k: 2 + fixed + k), so that a joint's phi range is measured on
@@ -554,7 +564,7 @@ std::vector<float> prolongField(const pcl::PointCloud<pcl::PointXYZ>& points, co
   const std::size_t n = level.anchor.size();
   std::vector<float> phi(n);
   const long long nn = static_cast<long long>(n);
-#pragma omp parallel for schedule(dynamic, kDynamicChunk) if (nn > kParallelMin)
+#pragma omp parallel for schedule(dynamic, dynamicChunk(nn)) if (nn > kParallelMin)
   for (long long ii = 0; ii < nn; ++ii) {
     const auto i = static_cast<std::size_t>(ii);
     const std::uint32_t a = level.anchor[i];
@@ -638,7 +648,7 @@ Clustering prolongClustering(Clustering c, const CoarseLevel& level, const std::
   {
     const AlphaRule rule(c, coarse_phi);
     const long long nn = static_cast<long long>(n);
-#pragma omp parallel for schedule(dynamic, kDynamicChunk) if (nn > kParallelMin)
+#pragma omp parallel for schedule(dynamic, dynamicChunk(nn)) if (nn > kParallelMin)
     for (long long ii = 0; ii < nn; ++ii) {
       const auto i = static_cast<std::size_t>(ii);
       const std::uint32_t a = level.anchor[i];
@@ -650,7 +660,7 @@ Clustering prolongClustering(Clustering c, const CoarseLevel& level, const std::
       const auto x = static_cast<std::size_t>(i);
       alpha[x] = c.alpha[level.anchor[x]];
     }
-#pragma omp parallel for schedule(dynamic, kDynamicChunk) if (nn > kParallelMin)
+#pragma omp parallel for schedule(dynamic, dynamicChunk(nn)) if (nn > kParallelMin)
     for (long long ii = 0; ii < nn; ++ii) {
       const auto i = static_cast<std::size_t>(ii);
       nearest[i] = alpha[i] < 0.5f ? lower[i] : upper[i];

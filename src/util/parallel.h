@@ -5,6 +5,7 @@
 #include <omp.h>
 #endif
 
+#include <algorithm>
 #include <cstddef>
 #include <exception>
 #include <vector>
@@ -51,14 +52,25 @@ void forBlocks(long long n, int blocks, Body&& body) {
     body(static_cast<int>(blockStart(n, blocks, t)), static_cast<int>(blockStart(n, blocks, t + 1)), t);
 }
 
-/// Blocks for forChunks: eight per thread when n is large enough to share (kParallelMin), else
-/// one.
+/// Blocks for forChunks: eight per thread (at most 64: a radix sort keeps a table of counts per
+/// block) when n is large enough to share (kParallelMin), else one.
 inline int chunkCount([[maybe_unused]] long long n) {
   int chunks = 1;
 #ifdef _OPENMP
-  if (n > kParallelMin && omp_get_max_threads() > 1) chunks = 8 * omp_get_max_threads();
+  if (n > kParallelMin && omp_get_max_threads() > 1) chunks = std::min(64, 8 * omp_get_max_threads());
 #endif
   return chunks;
+}
+
+/// The chunk of a loop of n cheap items under schedule(dynamic, ...): kDynamicChunk, smaller
+/// where that would leave fewer than eight chunks a thread (at least 1,024 items).
+inline int dynamicChunk([[maybe_unused]] long long n) {
+  int threads = 1;
+#ifdef _OPENMP
+  threads = omp_get_max_threads();
+#endif
+  const long long per = n / (8LL * threads);
+  return static_cast<int>(std::max(1024LL, std::min(static_cast<long long>(kDynamicChunk), per)));
 }
 
 /// forBlocks, but the blocks (chunkCount's: more than threads) are handed out as threads come
