@@ -15,6 +15,7 @@
 #include <random>
 
 #include "../src/multires/prolong_labels.h"  // the route prolongInterpolation replaced
+#include "hgdeform/cluster/clustering.h"
 #include "hgdeform/deformer/deformer.h"
 #include "hgdeform/field/harmonic_field.h"
 #include "hgdeform/io/geometry.h"
@@ -544,8 +545,9 @@ class ThreadCount {
 // cloud in the geometry's Morton order and the same cloud shuffled (where every run of points
 // in a cell is one point long), with noise, 1% strays, dense pieces and repeated points; the
 // same on 1, 2 and 3 threads.
-TEST(Multires, EachCellStandsForItsPointsByItsPointNearestTheCentre) {
-  std::mt19937 rng(29);
+// A scan-like cloud: a bumpy sphere's 90,000 points with noise, 1% strays, 12 dense pieces and
+// 6,000 repeated points (merged scans: equally near any centre), in the geometry's order.
+hgd::Geometry scanLikeCloud(std::mt19937& rng) {
   std::vector<Eigen::Vector3f> p, none;
   {
     const hgd::Geometry s = hgd::extractGeometry(hgd::shapes::bumpySphere(90000));
@@ -555,11 +557,15 @@ TEST(Multires, EachCellStandsForItsPointsByItsPointNearestTheCentre) {
   for (std::size_t k = 0; k < p.size() / 100; ++k) p.emplace_back(u(rng), u(rng), u(rng));
   p = hgd::shapes::withDensePieces(std::move(p), 12, 800, 0.01f, 5);
   for (auto& x : p) x += Eigen::Vector3f(noise(rng), noise(rng), noise(rng));
-  // Repeated points (merged scans): equally near a centre, where the lowest index must win.
   std::uniform_int_distribution<std::size_t> any(0, p.size() - 1);
   for (int k = 0; k < 6000; ++k) p.push_back(p[any(rng)]);
   std::shuffle(p.begin(), p.end(), rng);
-  const hgd::Geometry g = hgd::extractGeometry(hgd::shapes::cloudShape(p, none));
+  return hgd::extractGeometry(hgd::shapes::cloudShape(p, none));
+}
+
+TEST(Multires, EachCellStandsForItsPointsByItsPointNearestTheCentre) {
+  std::mt19937 rng(29);
+  const hgd::Geometry g = scanLikeCloud(rng);
   pcl::PointCloud<pcl::PointXYZ> shuffled = *g.points;
   std::shuffle(shuffled.begin(), shuffled.end(), rng);
 
@@ -665,4 +671,32 @@ TEST(Multires, EachCellStandsForItsPointsByItsPointNearestTheCentre) {
       }
     }
   }
+}
+
+// The surface sample (a voxel grid's point nearest each cell's centre, the first of equals) is the
+// same on any number of threads: each thread's block of points keeps its own cells, merged in
+// order. The cloud is shuffled, so repeated points fall in different blocks; a merge that let a
+// later block win a tie would pick other points than one thread does.
+TEST(Multires, SurfaceSampleIsTheSameOnAnyNumberOfThreads) {
+  std::mt19937 rng(31);
+  const hgd::Geometry g = scanLikeCloud(rng);
+  pcl::PointCloud<pcl::PointXYZ> shuffled = *g.points;
+  std::shuffle(shuffled.begin(), shuffled.end(), rng);
+  hgd::Handles h;
+  h.fixed.emplace_back();
+  for (std::size_t i = 0; i < shuffled.size(); ++i) {
+    if (shuffled[i].z < -0.75f) h.fixed[0].push_back(static_cast<int>(i));
+    if (shuffled[i].x > 0.8f) h.manipulated.push_back(static_cast<int>(i));
+  }
+  std::vector<std::vector<int>> samples;
+  {
+    const ThreadCount restore(omp_get_max_threads());
+    for (const int threads : {1, 2, 3}) {
+      omp_set_num_threads(threads);
+      samples.push_back(hgd::sampleSurface(shuffled, h, 4000));
+    }
+  }
+  ASSERT_GT(samples[0].size(), 3000u);
+  EXPECT_EQ(samples[1], samples[0]);
+  EXPECT_EQ(samples[2], samples[0]);
 }

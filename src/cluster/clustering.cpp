@@ -32,17 +32,32 @@ struct CellHash {
 // One point per occupied (cell, class): the one nearest the cell's centre.
 std::vector<int> voxelSample(const pcl::PointCloud<pcl::PointXYZ>& points, const std::vector<int>& cls,
                              const Eigen::Vector3f& lo, float h) {
-  std::unordered_map<CellKey, std::pair<float, int>, CellHash> best;
-  best.reserve(points.size() / 4 + 16);
-  for (std::size_t i = 0; i < points.size(); ++i) {
-    if (cls[i] < 0) continue;
-    const Eigen::Vector3f q = (points[i].getVector3fMap() - lo) / h;
-    const Eigen::Vector3f f = q.array().floor();
-    const CellKey key{static_cast<int>(f.x()), static_cast<int>(f.y()), static_cast<int>(f.z()), cls[i]};
-    const float d = (q - f - Eigen::Vector3f::Constant(0.5f)).squaredNorm();
-    auto [it, inserted] = best.try_emplace(key, d, static_cast<int>(i));
-    if (!inserted && d < it->second.first) it->second = {d, static_cast<int>(i)};
-  }
+  // Each block of points (in order) keeps its cells' nearest on its own thread; the blocks are
+  // then merged in order, a later block's point winning only when strictly nearer, so that the
+  // first of equally near points wins as in one pass.
+  using Map = std::unordered_map<CellKey, std::pair<float, int>, CellHash>;
+  const long long n = static_cast<long long>(points.size());
+  const int blocks = blockCount(n);
+  std::vector<Map> part(static_cast<std::size_t>(blocks));
+  for (auto& m : part) m.reserve(points.size() / 4 / static_cast<std::size_t>(blocks) + 16);
+  forBlocks(n, blocks, [&](int begin, int end, int b) {
+    Map& best = part[static_cast<std::size_t>(b)];
+    for (auto i = static_cast<std::size_t>(begin); i < static_cast<std::size_t>(end); ++i) {
+      if (cls[i] < 0) continue;
+      const Eigen::Vector3f q = (points[i].getVector3fMap() - lo) / h;
+      const Eigen::Vector3f f = q.array().floor();
+      const CellKey key{static_cast<int>(f.x()), static_cast<int>(f.y()), static_cast<int>(f.z()), cls[i]};
+      const float d = (q - f - Eigen::Vector3f::Constant(0.5f)).squaredNorm();
+      auto [it, inserted] = best.try_emplace(key, d, static_cast<int>(i));
+      if (!inserted && d < it->second.first) it->second = {d, static_cast<int>(i)};
+    }
+  });
+  Map& best = part[0];
+  for (std::size_t b = 1; b < part.size(); ++b)
+    for (const auto& [key, value] : part[b]) {
+      auto [it, inserted] = best.try_emplace(key, value);
+      if (!inserted && value.first < it->second.first) it->second = value;
+    }
   std::vector<int> out;
   out.reserve(best.size());
   for (const auto& kv : best) out.push_back(kv.second.second);

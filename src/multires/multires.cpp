@@ -206,16 +206,24 @@ Cells findCells(const pcl::PointCloud<pcl::PointXYZ>& points, const UninitVector
 // The cells a grid would have over the sampled points (positions and classes, packed).
 std::size_t countCells(const std::vector<Eigen::Vector3f>& points, const std::vector<std::uint16_t>& cls,
                        const Grid& grid, std::uint64_t max_key) {
+  // (Every step on every thread: up to eight rounds of this size the grid before the build.)
   const std::size_t m = points.size();
-  std::vector<std::uint64_t> keys(m);
+  if (m == 0) return 0;
+  UninitVector<std::uint64_t> keys(m);
+  UninitVector<std::uint32_t> payload(m);
   const long long mm = static_cast<long long>(m);
 #pragma omp parallel for schedule(static) if (mm > kParallelMin)
-  for (long long k = 0; k < mm; ++k)
+  for (long long k = 0; k < mm; ++k) {
     keys[static_cast<std::size_t>(k)] =
         grid.key(points[static_cast<std::size_t>(k)], cls[static_cast<std::size_t>(k)]);
-  std::vector<std::uint32_t> payload(m, 0);
+    payload[static_cast<std::size_t>(k)] = static_cast<std::uint32_t>(k);
+  }
   radixSort(keys, payload, max_key, 11);
-  return static_cast<std::size_t>(std::unique(keys.begin(), keys.end()) - keys.begin());
+  long long changes = 0;
+#pragma omp parallel for schedule(static) reduction(+ : changes) if (mm > kParallelMin)
+  for (long long k = 1; k < mm; ++k)
+    changes += keys[static_cast<std::size_t>(k)] != keys[static_cast<std::size_t>(k - 1)];
+  return static_cast<std::size_t>(changes) + 1;
 }
 
 // Stray points of a scan are alone in their cells, and a coarse level of them would be mostly
