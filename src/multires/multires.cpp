@@ -173,15 +173,10 @@ Cells findCells(const pcl::PointCloud<pcl::PointXYZ>& points, const UninitVector
   out.run_start[runs] = static_cast<std::uint32_t>(n);
   radixSort(sorted_key, out.runs, max_key, 11);
   // The cells: where the sorted keys change.
-  const long long rr = static_cast<long long>(runs);
-  const int run_blocks = blockCount(rr);
-  std::vector<std::vector<std::uint32_t>> firsts(static_cast<std::size_t>(run_blocks));
-  forBlocks(rr, run_blocks, [&](int begin, int end, int b) {
-    for (auto s = static_cast<std::size_t>(begin); s < static_cast<std::size_t>(end); ++s)
-      if (s == 0 || sorted_key[s] != sorted_key[s - 1])
-        firsts[static_cast<std::size_t>(b)].push_back(static_cast<std::uint32_t>(s));
+  const std::vector<int> changes = indicesWhere(static_cast<long long>(runs), [&](std::size_t s) {
+    return s == 0 || sorted_key[s] != sorted_key[s - 1];
   });
-  for (const auto& f : firsts) out.first.insert(out.first.end(), f.begin(), f.end());
+  out.first.assign(changes.begin(), changes.end());
   const std::size_t cells = out.first.size();
   out.first.push_back(static_cast<std::uint32_t>(runs));
   out.key.resize(cells);
@@ -452,8 +447,8 @@ CoarseLevel coarsen(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles&
     }
     cell_points.eachPoint(c, [&](std::size_t i) {
       if (stray[i]) return true;
-      const Eigen::Vector3f q = (points[i].getVector3fMap() - lo) / grid.h;
-      const float d = (q - q.array().floor().matrix() - Eigen::Vector3f::Constant(0.5f)).squaredNorm();
+      float d = 0;
+      grid.key(points[i].getVector3fMap(), 0, d);  // (the distance to the centre alone)
       if (d < best_d || best[c] < 0) {
         best_d = d;
         best[c] = static_cast<int>(i);
