@@ -329,6 +329,7 @@ int main(int argc, char** argv) {
     return 1;
   }
   hgdcli::singleThreadBlas();
+  hgdcli::keepFreedMemory();  // freed blocks reused, not fresh pages (huge_pages.h)
   if (argc < 2) {
     std::cerr << kUsage;
     return 2;

@@ -1,10 +1,12 @@
 #include "huge_pages.h"
 
 #include <gnu/libc-version.h>
+#include <malloc.h>
 #include <sys/auxv.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <climits>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -82,6 +84,19 @@ bool hugePageMallocOn() {
       on = v < t.size() && (t[v] == '1' || t[v] == '2') && (v + 1 == t.size() || t[v + 1] == ':');
     }
   return on;
+}
+
+bool keepFreedMemory() {
+  for (const char* name :
+       {"MALLOC_MMAP_MAX_", "MALLOC_MMAP_THRESHOLD_", "MALLOC_TRIM_THRESHOLD_", "MALLOC_TOP_PAD_"})
+    if (std::getenv(name)) return false;
+  if (const char* env = std::getenv("GLIBC_TUNABLES")) {
+    const std::string t = env;
+    for (const char* key : {"glibc.malloc.mmap_max=", "glibc.malloc.mmap_threshold=",
+                            "glibc.malloc.trim_threshold=", "glibc.malloc.top_pad="})
+      if (t.find(key) != std::string::npos) return false;
+  }
+  return mallopt(M_MMAP_MAX, 0) == 1 && mallopt(M_TRIM_THRESHOLD, INT_MAX) == 1;
 }
 
 std::vector<std::string> userEnvironment() {

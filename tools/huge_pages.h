@@ -1,5 +1,5 @@
 #pragma once
-// glibc's huge-page malloc for the programs' large runs.
+// glibc's malloc for the programs' large runs: huge pages, and freed memory kept for reuse.
 //
 // A 1M-point `hgdeform deform` touches some 150 MB of fresh memory. Where the kernel gives
 // transparent huge pages only on request (`/sys/kernel/mm/transparent_hugepage/enabled` reads
@@ -30,6 +30,19 @@ void hugePageMallocFor(const char* path, std::uintmax_t min_bytes, char** argv);
 /// glibc 2.35 or later and GLIBC_TUNABLES setting glibc.malloc.hugetlb to 1 or 2 (the last
 /// setting counts, as glibc reads it).
 bool hugePageMallocOn();
+
+/// Keeps the memory the program frees for its later allocations, as jemalloc and tcmalloc do,
+/// where glibc gives it back: glibc serves each block of 32 MiB or more (at 4M points, most of a
+/// build's arrays) with its own mmap and unmaps it when freed, so that every build, and every
+/// stage of one, writes fresh pages that the kernel first zeroes: at 4M points on this project's
+/// machines that cost a quarter of a one-thread build's time, and it scales worse than the build
+/// on two threads. Sets M_MMAP_MAX to 0 (large blocks come from the heap; a worker thread's
+/// block too large for its arena still gets its own mapping) and M_TRIM_THRESHOLD to 2 GiB (a
+/// freed top of the heap stays mapped). Leaves glibc's defaults when the environment sets any
+/// of these thresholds (GLIBC_TUNABLES' glibc.malloc.mmap_max, .mmap_threshold, .trim_threshold,
+/// .top_pad, or MALLOC_MMAP_MAX_, MALLOC_MMAP_THRESHOLD_, MALLOC_TRIM_THRESHOLD_,
+/// MALLOC_TOP_PAD_): a user's choice wins. Returns whether it set them.
+bool keepFreedMemory();
 
 /// The environment as the user gave it (GLIBC_TUNABLES as it was before hugePageMalloc's
 /// restart, the restart's marks left out), for programs this one starts to be timed as a user

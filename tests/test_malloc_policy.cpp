@@ -1,0 +1,68 @@
+// The programs' malloc policy (tools/huge_pages.h): freed blocks stay for reuse, unless the
+// user's environment chose glibc's thresholds.
+#include <gtest/gtest.h>
+#include <malloc.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "huge_pages.h"
+
+namespace {
+
+// glibc's malloc settings belong to the process, so each case runs in a child: with `env` set
+// (after clearing every variable keepFreedMemory() reads), it calls keepFreedMemory() and says
+// in its exit status what malloc then did with a 48 MiB block (above glibc's largest mmap
+// threshold, 32 MiB, so glibc's defaults give it a mapping of its own and unmap it on free):
+// bit 0, keepFreedMemory() returned true; bit 1, the block came from the heap (no mapping of its
+// own, as glibc counts them); bit 2, the heap still held it after the free (not given back).
+int probe(const std::vector<std::pair<std::string, std::string>>& env) {
+  std::fflush(nullptr);
+  const pid_t pid = fork();
+  if (pid == 0) {
+    for (const char* name : {"GLIBC_TUNABLES", "MALLOC_MMAP_MAX_", "MALLOC_MMAP_THRESHOLD_",
+                             "MALLOC_TRIM_THRESHOLD_", "MALLOC_TOP_PAD_"})
+      unsetenv(name);
+    for (const auto& [name, value] : env) setenv(name.c_str(), value.c_str(), 1);
+    int bits = hgdcli::keepFreedMemory() ? 1 : 0;
+    constexpr std::size_t kBlock = std::size_t{48} << 20;
+    void* block = std::malloc(kBlock);
+    if (!block) _exit(64);
+    if (mallinfo2().hblks == 0) bits |= 2;
+    std::free(block);
+    if (mallinfo2().arena >= kBlock) bits |= 4;
+    _exit(bits);
+  }
+  int status = 0;
+  if (pid < 0 || waitpid(pid, &status, 0) != pid || !WIFEXITED(status)) return -1;
+  return WEXITSTATUS(status);
+}
+
+}  // namespace
+
+TEST(MallocPolicy, LargeBlocksComeFromTheHeapAndStayThereWhenFreed) {
+  EXPECT_EQ(probe({}), 7);
+  // Huge pages are not a threshold: the programs' own restart sets them.
+  EXPECT_EQ(probe({{"GLIBC_TUNABLES", "glibc.malloc.hugetlb=1"}}), 7);
+  EXPECT_EQ(probe({{"GLIBC_TUNABLES", "glibc.malloc.hugetlb=1:glibc.malloc.tcache_count=0"}}), 7);
+}
+
+TEST(MallocPolicy, AUsersOwnThresholdsAreKept) {
+  // glibc reads these at start; a child set afterwards keeps glibc's defaults, and so must the
+  // policy: the block gets its own mapping and goes back on free.
+  const std::vector<std::pair<std::string, std::string>> choices = {
+      {"MALLOC_MMAP_MAX_", "65536"},
+      {"MALLOC_MMAP_THRESHOLD_", "131072"},
+      {"MALLOC_TRIM_THRESHOLD_", "131072"},
+      {"MALLOC_TOP_PAD_", "0"},
+      {"GLIBC_TUNABLES", "glibc.malloc.mmap_max=65536"},
+      {"GLIBC_TUNABLES", "glibc.malloc.hugetlb=1:glibc.malloc.mmap_threshold=131072"},
+      {"GLIBC_TUNABLES", "glibc.malloc.trim_threshold=131072:glibc.malloc.hugetlb=1"},
+      {"GLIBC_TUNABLES", "glibc.malloc.top_pad=0"}};
+  for (const auto& choice : choices) EXPECT_EQ(probe({choice}), 0) << choice.first << "=" << choice.second;
+}
