@@ -102,6 +102,12 @@ void orientNormals(const pcl::PointCloud<pcl::PointXYZ>& points, const KnnTable&
           w > 0 ? static_cast<unsigned char>(std::min(kBuckets - 1, static_cast<int>(w * kBuckets))) : 0;
     }
   }
+  // The walk reads and flips a packed copy (12 bytes a point rather than PCL's 32, so that a
+  // 65,536-point level's normals stay in a core's cache), written back on every thread after.
+  std::vector<Eigen::Vector3f> packed(n);
+#pragma omp parallel for schedule(dynamic, dynamicChunk(nn)) if (nn > kParallelMin)
+  for (long long ii = 0; ii < nn; ++ii)
+    packed[static_cast<std::size_t>(ii)] = normals[static_cast<std::size_t>(ii)].getNormalVector3fMap();
   std::vector<std::vector<std::pair<int, int>>> bucket(kBuckets);  // (to, from)
   int lowest = kBuckets;
   // A point waiting in bucket b is taken from there before any later entry of a higher
@@ -117,13 +123,14 @@ void orientNormals(const pcl::PointCloud<pcl::PointXYZ>& points, const KnnTable&
     q = static_cast<std::int16_t>(b);
     bucket[static_cast<std::size_t>(b)].emplace_back(to, from);
     lowest = std::min(lowest, b);
+    // What taking it will read, fetched now: it is often taken soon (the last entry of the
+    // lowest bucket is), and the walk otherwise waits on memory the threads wrote (0.3-1 ms of
+    // a 4M build's 5 ms walk).
+    const int row = g.offsets[static_cast<std::size_t>(to)];
+    __builtin_prefetch(g.adj.data() + row);
+    __builtin_prefetch(edge_bucket.data() + row);
+    __builtin_prefetch(packed.data() + to);
   };
-  // The walk reads and flips a packed copy (12 bytes a point rather than PCL's 32, so that a
-  // 65,536-point level's normals stay in a core's cache), written back on every thread after.
-  std::vector<Eigen::Vector3f> packed(n);
-#pragma omp parallel for schedule(dynamic, dynamicChunk(nn)) if (nn > kParallelMin)
-  for (long long ii = 0; ii < nn; ++ii)
-    packed[static_cast<std::size_t>(ii)] = normals[static_cast<std::size_t>(ii)].getNormalVector3fMap();
   for (int seed : order) {
     if (state[static_cast<std::size_t>(seed)] == kDone) continue;
     auto& sn = packed[static_cast<std::size_t>(seed)];
