@@ -15,35 +15,130 @@
 
 namespace hgd {
 
-NeighborGraph unionGraph(const NeighborGraph& a, const NeighborGraph& b) {
-  const std::size_t n = a.size();
+namespace {
+
+// Row i of the union of a and b (both sorted) through out(v) for each entry, ascending, once.
+template <typename Out>
+void mergeRows(const int* x, const int* xe, const int* y, const int* ye, Out&& out) {
+  while (x != xe || y != ye) {
+    if (y == ye || (x != xe && *x < *y))
+      out(*x++);
+    else if (x == xe || *y < *x)
+      out(*y++);
+    else {
+      out(*x++);
+      ++y;
+    }
+  }
+}
+
+// offsets[i + 1] holds row i's length: made the rows' starts (serial: a pass over the rows).
+void rowStarts(std::vector<int>& offsets) {
+  for (std::size_t i = 1; i < offsets.size(); ++i) offsets[i] += offsets[i - 1];
+}
+
+// The graph of `edges`, both directions, self-loops and repeats dropped, rows sorted; on every
+// thread: each block of the edges counts its entries per row and writes them where the blocks
+// before it leave off (the rows then hold what a serial pass would put there, in its order),
+// and each row is sorted and its repeats dropped on its own. The result does not depend on the
+// order of `edges`.
+NeighborGraph edgeGraph(std::size_t n, const std::vector<std::pair<int, int>>& edges) {
+  const long long m = static_cast<long long>(edges.size());
+  const long long nn = static_cast<long long>(n);
+  const int blocks = blockCount(m);
+  std::vector<std::vector<int>> count(static_cast<std::size_t>(blocks));
+  forBlocks(m, blocks, [&](int begin, int end, int b) {
+    std::vector<int>& c = count[static_cast<std::size_t>(b)];
+    c.assign(n, 0);
+    for (int e = begin; e < end; ++e) {
+      const auto [x, y] = edges[static_cast<std::size_t>(e)];
+      if (x == y) continue;
+      ++c[static_cast<std::size_t>(x)];
+      ++c[static_cast<std::size_t>(y)];
+    }
+  });
   NeighborGraph g;
   g.offsets.assign(n + 1, 0);
-  g.adj.reserve(a.adj.size() + b.adj.size());
-  for (std::size_t i = 0; i < n; ++i) {
-    const int *x = a.begin(i), *xe = a.end(i), *y = b.begin(i), *ye = b.end(i);
-    while (x != xe || y != ye) {
-      int v;
-      if (y == ye || (x != xe && *x < *y))
-        v = *x++;
-      else if (x == xe || *y < *x)
-        v = *y++;
-      else {
-        v = *x++;
-        ++y;
-      }
-      g.adj.push_back(v);
+#pragma omp parallel for schedule(static) if (nn > kParallelMin && blocks > 1)
+  for (long long i = 0; i < nn; ++i) {
+    int total = 0;
+    for (const auto& c : count) total += c[static_cast<std::size_t>(i)];
+    g.offsets[static_cast<std::size_t>(i) + 1] = total;
+  }
+  rowStarts(g.offsets);
+  // Where each block writes in each row: the row's start, then the blocks before it.
+#pragma omp parallel for schedule(static) if (nn > kParallelMin && blocks > 1)
+  for (long long i = 0; i < nn; ++i) {
+    int at = g.offsets[static_cast<std::size_t>(i)];
+    for (auto& c : count) {
+      const int k = c[static_cast<std::size_t>(i)];
+      c[static_cast<std::size_t>(i)] = at;
+      at += k;
     }
-    g.offsets[i + 1] = static_cast<int>(g.adj.size());
+  }
+  std::vector<int> adj(static_cast<std::size_t>(g.offsets[n]));
+  forBlocks(m, blocks, [&](int begin, int end, int b) {
+    std::vector<int>& at = count[static_cast<std::size_t>(b)];
+    for (int e = begin; e < end; ++e) {
+      const auto [x, y] = edges[static_cast<std::size_t>(e)];
+      if (x == y) continue;
+      adj[static_cast<std::size_t>(at[static_cast<std::size_t>(x)]++)] = y;
+      adj[static_cast<std::size_t>(at[static_cast<std::size_t>(y)]++)] = x;
+    }
+  });
+  count.clear();
+  // Each row sorted, its repeats dropped (its length in kept), then the rows packed.
+  std::vector<int> kept(n + 1, 0);
+#pragma omp parallel for schedule(dynamic, kDynamicChunkCostly) if (m > kParallelMin)
+  for (long long i = 0; i < nn; ++i) {
+    const auto row = adj.begin() + g.offsets[static_cast<std::size_t>(i)];
+    const auto row_end = adj.begin() + g.offsets[static_cast<std::size_t>(i) + 1];
+    std::sort(row, row_end);
+    kept[static_cast<std::size_t>(i) + 1] = static_cast<int>(std::unique(row, row_end) - row);
+  }
+  rowStarts(kept);
+  g.adj.resize(static_cast<std::size_t>(kept[n]));
+#pragma omp parallel for schedule(dynamic, kDynamicChunkCostly) if (m > kParallelMin)
+  for (long long i = 0; i < nn; ++i) {
+    const auto r = static_cast<std::size_t>(i);
+    std::copy(adj.begin() + g.offsets[r], adj.begin() + g.offsets[r] + (kept[r + 1] - kept[r]),
+              g.adj.begin() + kept[r]);
+  }
+  g.offsets.swap(kept);
+  return g;
+}
+
+}  // namespace
+
+NeighborGraph unionGraph(const NeighborGraph& a, const NeighborGraph& b) {
+  // On every thread: each row's length, then the rows.
+  const std::size_t n = a.size();
+  const long long nn = static_cast<long long>(n);
+  const bool parallel =
+      nn > kParallelMin || static_cast<long long>(a.adj.size() + b.adj.size()) > kParallelMin;
+  NeighborGraph g;
+  g.offsets.assign(n + 1, 0);
+#pragma omp parallel for schedule(dynamic, kDynamicChunkCostly) if (parallel)
+  for (long long ii = 0; ii < nn; ++ii) {
+    const auto i = static_cast<std::size_t>(ii);
+    int length = 0;
+    mergeRows(a.begin(i), a.end(i), b.begin(i), b.end(i), [&length](int) { ++length; });
+    g.offsets[i + 1] = length;
+  }
+  rowStarts(g.offsets);
+  g.adj.resize(static_cast<std::size_t>(g.offsets[n]));
+#pragma omp parallel for schedule(dynamic, kDynamicChunkCostly) if (parallel)
+  for (long long ii = 0; ii < nn; ++ii) {
+    const auto i = static_cast<std::size_t>(ii);
+    int* out = g.adj.data() + g.offsets[i];
+    mergeRows(a.begin(i), a.end(i), b.begin(i), b.end(i), [&out](int v) { *out++ = v; });
   }
   return g;
 }
 
 NeighborGraph addEdges(const NeighborGraph& graph, const std::vector<std::pair<int, int>>& edges) {
-  return unionGraph(graph, symmetricGraph(graph.size(), [&](auto&& emit) {
-                      for (const auto& [a, b] : edges)
-                        if (a != b) emit(a, b);
-                    }));
+  NeighborGraph added = edgeGraph(graph.size(), edges);
+  return graph.adj.empty() ? added : unionGraph(graph, added);
 }
 
 NeighborGraph ringGraph(std::size_t n, const std::vector<pcl::Vertices>& faces) {
