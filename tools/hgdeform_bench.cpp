@@ -355,9 +355,10 @@ int main(int argc, char** argv) {
     hgdcli::singleThreadBlas();  // (a PCL program has no BLAS worker spinning beside it)
     return hgdbench::pclIoReference(argv[2], argv[3]);
   }
-  hgd::removeTemporaryFilesOnSignals();  // no partial --json left by an interrupted run
-  hgdcli::hugePageMalloc(argv);          // as hgdeform does for large inputs (huge_pages.h)
-  hgdcli::singleThreadBlas();            // as hgdeform does (blas_guard.h)
+  hgd::removeTemporaryFilesOnSignals();         // no partial --json left by an interrupted run
+  hgdcli::hugePageMalloc(argv);                 // as hgdeform does for large inputs (huge_pages.h)
+  hgdcli::singleThreadBlas();                   // as hgdeform does (blas_guard.h)
+  const bool kept = hgdcli::keepFreedMemory();  // as hgdeform does (huge_pages.h)
   BenchArgs args;
   if (const int status = parseArgs(argc, argv, args); status >= 0) return status;
   const std::vector<long>& sizes = args.sizes;
@@ -463,11 +464,19 @@ int main(int argc, char** argv) {
       "full-resolution field measured above excluded); malloc: %s\n",
       repeat,
       hgdcli::hugePageMallocOn()
-          ? "glibc's huge pages (glibc.malloc.hugetlb=1) for the bench's own measurements, as hgdeform "
-            "deform "
-            "for inputs from 8 MiB; the whole command and PCL's read + write run in fresh processes in the "
-            "user's environment"
-          : "4 KiB pages; the whole command and PCL's read + write run in fresh processes");
+          ? (kept ? "glibc's huge pages (glibc.malloc.hugetlb=1, as hgdeform deform for inputs from 8 MiB) "
+                    "and "
+                    "freed memory kept for reuse (M_MMAP_MAX 0, M_TRIM_THRESHOLD 2 GiB, as every hgdeform "
+                    "program) for the bench's own measurements; the whole command and PCL's read + write run "
+                    "in fresh processes in the user's environment"
+                  : "glibc's huge pages (glibc.malloc.hugetlb=1) for the bench's own measurements, as "
+                    "hgdeform "
+                    "deform for inputs from 8 MiB; the whole command and PCL's read + write run in fresh "
+                    "processes in the user's environment")
+          : (kept ? "4 KiB pages, freed memory kept for reuse (M_MMAP_MAX 0, M_TRIM_THRESHOLD 2 GiB); the "
+                    "whole "
+                    "command and PCL's read + write run in fresh processes"
+                  : "4 KiB pages; the whole command and PCL's read + write run in fresh processes"));
   for (const auto& r : all)
     if (r.contains("build_phases"))
       hgdbench::printPhaseScaling(r["model"].get<std::string>(), r["points"].get<long>(), r["build_phases"]);
