@@ -2,6 +2,7 @@
 // user's environment chose glibc's thresholds.
 #include <gtest/gtest.h>
 #include <malloc.h>
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -21,10 +22,15 @@ namespace {
 // threshold, 32 MiB, so glibc's defaults give it a mapping of its own and unmap it on free):
 // bit 0, keepFreedMemory() returned true; bit 1, the block came from the heap (no mapping of its
 // own, as glibc counts them); bit 2, the heap still held it after the free (not given back).
-int probe(const std::vector<std::pair<std::string, std::string>>& env) {
+// With `limit_resource`, the child runs under a limit of 1 TiB on that resource.
+int probe(const std::vector<std::pair<std::string, std::string>>& env, int limit_resource = -1) {
   std::fflush(nullptr);
   const pid_t pid = fork();
   if (pid == 0) {
+    if (limit_resource >= 0) {  // a limit far above what the child uses, but a limit
+      const rlimit rl{rlim_t{1} << 40, rlim_t{1} << 40};
+      if (setrlimit(limit_resource, &rl) != 0) _exit(65);
+    }
     for (const char* name : {"GLIBC_TUNABLES", "MALLOC_MMAP_MAX_", "MALLOC_MMAP_THRESHOLD_",
                              "MALLOC_TRIM_THRESHOLD_", "MALLOC_TOP_PAD_"})
       unsetenv(name);
@@ -65,4 +71,16 @@ TEST(MallocPolicy, AUsersOwnThresholdsAreKept) {
       {"GLIBC_TUNABLES", "glibc.malloc.trim_threshold=131072:glibc.malloc.hugetlb=1"},
       {"GLIBC_TUNABLES", "glibc.malloc.top_pad=0"}};
   for (const auto& choice : choices) EXPECT_EQ(probe({choice}), 0) << choice.first << "=" << choice.second;
+}
+
+TEST(MallocPolicy, UnderAnAddressSpaceOrDataLimitFreedMemoryGoesBack) {
+  // Memory kept counts against `ulimit -v` and `ulimit -d`: a program under either, near its
+  // limit, could not start a thread after a large stage freed its arrays.
+  rlimit as{}, data{};
+  ASSERT_EQ(getrlimit(RLIMIT_AS, &as), 0);
+  ASSERT_EQ(getrlimit(RLIMIT_DATA, &data), 0);
+  if (as.rlim_max < (rlim_t{1} << 40) || data.rlim_max < (rlim_t{1} << 40))
+    GTEST_SKIP() << "this process is already under a lower limit";
+  EXPECT_EQ(probe({}, RLIMIT_AS), 0);
+  EXPECT_EQ(probe({}, RLIMIT_DATA), 0);
 }

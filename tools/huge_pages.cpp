@@ -3,6 +3,7 @@
 #include <gnu/libc-version.h>
 #include <malloc.h>
 #include <sys/auxv.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -87,6 +88,12 @@ bool hugePageMallocOn() {
 }
 
 bool keepFreedMemory() {
+  // Under a limit on the address space or the data segment, memory kept is memory the limit no
+  // longer leaves for later needs (a thread's stack, OpenBLAS's buffers): glibc's way then.
+  for (const int resource : {RLIMIT_AS, RLIMIT_DATA}) {
+    rlimit rl{};
+    if (getrlimit(resource, &rl) != 0 || rl.rlim_cur != RLIM_INFINITY) return false;
+  }
   for (const char* name :
        {"MALLOC_MMAP_MAX_", "MALLOC_MMAP_THRESHOLD_", "MALLOC_TRIM_THRESHOLD_", "MALLOC_TOP_PAD_"})
     if (std::getenv(name)) return false;

@@ -41,7 +41,9 @@ bool hugePageMallocOn();
 /// freed top of the heap stays mapped). Leaves glibc's defaults when the environment sets any
 /// of these thresholds (GLIBC_TUNABLES' glibc.malloc.mmap_max, .mmap_threshold, .trim_threshold,
 /// .top_pad, or MALLOC_MMAP_MAX_, MALLOC_MMAP_THRESHOLD_, MALLOC_TRIM_THRESHOLD_,
-/// MALLOC_TOP_PAD_): a user's choice wins. Returns whether it set them.
+/// MALLOC_TOP_PAD_): a user's choice wins; and under a limit on the address space or the data
+/// segment (`ulimit -v`, `ulimit -d`), where memory kept is memory the limit no longer leaves
+/// for a thread's stack or a library's buffers. Returns whether it set them.
 bool keepFreedMemory();
 
 /// The environment as the user gave it (GLIBC_TUNABLES as it was before hugePageMalloc's
