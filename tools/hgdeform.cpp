@@ -329,7 +329,6 @@ int main(int argc, char** argv) {
     return 1;
   }
   hgdcli::singleThreadBlas();
-  hgdcli::keepFreedMemory();  // freed blocks reused, not fresh pages (huge_pages.h)
   if (argc < 2) {
     std::cerr << kUsage;
     return 2;
@@ -346,6 +345,9 @@ int main(int argc, char** argv) {
   try {
     // Each command parses its own options (argv[1], the command, stands for the program name),
     // then does the work with the parsed struct.
+    // One shape a process: freed blocks reused, not fresh pages (huge_pages.h). Not for a batch,
+    // whose workers would each hold the memory of the largest scan they met.
+    if (cmd == "field" || cmd == "deform") hgdcli::keepFreedMemory();
     if (cmd == "field") {
       FieldArgs a;
       const int status = parseField(argc - 1, argv + 1, a);

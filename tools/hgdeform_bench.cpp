@@ -274,6 +274,9 @@ nlohmann::json runSize(const std::string& model, const std::string& armadillo, s
                                         {{"min", v(lo.x() - 1, hi.y() - 0.1 * dy, lo.z() - 1)},
                                          {"max", v(hi.x() + 1, hi.y() + 1, hi.z() + 1)}}}}},
                                      {"move", {{{"frame", {{"translate", v(0.05 * dy, 0, 0)}}}}}}};
+    // The memory this process keeps (keepFreedMemory) given back first: the command is forked
+    // from here, and a fork copies the page tables of all that is mapped.
+    malloc_trim(0);
     out["command"] = hgdbench::commandReference(source, scenario.dump(), repeat);
   }
   if (peak_restarted) {

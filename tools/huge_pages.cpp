@@ -7,6 +7,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <climits>
 #include <cstdio>
 #include <cstdlib>
@@ -98,12 +99,21 @@ bool keepFreedMemory() {
        {"MALLOC_MMAP_MAX_", "MALLOC_MMAP_THRESHOLD_", "MALLOC_TRIM_THRESHOLD_", "MALLOC_TOP_PAD_"})
     if (std::getenv(name)) return false;
   if (const char* env = std::getenv("GLIBC_TUNABLES")) {
+    // name=value entries separated by ':'.
     const std::string t = env;
-    for (const char* key : {"glibc.malloc.mmap_max=", "glibc.malloc.mmap_threshold=",
-                            "glibc.malloc.trim_threshold=", "glibc.malloc.top_pad="})
-      if (t.find(key) != std::string::npos) return false;
+    for (std::size_t at = 0; at <= t.size();) {
+      const std::size_t end = std::min(t.find(':', at), t.size());
+      const std::string name = t.substr(at, std::min(t.find('=', at), end) - at);
+      for (const char* key : {"glibc.malloc.mmap_max", "glibc.malloc.mmap_threshold",
+                              "glibc.malloc.trim_threshold", "glibc.malloc.top_pad"})
+        if (name == key) return false;
+      at = end + 1;
+    }
   }
-  return mallopt(M_MMAP_MAX, 0) == 1 && mallopt(M_TRIM_THRESHOLD, INT_MAX) == 1;
+  if (mallopt(M_MMAP_MAX, 0) != 1) return false;
+  if (mallopt(M_TRIM_THRESHOLD, INT_MAX) == 1) return true;
+  mallopt(M_MMAP_MAX, 65536);  // glibc's default back: both or neither
+  return false;
 }
 
 std::vector<std::string> userEnvironment() {

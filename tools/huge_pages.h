@@ -32,14 +32,16 @@ void hugePageMallocFor(const char* path, std::uintmax_t min_bytes, char** argv);
 bool hugePageMallocOn();
 
 /// Keeps the memory the program frees for its later allocations, as jemalloc and tcmalloc do,
-/// where glibc gives it back: glibc serves each block of 32 MiB or more (at 4M points, most of a
+/// where glibc gives it back: glibc serves each block above its mmap threshold (128 KiB, rising
+/// as blocks are freed up to 32 MiB, above which every block is mapped: at 4M points most of a
 /// build's arrays) with its own mmap and unmaps it when freed, so that every build, and every
 /// stage of one, writes fresh pages that the kernel first zeroes: at 4M points on this project's
 /// machines that cost a quarter of a one-thread build's time, and it scales worse than the build
-/// on two threads. Sets M_MMAP_MAX to 0 (large blocks come from the heap; a worker thread's
-/// block too large for its arena still gets its own mapping) and M_TRIM_THRESHOLD to 2 GiB (a
-/// freed top of the heap stays mapped). Leaves glibc's defaults when the environment sets any
-/// of these thresholds (GLIBC_TUNABLES' glibc.malloc.mmap_max, .mmap_threshold, .trim_threshold,
+/// on two threads. Sets M_MMAP_MAX to 0 (large blocks come from the heap; on a thread other than
+/// the main one, a block too large for its arena's heaps, 64 MiB, still gets its own mapping)
+/// and M_TRIM_THRESHOLD to 2 GiB (freed memory stays mapped). For programs that build one shape
+/// at a time: hgdeform deform and field, the viewer, the bench. Leaves glibc's defaults when the environment
+/// sets any of these thresholds (GLIBC_TUNABLES' glibc.malloc.mmap_max, .mmap_threshold, .trim_threshold,
 /// .top_pad, or MALLOC_MMAP_MAX_, MALLOC_MMAP_THRESHOLD_, MALLOC_TRIM_THRESHOLD_,
 /// MALLOC_TOP_PAD_): a user's choice wins; and under a limit on the address space or the data
 /// segment (`ulimit -v`, `ulimit -d`), where memory kept is memory the limit no longer leaves

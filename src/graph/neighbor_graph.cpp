@@ -12,12 +12,13 @@
 
 #include "graph/graph_build.h"
 #include "util/parallel.h"
+#include "util/uninit.h"
 
 namespace hgd {
 
 namespace {
 
-// Row i of the union of a and b (both sorted) through out(v) for each entry, ascending, once.
+// The union of two sorted rows, [x, xe) and [y, ye): out(v) for each entry, ascending, once.
 template <typename Out>
 void mergeRows(const int* x, const int* xe, const int* y, const int* ye, Out&& out) {
   while (x != xe || y != ye) {
@@ -39,17 +40,23 @@ void rowStarts(std::vector<int>& offsets) {
 
 // The graph of `edges`, both directions, self-loops and repeats dropped, rows sorted; on every
 // thread: each block of the edges counts its entries per row and writes them where the blocks
-// before it leave off (the rows then hold what a serial pass would put there, in its order),
-// and each row is sorted and its repeats dropped on its own. The result does not depend on the
-// order of `edges`.
+// before it leave off, and each row is then sorted and its repeats dropped on its own, so the
+// result does not depend on the order of `edges` or the blocks. A block's counts span every row:
+// blocks are capped at one per n edges, so that a few edges on a large graph (a mesh's dropped
+// edges) count on one thread, in memory of the graph's size as before.
 NeighborGraph edgeGraph(std::size_t n, const std::vector<std::pair<int, int>>& edges) {
   const long long m = static_cast<long long>(edges.size());
   const long long nn = static_cast<long long>(n);
-  const int blocks = blockCount(m);
-  std::vector<std::vector<int>> count(static_cast<std::size_t>(blocks));
+  const int blocks = static_cast<int>(
+      std::max<long long>(1, std::min<long long>(blockCount(m), m / std::max<long long>(1, nn))));
+  // (Allocated here, so that running out of memory throws to the caller, not in a worker.)
+  UninitVector<int> counts(static_cast<std::size_t>(blocks) * n);
+  std::vector<int*> count(static_cast<std::size_t>(blocks));
+  for (int b = 0; b < blocks; ++b)
+    count[static_cast<std::size_t>(b)] = counts.data() + static_cast<std::size_t>(b) * n;
   forBlocks(m, blocks, [&](int begin, int end, int b) {
-    std::vector<int>& c = count[static_cast<std::size_t>(b)];
-    c.assign(n, 0);
+    int* const c = count[static_cast<std::size_t>(b)];
+    std::fill(c, c + n, 0);
     for (int e = begin; e < end; ++e) {
       const auto [x, y] = edges[static_cast<std::size_t>(e)];
       if (x == y) continue;
@@ -62,7 +69,7 @@ NeighborGraph edgeGraph(std::size_t n, const std::vector<std::pair<int, int>>& e
 #pragma omp parallel for schedule(static) if (nn > kParallelMin && blocks > 1)
   for (long long i = 0; i < nn; ++i) {
     int total = 0;
-    for (const auto& c : count) total += c[static_cast<std::size_t>(i)];
+    for (const int* c : count) total += c[static_cast<std::size_t>(i)];
     g.offsets[static_cast<std::size_t>(i) + 1] = total;
   }
   rowStarts(g.offsets);
@@ -70,7 +77,7 @@ NeighborGraph edgeGraph(std::size_t n, const std::vector<std::pair<int, int>>& e
 #pragma omp parallel for schedule(static) if (nn > kParallelMin && blocks > 1)
   for (long long i = 0; i < nn; ++i) {
     int at = g.offsets[static_cast<std::size_t>(i)];
-    for (auto& c : count) {
+    for (int* c : count) {
       const int k = c[static_cast<std::size_t>(i)];
       c[static_cast<std::size_t>(i)] = at;
       at += k;
@@ -78,7 +85,7 @@ NeighborGraph edgeGraph(std::size_t n, const std::vector<std::pair<int, int>>& e
   }
   std::vector<int> adj(static_cast<std::size_t>(g.offsets[n]));
   forBlocks(m, blocks, [&](int begin, int end, int b) {
-    std::vector<int>& at = count[static_cast<std::size_t>(b)];
+    int* const at = count[static_cast<std::size_t>(b)];
     for (int e = begin; e < end; ++e) {
       const auto [x, y] = edges[static_cast<std::size_t>(e)];
       if (x == y) continue;
@@ -86,7 +93,7 @@ NeighborGraph edgeGraph(std::size_t n, const std::vector<std::pair<int, int>>& e
       adj[static_cast<std::size_t>(at[static_cast<std::size_t>(y)]++)] = x;
     }
   });
-  count.clear();
+  counts = {};
   // Each row sorted, its repeats dropped (its length in kept), then the rows packed.
   std::vector<int> kept(n + 1, 0);
 #pragma omp parallel for schedule(dynamic, kDynamicChunkCostly) if (m > kParallelMin)
@@ -138,7 +145,8 @@ NeighborGraph unionGraph(const NeighborGraph& a, const NeighborGraph& b) {
 
 NeighborGraph addEdges(const NeighborGraph& graph, const std::vector<std::pair<int, int>>& edges) {
   NeighborGraph added = edgeGraph(graph.size(), edges);
-  return graph.adj.empty() ? added : unionGraph(graph, added);
+  if (graph.adj.empty()) return added;
+  return unionGraph(graph, added);
 }
 
 NeighborGraph ringGraph(std::size_t n, const std::vector<pcl::Vertices>& faces) {
