@@ -6,10 +6,12 @@
 #include <sys/resource.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <string>
 
 namespace {
 
@@ -53,11 +55,18 @@ std::string reserveBlasBuffer(char** argv) {
   rlim_t limit = 0;
   if (!addressSpaceLimited(limit)) return "";
   if (!dlsym(RTLD_DEFAULT, "openblas_get_config")) return "";  // another BLAS: nothing known to fix
-  if (!std::getenv("OPENBLAS_NUM_THREADS")) {
+  if (!std::getenv("OPENBLAS_NUM_THREADS") || !std::getenv("OMP_THREAD_LIMIT")) {
     // OpenBLAS read its thread count when it was loaded, and its worker may already be stuck
-    // mapping its buffer: start again with one thread (exec ends the worker). An environment
-    // variable set here before libc initialises would be lost, hence the exec.
-    setenv("OPENBLAS_NUM_THREADS", "1", 1);
+    // mapping its buffer: start again with one thread (exec ends the worker). And CHOLMOD's
+    // supernodal factorisation asks for a team of 4 (its CHOLMOD_OMP_NUM_THREADS) whatever the
+    // program's thread count: 2 more threads than the budget below on two cores, whose stacks
+    // libgomp cannot map near the limit, and libgomp then ends the program ("Thread creation
+    // failed", exit 1, none of our message). OMP_THREAD_LIMIT caps every team at the program's
+    // own count. Both are read at start (a variable set here before the runtimes initialise
+    // would be lost), hence the exec; a value of the user's own is kept.
+    if (!std::getenv("OPENBLAS_NUM_THREADS")) setenv("OPENBLAS_NUM_THREADS", "1", 1);
+    if (!std::getenv("OMP_THREAD_LIMIT"))
+      setenv("OMP_THREAD_LIMIT", std::to_string(std::max(1, omp_get_max_threads())).c_str(), 1);
     execv("/proc/self/exe", argv);
     return std::string("cannot restart itself with OPENBLAS_NUM_THREADS=1 under the address-space limit: ") +
            std::strerror(errno);

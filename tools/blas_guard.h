@@ -6,7 +6,10 @@
 // `ulimit -v` its worker thread spins at start-up and exit() waits on it; a later BLAS call on
 // the main thread (CHOLMOD's dpotrf) would spin the same way. So, only when RLIMIT_AS is set:
 //  - reserveBlasBuffer(), first thing in main, re-executes the program with
-//    OPENBLAS_NUM_THREADS=1 unless the user chose a value: no worker thread, one buffer;
+//    OPENBLAS_NUM_THREADS=1 unless the user chose a value: no worker thread, one buffer; and with
+//    OMP_THREAD_LIMIT at the program's thread count unless the user chose one (CHOLMOD asks for
+//    a team of 4 whatever the count, and libgomp ends the program when it cannot map a thread's
+//    stack);
 //  - then maps that one buffer while the address space is still free (OpenBLAS keeps and
 //    reuses it), or fails with a message if it cannot fit.
 // Without a limit reserveBlasBuffer() does nothing.
