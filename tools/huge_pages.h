@@ -39,10 +39,10 @@ bool hugePageMallocOn();
 /// machines that cost a quarter of a one-thread build's time, and it scales worse than the build
 /// on two threads. Sets M_MMAP_MAX to 0 (large blocks come from the heap; on a thread other than
 /// the main one, a block too large for its arena's heaps, 64 MiB, still gets its own mapping)
-/// and M_TRIM_THRESHOLD to 2 GiB (freed memory stays mapped). For programs that build one shape
-/// at a time: hgdeform deform and field, the viewer, the bench. Leaves glibc's defaults when the environment
-/// sets any of these thresholds (GLIBC_TUNABLES' glibc.malloc.mmap_max, .mmap_threshold, .trim_threshold,
-/// .top_pad, or MALLOC_MMAP_MAX_, MALLOC_MMAP_THRESHOLD_, MALLOC_TRIM_THRESHOLD_,
+/// and M_TRIM_THRESHOLD to 2 GiB (freed memory stays mapped). For the programs that build one
+/// shape and exit, and the bench: hgdeform deform and field, hgdeform-bench. Leaves glibc's defaults when the
+/// environment sets any of these thresholds (GLIBC_TUNABLES' glibc.malloc.mmap_max, .mmap_threshold,
+/// .trim_threshold, .top_pad, or MALLOC_MMAP_MAX_, MALLOC_MMAP_THRESHOLD_, MALLOC_TRIM_THRESHOLD_,
 /// MALLOC_TOP_PAD_): a user's choice wins; and under a limit on the address space or the data
 /// segment (`ulimit -v`, `ulimit -d`), where memory kept is memory the limit no longer leaves
 /// for a thread's stack or a library's buffers. Returns whether it set them.

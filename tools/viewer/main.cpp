@@ -28,7 +28,6 @@
 #include "hgdeform/app/cleanup.h"
 #include "hgdeform/io/io.h"
 #include "hgdeform/render/render.h"
-#include "huge_pages.h"
 #include "keys.h"
 #include "replay.h"
 #include "viewer.h"
@@ -83,7 +82,6 @@ int parseArgs(int argc, char** argv, ViewArgs& a) {
 int main(int argc, char** argv) {
   hgd::removeTemporaryFilesOnSignals();  // no partial save or screenshot left by an interrupted run
   hgdcli::singleThreadBlas();            // as hgdeform does (blas_guard.h)
-  hgdcli::keepFreedMemory();             // a rebuild reuses most of the last one's (huge_pages.h)
   ViewArgs args;
   if (const int status = parseArgs(argc, argv, args); status >= 0) return status;
   const std::string &input = args.input, &scenario = args.scenario, &replay = args.replay, &shot = args.shot;
