@@ -13,6 +13,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <optional>
 #include <string>
 
 extern char** environ;
@@ -43,6 +44,22 @@ bool glibcKnowsHugetlb() {
   int major = 0, minor = 0;
   return std::sscanf(gnu_get_libc_version(), "%d.%d", &major, &minor) == 2 &&
          (major > 2 || (major == 2 && minor >= 35));
+}
+
+// The value GLIBC_TUNABLES gives `name`: its last name=value entry (entries are ':' apart), as
+// glibc reads them; "" for an entry without a value; nothing when no entry names it.
+std::optional<std::string> tunable(const char* name) {
+  const char* env = std::getenv("GLIBC_TUNABLES");
+  if (!env) return std::nullopt;
+  const std::string t = env;
+  std::optional<std::string> value;
+  for (std::size_t at = 0; at <= t.size();) {
+    const std::size_t end = std::min(t.find(':', at), t.size());
+    const std::size_t eq = std::min(t.find('=', at), end);
+    if (t.compare(at, eq - at, name) == 0) value = eq < end ? t.substr(eq + 1, end - eq - 1) : std::string();
+    at = end + 1;
+  }
+  return value;
 }
 
 }  // namespace
@@ -76,16 +93,9 @@ void hugePageMallocFor(const char* path, std::uintmax_t min_bytes, char** argv) 
 }
 
 bool hugePageMallocOn() {
-  const char* env = std::getenv("GLIBC_TUNABLES");
-  if (!env || !glibcKnowsHugetlb()) return false;
-  const std::string t = env, key = "glibc.malloc.hugetlb=";
-  bool on = false;
-  for (std::size_t at = t.find(key); at != std::string::npos; at = t.find(key, at + 1))
-    if (at == 0 || t[at - 1] == ':') {
-      const std::size_t v = at + key.size();
-      on = v < t.size() && (t[v] == '1' || t[v] == '2') && (v + 1 == t.size() || t[v + 1] == ':');
-    }
-  return on;
+  if (!glibcKnowsHugetlb()) return false;
+  const std::optional<std::string> value = tunable("glibc.malloc.hugetlb");
+  return value && (*value == "1" || *value == "2");
 }
 
 bool keepFreedMemory() {
@@ -98,18 +108,9 @@ bool keepFreedMemory() {
   for (const char* name :
        {"MALLOC_MMAP_MAX_", "MALLOC_MMAP_THRESHOLD_", "MALLOC_TRIM_THRESHOLD_", "MALLOC_TOP_PAD_"})
     if (std::getenv(name)) return false;
-  if (const char* env = std::getenv("GLIBC_TUNABLES")) {
-    // name=value entries separated by ':'.
-    const std::string t = env;
-    for (std::size_t at = 0; at <= t.size();) {
-      const std::size_t end = std::min(t.find(':', at), t.size());
-      const std::string name = t.substr(at, std::min(t.find('=', at), end) - at);
-      for (const char* key : {"glibc.malloc.mmap_max", "glibc.malloc.mmap_threshold",
-                              "glibc.malloc.trim_threshold", "glibc.malloc.top_pad"})
-        if (name == key) return false;
-      at = end + 1;
-    }
-  }
+  for (const char* name : {"glibc.malloc.mmap_max", "glibc.malloc.mmap_threshold",
+                           "glibc.malloc.trim_threshold", "glibc.malloc.top_pad"})
+    if (tunable(name)) return false;
   if (mallopt(M_MMAP_MAX, 0) != 1) return false;
   if (mallopt(M_TRIM_THRESHOLD, INT_MAX) == 1) return true;
   mallopt(M_MMAP_MAX, 65536);  // glibc's default back: both or neither
