@@ -46,9 +46,6 @@ class Viewer;
 
 /// Whether Caps Lock is on (viewer_x11.cpp); `display` is the window's X Display.
 bool capsLockOn(void* display);
-/// The position of the last of the pointer motions waiting first in `window`'s queue, taken out
-/// of it (viewer_x11.cpp); false when none waits.
-bool latestMotion(void* display, unsigned long window, int& x, int& y);
 
 /// The character a key press means: a letter in the case that Shift and Caps Lock make it
 /// (VTK hands `s` with the shift flag from a keyboard, `S` from XLookupString or a replay).

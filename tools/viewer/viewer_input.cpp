@@ -8,7 +8,6 @@
 #include <algorithm>
 #include <cctype>
 #include <chrono>
-#include <cstdint>
 
 #include "viewer.h"
 
@@ -303,22 +302,13 @@ void Style::OnLeftButtonDown() {
 
 void Style::OnMouseMove() {
   const int* p = Interactor->GetEventPosition();
-  if (viewer && viewer->dragging()) {
-    // Motions that queued while the last frame was solved: only the latest is drawn (each live
-    // frame is the whole drag's result, so skipping the ones between changes nothing).
-    int x = p[0], y = p[1];
-    vtkRenderWindow* w = Interactor->GetRenderWindow();
-    int qx = 0, qy = 0;
-    if (w &&
-        latestMotion(w->GetGenericDisplayId(),
-                     static_cast<unsigned long>(reinterpret_cast<std::uintptr_t>(w->GetGenericWindowId())),
-                     qx, qy)) {
-      x = qx;
-      y = w->GetSize()[1] - 1 - qy;
-    }
-    viewer->dragMove(x, y);
-    return;
-  }
+  // A drag's frames cost more than the mouse's pace, and X coalesces the motions that come in
+  // the meantime: VTK's window asks for motion hints, so X sends one motion and no other until
+  // the window asks where the pointer is, which VTK does as it takes the motion. The position
+  // here is where the pointer is now, and a frame drawn is followed by at most one more, for
+  // where the pointer has gone since. (The viewer once took waiting motions off the queue
+  // itself; a hint taken so was never answered with a query, and no motion came again until the
+  // release: the shape stood still under a moving pointer, then jumped when the button came up.)
   if (viewer && viewer->dragMove(p[0], p[1])) return;
   Superclass::OnMouseMove();
 }

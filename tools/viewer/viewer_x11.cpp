@@ -14,24 +14,4 @@ bool capsLockOn(void* display) {
   return (mask & LockMask) != 0;
 }
 
-// Takes the pointer motions waiting at the head of the window's event queue (none other, and
-// none past another event) and gives the last one's position, in X's window pixels (from the
-// top left). A drag's frames cost more than the mouse's pace: the frame for where the pointer
-// is now replaces the ones for where it was.
-bool latestMotion(void* display, unsigned long window, int& x, int& y) {
-  auto* d = static_cast<Display*>(display);
-  if (!d || !window) return false;
-  bool found = false;
-  XEvent e;
-  while (XPending(d) > 0) {
-    XPeekEvent(d, &e);
-    if (e.type != MotionNotify || e.xmotion.window != window) break;
-    XNextEvent(d, &e);
-    x = e.xmotion.x;
-    y = e.xmotion.y;
-    found = true;
-  }
-  return found;
-}
-
 }  // namespace hgdview
