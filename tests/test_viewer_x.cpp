@@ -783,10 +783,10 @@ TEST(ViewerX, TheHeldFrameIsWhereAFastPointerStopped) {
   ASSERT_TRUE(v.waitFor("drag mode")) << v.log();
   v.move(from.x(), from.y());
   v.press();
-  // 200 motions in one xdotool run, 2 ms apart: quicker than the frames.
+  // 500 motions in one xdotool run, 2 ms apart: quicker than the frames.
   std::string burst;
-  for (int k = 1; k <= 200; ++k) {
-    const Eigen::Vector2d p = from + (to - from) * (k / 200.0);
+  for (int k = 1; k <= 500; ++k) {
+    const Eigen::Vector2d p = from + (to - from) * (k / 500.0);
     burst += v.moveArgs(p.x(), p.y()) + " sleep 0.002 ";
   }
   {
