@@ -158,11 +158,16 @@ class ViewerWindow {
     std::string out;
     return xdo(args, out);
   }
-  /// Pointer actions (xdotool's mousemove, mousedown, ...), done when X has done them: each
-  /// xdotool run is its own X client, and X does not keep the order of requests from different
-  /// clients, so a press sent by one run could land after the motions of the next (the press then
-  /// at a later position). A round trip (getmouselocation) at the end waits for the actions.
-  void mouse(const std::string& actions) const { xdo(actions + " getmouselocation"); }
+  /// Pointer actions (xdotool's mousemove, mousedown, ...), each run ending with a round trip
+  /// to X (getmouselocation). Under load a drag was once seen to begin at the fourth motion's
+  /// place instead of where the button went down; the cause is not pinned down (xdotool's
+  /// XCloseDisplay syncs too, though a press goes through XTest's input queue and a move is a
+  /// pointer warp), and the round trip makes sure X has handled one run's actions before the
+  /// next run starts. Returns xdotool's exit code.
+  int mouse(const std::string& actions, int seconds = 10) const {
+    std::string out;
+    return xdo(actions + " getmouselocation", out, seconds);
+  }
   /// The pointer to (x, y), window pixels from its top left.
   void move(double x, double y) const { mouse(moveArgs(x, y)); }
   std::string moveArgs(double x, double y) const {
@@ -789,6 +794,7 @@ TEST(ViewerX, TheHeldFrameIsWhereAFastPointerStopped) {
     const Eigen::Vector2d p = from + (to - from) * (k / 500.0);
     burst += v.moveArgs(p.x(), p.y()) + " sleep 0.002 ";
   }
+  int burst_exit = -1;
   {
     // Busy cores beside the viewer (as a build or a second program makes them): the viewer is
     // then often paused between taking a motion and drawing its frame.
@@ -799,16 +805,18 @@ TEST(ViewerX, TheHeldFrameIsWhereAFastPointerStopped) {
         volatile unsigned long spin = 0;
         while (!stop.load(std::memory_order_relaxed)) spin = spin + 1;
       });
-    v.mouse(burst);
+    burst_exit = v.mouse(burst, 120);
     stop = true;
     for (std::thread& t : busy) t.join();
   }
+  ASSERT_EQ(burst_exit, 0) << "xdotool did not finish the motions";
   std::this_thread::sleep_for(1500ms);  // held still
   v.key("s");
   ASSERT_TRUE(v.waitFor("saved ")) << v.log();
   const Eigen::Vector3d held = whereIsPointNear(dir.file("bar.ply"), v.named("saved "), {1.0, 0.0, 0.05});
   v.release();
-  // Within 3 pixels of the cursor at this view (0.0065); the burst's motions were 0.013 apart.
+  // Within 3 pixels of the cursor at this view (0.0065, 1.3% of the way; the motions were 0.001
+  // apart): a frame left behind before the last 1.3% of the way fails.
   EXPECT_LT((held - target).norm(), 0.0065)
       << "the held frame shows the corner at " << held.transpose() << "\n"
       << v.log();
