@@ -123,6 +123,19 @@ nlohmann::json buildPhaseScaling(const std::shared_ptr<const hgd::Geometry>& geo
           {"phases", phases}};
 }
 
+namespace {
+
+// One phase's line: its medians, its speed-up (none where a median is below 0.05 ms or negative,
+// as the "not in a phase" rest can be: a ratio of noise) and its share of the build.
+void row(const std::string& name, double m1, double mn, double bn) {
+  char speedup[32] = "      -";
+  if (m1 >= 0.05 && mn >= 0.05) std::snprintf(speedup, sizeof speedup, "%7.2fx", m1 / mn);
+  std::printf("  %-26s %9.1f %9.1f %8s %6.1f%%\n", name.c_str(), m1, mn, speedup,
+              100.0 * mn / std::max(1e-9, bn));
+}
+
+}  // namespace
+
 void printPhaseScaling(const std::string& model, long points, const nlohmann::json& s) {
   const int n = s["threads"].get<int>();
   const double b1 = s["build_1_ms"].get<double>(), bn = s["build_n_ms"].get<double>();
@@ -132,11 +145,11 @@ void printPhaseScaling(const std::string& model, long points, const nlohmann::js
   for (const auto& p : s["phases"]) {
     const double m1 = p["ms_1"].get<double>(), mn = p["ms_n"].get<double>();
     listed_1 += m1, listed_n += mn;
-    std::printf("  %-26s %9.1f %9.1f %7.2fx %6.1f%%\n", p["name"].get<std::string>().c_str(), m1, mn,
-                m1 / std::max(1e-9, mn), 100.0 * mn / std::max(1e-9, bn));
+    row(p["name"].get<std::string>(), m1, mn, bn);
   }
-  std::printf("  %-26s %9.1f %9.1f %7.2fx %6.1f%%\n", "(not in a phase)", b1 - listed_1, bn - listed_n,
-              (b1 - listed_1) / std::max(1e-9, bn - listed_n), 100.0 * (bn - listed_n) / std::max(1e-9, bn));
+  // The build's median less the sum of the phases' medians: noise about zero, or time between
+  // the phases.
+  row("(not in a phase)", b1 - listed_1, bn - listed_n, bn);
   const double speedup = b1 / std::max(1e-9, bn);
   std::printf("  %-26s %9.1f %9.1f %7.2fx", "build", b1, bn, speedup);
   if (n > 1) {
