@@ -284,6 +284,12 @@ std::vector<Eigen::Vector3d> filePoints(const std::string& path) {
   return p;
 }
 
+/// The viewer's arguments for writeBar's bar and scenario in an 800 x 600 window.
+std::string barArgs(const hgdtest::TempDir& dir) {
+  return hgdtest::quote(dir.file("bar.ply")) + " -s " + hgdtest::quote(dir.file("s.json")) +
+         " --size 800x600";
+}
+
 double maxDistance(const std::string& a, const std::string& b) {
   const std::vector<Eigen::Vector3d> pa = filePoints(a), pb = filePoints(b);
   if (pa.size() != pb.size()) return INFINITY;
@@ -331,10 +337,7 @@ TEST(ViewerX, ReleaseKeepsWhatTheLastLiveFrameShowed) {
   REQUIRE_X();
   hgdtest::TempDir dir;
   writeBar(dir);
-  const ViewerWindow v(
-      x,
-      hgdtest::quote(dir.file("bar.ply")) + " -s " + hgdtest::quote(dir.file("s.json")) + " --size 800x600",
-      dir.file("log.txt"));
+  const ViewerWindow v(x, barArgs(dir), dir.file("log.txt"));
   ASSERT_TRUE(v.ok()) << v.log();
   const OpeningView view = openingView(dir.file("bar.ply"));
   const Eigen::Vector2d from = view.at({1.0, 0.0, 0.05}, v.width(), v.height()),
@@ -521,8 +524,7 @@ TEST(ViewerX, QuitAsksWithUnsavedChangesAndPclKeysAreOff) {
   REQUIRE_X();
   hgdtest::TempDir dir;
   writeBar(dir);
-  const std::string args =
-      hgdtest::quote(dir.file("bar.ply")) + " -s " + hgdtest::quote(dir.file("s.json")) + " --size 800x600";
+  const std::string args = barArgs(dir);
   {
     const ViewerWindow v(x, args, dir.file("log1.txt"));
     ASSERT_TRUE(v.ok()) << v.log();
@@ -565,10 +567,7 @@ TEST(ViewerX, OverlaysFollowTheWindowAndTheStatusLineWraps) {
     "manipulated": { "box": { "min": [0.5001, -1, -1], "max": [2, 0.3, 1] } },
     "move": { "frame": { "translate": [0, 0.3, 0] } }
   })");
-  const ViewerWindow v(
-      x,
-      hgdtest::quote(dir.file("bar.ply")) + " -s " + hgdtest::quote(dir.file("s.json")) + " --size 800x600",
-      dir.file("log.txt"));
+  const ViewerWindow v(x, barArgs(dir), dir.file("log.txt"));
   ASSERT_TRUE(v.ok()) << v.log();
   ASSERT_TRUE(v.shot(dir.file("opening.png")));  // the viewer is in its event loop
   std::string out;
@@ -713,10 +712,7 @@ TEST(ViewerX, SurfacePulledApartIsSaidWhileTheDragIsHeld) {
   hgdtest::writeText(dir.file("s.json"), R"({
     "fixed": [ { "box": { "min": [-1, -1, -1], "max": [0.5, 0.3, 1] } } ],
     "manipulated": { "box": { "min": [0.5001, -1, -1], "max": [2, 0.3, 1] } } })");
-  const ViewerWindow v(
-      x,
-      hgdtest::quote(dir.file("bar.ply")) + " -s " + hgdtest::quote(dir.file("s.json")) + " --size 800x600",
-      dir.file("log.txt"));
+  const ViewerWindow v(x, barArgs(dir), dir.file("log.txt"));
   ASSERT_TRUE(v.ok()) << v.log();
   const OpeningView view = openingView(dir.file("bar.ply"));
   const Eigen::Vector2d from = view.at({1.0, 0.0, 0.05}, v.width(), v.height()),
@@ -741,10 +737,7 @@ TEST(ViewerX, HandleKeysWaitWhileTheDragIsHeld) {
   REQUIRE_X();
   hgdtest::TempDir dir;
   writeBar(dir);
-  const ViewerWindow v(
-      x,
-      hgdtest::quote(dir.file("bar.ply")) + " -s " + hgdtest::quote(dir.file("s.json")) + " --size 800x600",
-      dir.file("log.txt"));
+  const ViewerWindow v(x, barArgs(dir), dir.file("log.txt"));
   ASSERT_TRUE(v.ok()) << v.log();
   const OpeningView view = openingView(dir.file("bar.ply"));
   const Eigen::Vector2d from = view.at({1.0, 0.0, 0.05}, v.width(), v.height()),
@@ -775,10 +768,7 @@ TEST(ViewerX, TheHeldFrameIsWhereAFastPointerStopped) {
   REQUIRE_X();
   hgdtest::TempDir dir;
   writeBar(dir);
-  const ViewerWindow v(
-      x,
-      hgdtest::quote(dir.file("bar.ply")) + " -s " + hgdtest::quote(dir.file("s.json")) + " --size 800x600",
-      dir.file("log.txt"));
+  const ViewerWindow v(x, barArgs(dir), dir.file("log.txt"));
   ASSERT_TRUE(v.ok()) << v.log();
   const OpeningView view = openingView(dir.file("bar.ply"));
   const Eigen::Vector3d target(0.75, 0.45, 0.05);
