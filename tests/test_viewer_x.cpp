@@ -290,6 +290,14 @@ std::string barArgs(const hgdtest::TempDir& dir) {
          " --size 800x600";
 }
 
+/// The corner of writeBar's bar that the drag tests press on, in the manipulated handle.
+const Eigen::Vector3d kBarCorner(1.0, 0.0, 0.05);
+
+/// Where world point `w` of the bar is on `v`'s screen in the opening view.
+Eigen::Vector2d onScreen(const ViewerWindow& v, const hgdtest::TempDir& dir, const Eigen::Vector3d& w) {
+  return openingView(dir.file("bar.ply")).at(w, v.width(), v.height());
+}
+
 double maxDistance(const std::string& a, const std::string& b) {
   const std::vector<Eigen::Vector3d> pa = filePoints(a), pb = filePoints(b);
   if (pa.size() != pb.size()) return INFINITY;
@@ -339,9 +347,7 @@ TEST(ViewerX, ReleaseKeepsWhatTheLastLiveFrameShowed) {
   writeBar(dir);
   const ViewerWindow v(x, barArgs(dir), dir.file("log.txt"));
   ASSERT_TRUE(v.ok()) << v.log();
-  const OpeningView view = openingView(dir.file("bar.ply"));
-  const Eigen::Vector2d from = view.at({1.0, 0.0, 0.05}, v.width(), v.height()),
-                        to = view.at({0.75, 0.45, 0.05}, v.width(), v.height());
+  const Eigen::Vector2d from = onScreen(v, dir, kBarCorner), to = onScreen(v, dir, {0.75, 0.45, 0.05});
   ASSERT_TRUE(holdDrag(v, from, to, 12));
   std::this_thread::sleep_for(1500ms);  // held still
   v.key("k");
@@ -362,8 +368,7 @@ TEST(ViewerX, ReleaseKeepsWhatTheLastLiveFrameShowed) {
 
   // The last live frame is the drag to where the cursor is held: the picked corner sits under
   // it (within 3 pixels at this view, 0.0065; the motions before the last were 0.04 apart).
-  const Eigen::Vector3d corner =
-      whereIsPointNear(dir.file("bar.ply"), dir.file("held.ply"), {1.0, 0.0, 0.05});
+  const Eigen::Vector3d corner = whereIsPointNear(dir.file("bar.ply"), dir.file("held.ply"), kBarCorner);
   EXPECT_LT((corner - Eigen::Vector3d(0.75, 0.45, 0.05)).norm(), 0.0065)
       << "the held frame shows the corner at " << corner.transpose() << "\n"
       << v.log();
@@ -714,9 +719,7 @@ TEST(ViewerX, SurfacePulledApartIsSaidWhileTheDragIsHeld) {
     "manipulated": { "box": { "min": [0.5001, -1, -1], "max": [2, 0.3, 1] } } })");
   const ViewerWindow v(x, barArgs(dir), dir.file("log.txt"));
   ASSERT_TRUE(v.ok()) << v.log();
-  const OpeningView view = openingView(dir.file("bar.ply"));
-  const Eigen::Vector2d from = view.at({1.0, 0.0, 0.05}, v.width(), v.height()),
-                        to = view.at({1.0, 0.35, 0.05}, v.width(), v.height());
+  const Eigen::Vector2d from = onScreen(v, dir, kBarCorner), to = onScreen(v, dir, {1.0, 0.35, 0.05});
   ASSERT_TRUE(holdDrag(v, from, to, 6));
   std::this_thread::sleep_for(500ms);
   v.key("k");
@@ -739,9 +742,7 @@ TEST(ViewerX, HandleKeysWaitWhileTheDragIsHeld) {
   writeBar(dir);
   const ViewerWindow v(x, barArgs(dir), dir.file("log.txt"));
   ASSERT_TRUE(v.ok()) << v.log();
-  const OpeningView view = openingView(dir.file("bar.ply"));
-  const Eigen::Vector2d from = view.at({1.0, 0.0, 0.05}, v.width(), v.height()),
-                        to = view.at({0.75, 0.45, 0.05}, v.width(), v.height());
+  const Eigen::Vector2d from = onScreen(v, dir, kBarCorner), to = onScreen(v, dir, {0.75, 0.45, 0.05});
   ASSERT_TRUE(holdDrag(v, from, (from + to) / 2, 1));
   std::this_thread::sleep_for(300ms);
   v.key("shift+c n");
@@ -770,10 +771,8 @@ TEST(ViewerX, TheHeldFrameIsWhereAFastPointerStopped) {
   writeBar(dir);
   const ViewerWindow v(x, barArgs(dir), dir.file("log.txt"));
   ASSERT_TRUE(v.ok()) << v.log();
-  const OpeningView view = openingView(dir.file("bar.ply"));
   const Eigen::Vector3d target(0.75, 0.45, 0.05);
-  const Eigen::Vector2d from = view.at({1.0, 0.0, 0.05}, v.width(), v.height()),
-                        to = view.at(target, v.width(), v.height());
+  const Eigen::Vector2d from = onScreen(v, dir, kBarCorner), to = onScreen(v, dir, target);
   v.key("d");
   ASSERT_TRUE(v.waitFor("drag mode")) << v.log();
   v.move(from.x(), from.y());
@@ -803,7 +802,7 @@ TEST(ViewerX, TheHeldFrameIsWhereAFastPointerStopped) {
   std::this_thread::sleep_for(1500ms);  // held still
   v.key("s");
   ASSERT_TRUE(v.waitFor("saved ")) << v.log();
-  const Eigen::Vector3d held = whereIsPointNear(dir.file("bar.ply"), v.named("saved "), {1.0, 0.0, 0.05});
+  const Eigen::Vector3d held = whereIsPointNear(dir.file("bar.ply"), v.named("saved "), kBarCorner);
   v.release();
   // Within 3 pixels of the cursor at this view (0.0065, 1.3% of the way; the motions were 0.001
   // apart): a frame left behind before the last 1.3% of the way fails.
