@@ -27,10 +27,6 @@ namespace {
 
 constexpr const char* kPclIoMark = "hgdeform-bench pcl-io ms: ";
 
-double msSince(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-}
-
 /// Starts args[0] with `args` in the user's environment, not the bench's restarted one (a
 /// program decides on huge pages itself and pays its own restart, as when a user runs it):
 /// stdout to `out_fd` (/dev/null when -1), stderr to /dev/null. Its pid, or -1.

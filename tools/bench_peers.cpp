@@ -56,7 +56,7 @@ std::vector<Eigen::Vector3d> movedShape(const hgd::Geometry& g, const hgd::Handl
   hgd::Deformer d(g, h, o);
   const auto f0 = std::chrono::steady_clock::now();
   d.setHandleTransform(Eigen::Affine3d(Eigen::Translation3d(move)));
-  move_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - f0).count();
+  move_ms = msSince(f0);
   std::vector<Eigen::Vector3d> out(g.size());
   for (std::size_t i = 0; i < g.size(); ++i) out[i] = d.deformedWorld(i);
   return out;
@@ -73,12 +73,10 @@ nlohmann::json qualityCase(const std::string& name, const hgd::Shape& shape, con
   for (std::size_t i = 0; i < g.size(); ++i) rest[i] = g.world(i);
   const auto t0 = std::chrono::steady_clock::now();
   hgd::Deformer d(g, h, hgd::DeformOptions{});
-  const double build_ms =
-      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  const double build_ms = msSince(t0);
   const auto f0 = std::chrono::steady_clock::now();
   d.setHandleTransform(Eigen::Affine3d(Eigen::Translation3d(move)));
-  const double move_ms =
-      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - f0).count();
+  const double move_ms = msSince(f0);
   std::vector<Eigen::Vector3d> ours(g.size());
   for (std::size_t i = 0; i < g.size(); ++i) ours[i] = d.deformedWorld(i);
 
@@ -137,7 +135,7 @@ nlohmann::json runArap(const std::string& armadillo, int repeat) {
   for (int r = 0; r < std::max(1, repeat / 2); ++r) {
     const auto t0 = std::chrono::steady_clock::now();
     hgd::Deformer d(g, h, hgd::DeformOptions{});
-    build.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+    build.push_back(msSince(t0));
     standardDrag(d, h, frames, [&](int, double ms, const hgd::SolveStats&) { ours.push_back(ms); });
     hgd::Deformer dr(g, h, reweightedOptions());
     standardDrag(dr, h, frames, [&](int, double ms, const hgd::SolveStats&) { reweighted.push_back(ms); });

@@ -36,7 +36,7 @@ double arithmeticMs(int threads) {
   double sum = 0;
 #pragma omp parallel num_threads(threads) reduction(+ : sum)
   sum += arithmetic(kIterations / omp_get_num_threads(), omp_get_thread_num());
-  const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  const double ms = msSince(t0);
   if (!std::isfinite(sum))  // (never: the sum is used, so the loop is kept)
     std::fprintf(stderr, "hgdeform-bench: the arithmetic reference overflowed\n");
   return ms;
@@ -61,8 +61,7 @@ class RandomReads {
       const float* r = table_.data() + 3 * std::size_t{at_[static_cast<std::size_t>(i)]};
       sum += r[0] + r[1] + r[2];
     }
-    const double ms =
-        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    const double ms = msSince(t0);
     if (!std::isfinite(sum)) std::fprintf(stderr, "hgdeform-bench: the random-read reference overflowed\n");
     return ms;
   }
@@ -98,8 +97,7 @@ nlohmann::json buildPhaseScaling(const std::shared_ptr<const hgd::Geometry>& geo
       }
       const auto t0 = std::chrono::steady_clock::now();
       hgd::Deformer d(geometry, handles, options);
-      build[t].push_back(
-          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+      build[t].push_back(msSince(t0));
       std::map<std::string, double> sum;
       for (const hgd::BuildPhase& p : d.buildTimings().phases) {
         if (std::find(order.begin(), order.end(), p.name) == order.end()) order.push_back(p.name);

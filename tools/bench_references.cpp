@@ -13,13 +13,9 @@
 
 namespace hgdbench {
 
-namespace {
-
 double msSince(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
-
-}  // namespace
 
 double median(std::vector<double> v) {
   std::sort(v.begin(), v.end());

@@ -6,6 +6,7 @@
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
 
+#include <chrono>
 #include <cstddef>
 #include <vector>
 
@@ -13,6 +14,9 @@ namespace hgdbench {
 
 /// The median of `v` (0 when empty): what hgdeform-bench reports of repeated runs.
 double median(std::vector<double> v);
+
+/// Milliseconds since `t0` (a steady_clock reading): how every time of the bench is taken.
+double msSince(std::chrono::steady_clock::time_point t0);
 
 /// Median ms of pcl::NormalEstimationOMP (k nearest neighbours, a k-d tree, every OpenMP
 /// thread) over `repeat` runs on `cloud`.

@@ -450,6 +450,17 @@ int main(int argc, char** argv) {
       std::fflush(stdout);
       all.push_back(r);
     }
+  // How the bench's own memory is served (the commands it times run as a user runs them).
+  const bool huge = hgdcli::hugePageMallocOn();
+  const std::string malloc_said =
+      std::string(
+          huge ? "glibc's huge pages (glibc.malloc.hugetlb=1, as hgdeform deform for inputs from 8 MiB)"
+               : "4 KiB pages") +
+      (kept ? ", freed memory kept for reuse (M_MMAP_MAX 0, M_TRIM_THRESHOLD 2 GiB, as hgdeform deform and "
+              "field)"
+            : "") +
+      " for the bench's own measurements; the whole command and PCL's read + write run in fresh processes" +
+      (huge ? " in the user's environment" : "");
   std::printf(
       "columns: field phases in ms (median of %d); clus = isovalues asked for; build = Deformer construction "
       "(field, "
@@ -465,21 +476,7 @@ int main(int argc, char** argv) {
       "B/pt = peak RSS bytes per point from the Deformer's build on (the cloud included; the references and "
       "the\n"
       "full-resolution field measured above excluded); malloc: %s\n",
-      repeat,
-      hgdcli::hugePageMallocOn()
-          ? (kept ? "glibc's huge pages (glibc.malloc.hugetlb=1, as hgdeform deform for inputs from 8 MiB) "
-                    "and "
-                    "freed memory kept for reuse (M_MMAP_MAX 0, M_TRIM_THRESHOLD 2 GiB, as every hgdeform "
-                    "program) for the bench's own measurements; the whole command and PCL's read + write run "
-                    "in fresh processes in the user's environment"
-                  : "glibc's huge pages (glibc.malloc.hugetlb=1) for the bench's own measurements, as "
-                    "hgdeform "
-                    "deform for inputs from 8 MiB; the whole command and PCL's read + write run in fresh "
-                    "processes in the user's environment")
-          : (kept ? "4 KiB pages, freed memory kept for reuse (M_MMAP_MAX 0, M_TRIM_THRESHOLD 2 GiB); the "
-                    "whole "
-                    "command and PCL's read + write run in fresh processes"
-                  : "4 KiB pages; the whole command and PCL's read + write run in fresh processes"));
+      repeat, malloc_said.c_str());
   for (const auto& r : all)
     if (r.contains("build_phases"))
       hgdbench::printPhaseScaling(r["model"].get<std::string>(), r["points"].get<long>(), r["build_phases"]);
