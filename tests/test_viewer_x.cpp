@@ -321,14 +321,20 @@ Eigen::Vector3d whereIsPointNear(const std::string& rest, const std::string& sha
   const Xvfb x;                                                      \
   if (x.display().empty()) GTEST_SKIP() << "Xvfb did not start";
 
-// Drag mode on, the button pressed at `from` and the pointer glided to `to` in `steps` motions
-// 30 ms apart; the button stays held.
-::testing::AssertionResult holdDrag(const ViewerWindow& v, const Eigen::Vector2d& from,
-                                    const Eigen::Vector2d& to, int steps) {
+// Drag mode on and the button pressed at `from`, held.
+::testing::AssertionResult startDrag(const ViewerWindow& v, const Eigen::Vector2d& from) {
   v.key("d");
   if (!v.waitFor("drag mode")) return ::testing::AssertionFailure() << "no drag mode\n" << v.log();
   v.move(from.x(), from.y());
   v.press();
+  return ::testing::AssertionSuccess();
+}
+
+// startDrag, then the pointer glided to `to` in `steps` motions 30 ms apart; the button stays
+// held.
+::testing::AssertionResult holdDrag(const ViewerWindow& v, const Eigen::Vector2d& from,
+                                    const Eigen::Vector2d& to, int steps) {
+  if (::testing::AssertionResult started = startDrag(v, from); !started) return started;
   for (int k = 1; k <= steps; ++k) {
     const Eigen::Vector2d p = from + (to - from) * (static_cast<double>(k) / steps);
     v.move(p.x(), p.y());
@@ -773,10 +779,7 @@ TEST(ViewerX, TheHeldFrameIsWhereAFastPointerStopped) {
   ASSERT_TRUE(v.ok()) << v.log();
   const Eigen::Vector3d target(0.75, 0.45, 0.05);
   const Eigen::Vector2d from = onScreen(v, dir, kBarCorner), to = onScreen(v, dir, target);
-  v.key("d");
-  ASSERT_TRUE(v.waitFor("drag mode")) << v.log();
-  v.move(from.x(), from.y());
-  v.press();
+  ASSERT_TRUE(startDrag(v, from));
   // 500 motions in one xdotool run, 2 ms apart: quicker than the frames.
   std::string burst;
   for (int k = 1; k <= 500; ++k) {
