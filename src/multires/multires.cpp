@@ -47,22 +47,27 @@ struct Grid {
   float h = 1;
   int axis_bits = 0;
   std::uint64_t key(const Eigen::Vector3f& p, int cls) const {
-    const Eigen::Vector3f q = ((p - lo) / h).array().floor();
-    return keyOf(q, cls);
+    const Eigen::Vector3f r = (p - lo) / h;
+    return keyOf(cellOf(r.x()), cellOf(r.y()), cellOf(r.z()), cls);
   }
   /// key(p, cls), and in `centre2` the squared distance from p to its cell's centre, in sides.
   std::uint64_t key(const Eigen::Vector3f& p, int cls, float& centre2) const {
     const Eigen::Vector3f r = (p - lo) / h;
-    const Eigen::Vector3f q = r.array().floor();
+    const std::uint64_t x = cellOf(r.x()), y = cellOf(r.y()), z = cellOf(r.z());
+    const Eigen::Vector3f q(static_cast<float>(x), static_cast<float>(y), static_cast<float>(z));
     centre2 = (r - q - Eigen::Vector3f::Constant(0.5f)).squaredNorm();
-    return keyOf(q, cls);
+    return keyOf(x, y, z, cls);
   }
 
  private:
-  std::uint64_t keyOf(const Eigen::Vector3f& q, int cls) const {
-    const std::uint64_t x = static_cast<std::uint64_t>(std::max(0.0f, q.x()));
-    const std::uint64_t y = static_cast<std::uint64_t>(std::max(0.0f, q.y()));
-    const std::uint64_t z = static_cast<std::uint64_t>(std::max(0.0f, q.z()));
+  // The cell along an axis: r's floor, at least 0. Every point is at or above lo, so r >= 0, and
+  // a non-negative r's floor is its truncation (r < 2^18: at most 2^17 cells an axis); a
+  // negative or NaN r takes 0. (Truncation, not floor() and max(): without SSE4.1 those cost a
+  // branch each, and this pass over every point took 12 ns a point.)
+  static std::uint64_t cellOf(float r) {
+    return r > 0 ? static_cast<std::uint64_t>(static_cast<std::int32_t>(r)) : 0;
+  }
+  std::uint64_t keyOf(std::uint64_t x, std::uint64_t y, std::uint64_t z, int cls) const {
     return (((static_cast<std::uint64_t>(cls) << axis_bits | z) << axis_bits | y) << axis_bits) | x;
   }
 };
