@@ -29,11 +29,12 @@ constexpr long long kParallelMinCostly = 2048;
 constexpr int kDynamicChunk = 16384;
 constexpr int kDynamicChunkCostly = 256;
 
-/// One block per thread when n is large enough to share (kParallelMin), else one.
-inline int blockCount([[maybe_unused]] long long n) {
+/// One block per thread when n is large enough to share (more than `min` items: kParallelMin,
+/// kParallelMinCostly for items that cost a microsecond or so), else one.
+inline int blockCount([[maybe_unused]] long long n, [[maybe_unused]] long long min = kParallelMin) {
   int threads = 1;
 #ifdef _OPENMP
-  if (n > kParallelMin) threads = omp_get_max_threads();
+  if (n > min) threads = omp_get_max_threads();
 #endif
   return threads;
 }
