@@ -3,7 +3,6 @@
 #include "viewer.h"
 
 #include <omp.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cstdio>
@@ -120,8 +119,8 @@ void Viewer::buildDeformer() {
   build_start_ = Clock::now();
   build_thread_ = std::thread([this, h = handles_] {
     // One core less than there are for the build: the GUI thread keeps one to draw and answer
-    // the mouse. (At the process's own priority: at nice 10, beside four busy processes, a
-    // 1M-point build took 60 s instead of 9 s.)
+    // the mouse (on a single core the two share it). At the process's own priority: at nice 10,
+    // beside four busy processes, a 1M-point build took 60 s instead of 9 s.
     omp_set_num_threads(std::max(1, omp_get_num_procs() - 1));
     try {
       run_.setHandles(h);
