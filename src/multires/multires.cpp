@@ -260,17 +260,20 @@ UninitVector<char> findStrays(const pcl::PointCloud<pcl::PointXYZ>& points, cons
     // gap2[a][d + 1]: the squared distance, in cell sides, from p to the cells at offset d along
     // axis a, less a margin above what rounding can move a point (r is computed as the key is,
     // to a few units in the last place of r): never more than a point there can be from p.
+    // (A side whose square is not a normal float skips nothing: the products below could round
+    // to infinity or lose their margin.)
     const Eigen::Vector3f r = (p - grid.lo) / grid.h;
     const long long cell[3] = {x, y, z};
+    const float h2 = grid.h * grid.h;
+    const bool skips = std::isfinite(h2) && h2 >= std::numeric_limits<float>::min();
     float gap2[3][3];
     for (int a = 0; a < 3; ++a) {
       const float margin = 1e-3f + 1e-6f * r[a], below = r[a] - static_cast<float>(cell[a]);
       const float lower = std::max(0.0f, below - margin), upper = std::max(0.0f, 1.0f - below - margin);
-      gap2[a][0] = lower * lower;
+      gap2[a][0] = skips ? lower * lower : 0.0f;
       gap2[a][1] = 0;
-      gap2[a][2] = upper * upper;
+      gap2[a][2] = skips ? upper * upper : 0.0f;
     }
-    const float h2 = grid.h * grid.h;
     constexpr int kOrder[3] = {0, -1, 1};
     for (const int dz : kOrder)
       for (const int dy : kOrder) {
