@@ -46,20 +46,21 @@ struct Grid {
   Eigen::Vector3f lo;
   float h = 1;
   int axis_bits = 0;
+  /// p's place in cell sides from lo: its cell along an axis is cellOf of that coordinate.
+  Eigen::Vector3f sides(const Eigen::Vector3f& p) const { return (p - lo) / h; }
   std::uint64_t key(const Eigen::Vector3f& p, int cls) const {
-    const Eigen::Vector3f r = (p - lo) / h;
+    const Eigen::Vector3f r = sides(p);
     return keyOf(cellOf(r.x()), cellOf(r.y()), cellOf(r.z()), cls);
   }
   /// key(p, cls), and in `centre2` the squared distance from p to its cell's centre, in sides.
   std::uint64_t key(const Eigen::Vector3f& p, int cls, float& centre2) const {
-    const Eigen::Vector3f r = (p - lo) / h;
+    const Eigen::Vector3f r = sides(p);
     const std::uint64_t x = cellOf(r.x()), y = cellOf(r.y()), z = cellOf(r.z());
     const Eigen::Vector3f q(static_cast<float>(x), static_cast<float>(y), static_cast<float>(z));
     centre2 = (r - q - Eigen::Vector3f::Constant(0.5f)).squaredNorm();
     return keyOf(x, y, z, cls);
   }
 
- private:
   // The cell along an axis: r's floor, at least 0. Every point is at or above lo (the cloud's
   // lowest corner: coarsen() sets it), so r >= 0, and a non-negative r's floor is its truncation
   // (r < 2^18: at most 2^17 cells an axis); a negative or NaN r takes 0 (for a negative r the
@@ -69,6 +70,8 @@ struct Grid {
   static std::uint64_t cellOf(float r) {
     return r > 0 ? static_cast<std::uint64_t>(static_cast<std::int32_t>(r)) : 0;
   }
+
+ private:
   std::uint64_t keyOf(std::uint64_t x, std::uint64_t y, std::uint64_t z, int cls) const {
     return (((static_cast<std::uint64_t>(cls) << axis_bits | z) << axis_bits | y) << axis_bits) | x;
   }
@@ -251,19 +254,18 @@ UninitVector<char> findStrays(const pcl::PointCloud<pcl::PointXYZ>& points, cons
   // Its own row first, then the rows beside it (the 27 cells, each with a binary search, took
   // 10 us a point on one thread at 4M points).
   auto around = [&](std::size_t i, auto&& reach, auto&& fn) {
-    const Eigen::Vector3f p = points[i].getVector3fMap();
-    const std::uint64_t key = grid.key(p, 0);
-    const auto x = static_cast<long long>(key & axis_mask),
-               y = static_cast<long long>((key >> ab) & axis_mask),
-               z = static_cast<long long>((key >> (2 * ab)) & axis_mask);
+    // Its cell, as its key has it.
+    const Eigen::Vector3f r = grid.sides(points[i].getVector3fMap());
+    const long long cell[3] = {static_cast<long long>(Grid::cellOf(r.x())),
+                               static_cast<long long>(Grid::cellOf(r.y())),
+                               static_cast<long long>(Grid::cellOf(r.z()))};
+    const long long x = cell[0], y = cell[1], z = cell[2];
     const auto top = static_cast<long long>(axis_mask);
     // gap2[a][d + 1]: the squared distance, in cell sides, from p to the cells at offset d along
-    // axis a, less a margin above what rounding can move a point (r is computed as the key is,
-    // to a few units in the last place of r): never more than a point there can be from p.
+    // axis a, less a margin above what rounding can move a point (r is computed as every key
+    // is, to a few units in the last place of r): never more than a point there can be from p.
     // (A side whose square is not a normal float skips nothing: the products below could round
     // to infinity or lose their margin.)
-    const Eigen::Vector3f r = (p - grid.lo) / grid.h;
-    const long long cell[3] = {x, y, z};
     const float h2 = grid.h * grid.h;
     const bool skips = std::isfinite(h2) && h2 >= std::numeric_limits<float>::min();
     float gap2[3][3];
