@@ -853,13 +853,27 @@ TEST_P(CliInterrupt, WhileWritingLeavesNoTemporaryFile) {
   EXPECT_EQ(out.list(), std::vector<std::string>{}) << "left behind";
 }
 
-INSTANTIATE_TEST_SUITE_P(Signals, CliInterrupt, ::testing::Values(SIGINT, SIGTERM, SIGHUP, SIGPIPE),
+INSTANTIATE_TEST_SUITE_P(Signals, CliInterrupt,
+                         ::testing::Values(SIGINT, SIGTERM, SIGHUP, SIGPIPE, SIGUSR1, SIGALRM),
                          [](const ::testing::TestParamInfo<int>& p) {
                            return std::string(p.param == SIGINT    ? "SIGINT"
                                               : p.param == SIGTERM ? "SIGTERM"
                                               : p.param == SIGHUP  ? "SIGHUP"
+                                              : p.param == SIGUSR1 ? "SIGUSR1"
+                                              : p.param == SIGALRM ? "SIGALRM"
                                                                    : "SIGPIPE");
                          });
+
+// An output that passes `ulimit -f` ended the run by SIGXFSZ with no message and its temporary
+// file left (10 MB of it): the file goes, and the status still says SIGXFSZ.
+TEST(CliInterruptXfsz, AnOutputPastTheFileSizeLimitLeavesNoTemporaryFile) {
+  static LargePlane plane;
+  TempDir out;
+  const Result r = shell("ulimit -c 0; ulimit -f 2048; " + quote(HGD_TOOL) + " deform " + quote(plane.input) +
+                         " -s " + quote(plane.scenario) + " -o " + quote(out.file("o.ply")) + " --ascii -q");
+  EXPECT_EQ(r.code, 128 + SIGXFSZ) << r.err;
+  EXPECT_EQ(out.list(), std::vector<std::string>{}) << "left behind";
+}
 
 // --- errors ----------------------------------------------------------------------------------
 
@@ -997,6 +1011,44 @@ TEST_F(CliErrors, ReportIntoMissingDirectory) {
   EXPECT_NE(r.code, 0);
   EXPECT_TRUE(contains(r.err, "nodir/r.json")) << r.err;
   EXPECT_TRUE(listing(out_).empty()) << "left " << *listing(out_).begin();
+}
+
+// A run that fails after writing its output (its report cannot be written) leaves the file an
+// earlier run wrote there as it was, also through a symbolic link, and no file beside it.
+TEST_F(CliErrors, AFailedReportLeavesThePreviousOutputAsItWas) {
+  const std::string earlier =
+      "ply\nformat ascii 1.0\ncomment an earlier run's\nelement vertex 0\nend_header\n";
+  writeText(out_.file("o.ply"), earlier);
+  writeText(out_.file("target.ply"), earlier + "comment\n");
+  fs::create_symlink("target.ply", out_.file("link.ply"));
+  for (const char* out : {"o.ply", "link.ply"}) {
+    const Result r = cli("deform " + quote(bar_) + " -s " + quote(scenario_) + " -o " +
+                         quote(out_.file(out)) + " --report " + quote(out_.file("nodir/r.json")));
+    EXPECT_NE(r.code, 0) << out;
+    EXPECT_TRUE(contains(r.err, "nodir/r.json")) << r.err;
+  }
+  EXPECT_EQ(slurp(out_.file("o.ply")), earlier);
+  EXPECT_EQ(slurp(out_.file("target.ply")), earlier + "comment\n");
+  EXPECT_TRUE(fs::is_symlink(out_.file("link.ply")));
+  EXPECT_EQ(listing(out_), (std::set<std::string>{"link.ply", "o.ply", "target.ply"}));
+}
+
+// An output's name may take all the 255 bytes a name can have: the temporary file beside it is
+// named within that limit (a multibyte character is not cut in two).
+TEST_F(CliErrors, OutputNamesUpTo255BytesAreWritten) {
+  for (const std::size_t length : {229u, 240u, 255u}) {
+    std::string name(length - 4, 'n');
+    if (length == 240) name.replace(200, 6, "\xc3\xa9\xc3\xa9\xc3\xa9");  // UTF-8 "ééé"
+    name += ".ply";
+    ASSERT_EQ(name.size(), length);
+    const Result r = cli("deform " + quote(bar_) + " -s " + quote(scenario_) + " -o " +
+                         quote(out_.file(name)) + " --report " + quote(out_.file("r.json")));
+    EXPECT_EQ(r.code, 0) << length << ": " << r.err;
+    EXPECT_EQ(listing(out_), (std::set<std::string>{name, "r.json"})) << length;
+    EXPECT_EQ(hgd::readShape(out_.file(name)).size(), hgd::readShape(bar_).size());
+    fs::remove(out_.file(name));
+    fs::remove(out_.file("r.json"));
+  }
 }
 
 // No output replaces an input, however it is spelt: through a symbolic link, a hard link or

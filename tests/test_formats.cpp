@@ -149,8 +149,9 @@ TEST(Xyz, ReadsEveryColumnWithCommentsAndBlankLines) {
       EXPECT_EQ(value(s, i, "x"), rows[i][0]);
       EXPECT_EQ(value(s, i, "y"), rows[i][1]);
       EXPECT_EQ(value(s, i, "z"), rows[i][2]);
-      EXPECT_EQ(value(s, i, "field3"), static_cast<float>(rows[i][3]));
-      EXPECT_EQ(value(s, i, "field4"), static_cast<float>(rows[i][4]));
+      // Written with 17 digits, more than a float holds: the columns are doubles (issue 48).
+      EXPECT_EQ(value(s, i, "field3"), rows[i][3]);
+      EXPECT_EQ(value(s, i, "field4"), rows[i][4]);
     }
   }
 }

@@ -294,6 +294,13 @@ Corpus plyCorpus() {
   c.add("ascii-long-line", plyHead("ascii", "3") + "0 0 0 7\n1 0 0\n0 1 0\n",
         "more values than the header declares");
   c.add("ascii-10^12-points", plyHead("ascii", tera) + three, "truncated data");
+  // Records of no properties take no bytes, yet writing them back takes a line each: 10^18 of
+  // them filled the disk (ascii) or spun for ever (binary).
+  c.add("ascii-10^18-empty-records",
+        plyHead("ascii", "3", kXyz, "element junk 1000000000000000000\n") + three, "truncated data");
+  c.add("binary-10^18-empty-records",
+        plyHead("binary_little_endian", "3", kXyz, "element junk 1000000000000000000\n") + le3,
+        "truncated data");
   c.add("binary-le-cut", plyHead("binary_little_endian", "3") + le3.substr(0, 30), "truncated data");
   c.add("binary-be-cut", plyHead("binary_big_endian", "3") + be3.substr(0, 35), "truncated data");
   c.add("binary-nothing-after-header", plyHead("binary_little_endian", "3"), "truncated data");
@@ -348,6 +355,12 @@ Corpus plyCorpus() {
   c.add("uchar-out-of-range",
         plyHead("ascii", "3", kXyz + "property uchar red\n") + "0 0 0 1\n1 0 0 300\n0 1 0 2\n",
         "value out of range");
+  // A finite number beyond a float's or a double's range became an infinity, silently.
+  c.add("float-1e39", plyHead("ascii", "3") + "0 0 0\n1e39 0 0\n0 1 0\n", "value out of range");
+  c.add("double-1e400",
+        plyHead("ascii", "3", "property double x\nproperty double y\nproperty double z\n") +
+            "0 0 0\n1 -1e400 0\n0 1 0\n",
+        "value out of range");
   c.add("int-with-fraction",
         plyHead("ascii", "3", kXyz + "property int label\n") + "0 0 0 1\n1 0 0 1.5\n0 1 0 2\n",
         "non-numeric value");
@@ -365,7 +378,8 @@ Corpus plyCorpus() {
         plyHead("binary_little_endian", "2") + floats({std::numeric_limits<float>::infinity(), 0, 0, 0,
                                                        -std::numeric_limits<float>::infinity(), 0}),
         "no finite points");
-  c.add("all-overflowing-floats", plyHead("ascii", "2") + "1e39 0 0\n0 -1e40 0\n", "no finite points");
+  // Issue 48: a finite number a float cannot hold is out of range (it was read as an infinity).
+  c.add("all-overflowing-floats", plyHead("ascii", "2") + "1e39 0 0\n0 -1e40 0\n", "value out of range");
   c.add(
       "all-nan-double-be",
       plyHead("binary_big_endian", "1", "property double x\nproperty double y\nproperty double z\n") +
@@ -487,6 +501,7 @@ Corpus pcdCorpus() {
   c.add("ascii-too-few-values", pcdHead("ascii") + "0 0 0\n1 0\n0 1 0\n", "truncated data");
   c.add("ascii-fewer-lines", pcdHead("ascii") + "0 0 0\n1 0 0\n", "truncated data");
   c.add("ascii-more-lines", pcdHead("ascii", "2", "1", "2") + three, "more data than the header declares");
+  c.add("ascii-float-1e39", pcdHead("ascii") + "0 0 0\n1 0 1e39\n0 1 0\n", "value out of range");
   c.add("ascii-uchar-256",
         pcdHead("ascii", "3", "1", "3", "FIELDS x y z i\nSIZE 4 4 4 1\nTYPE F F F U\n") +
             "0 0 0 1\n1 0 0 256\n0 1 0 2\n",

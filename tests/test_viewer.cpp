@@ -496,6 +496,27 @@ TEST(Viewer, VersionAndUsageErrors) {
   }
   EXPECT_EQ(hgdtest::run(std::string(HGD_VIEW) + " x.ply --size 10x10", out), 2) << out;
   EXPECT_EQ(hgdtest::run(std::string(HGD_RENDER) + " x.ply -o x.png --view 0,0,0", out), 2) << out;
+  // A direction that is no direction drew an all-white picture with exit 0.
+  for (const char* view : {"nan,1,1", "1,inf,1", "1,1,1x", "1,1"})
+    EXPECT_EQ(hgdtest::run(std::string(HGD_RENDER) + " x.ply -o x.png --view " + view, out), 2)
+        << view << out;
+}
+
+// A field to colour by that the input lacks was ignored (a grey picture, exit 0): it is a usage
+// error naming the field and the file, and nothing is written.
+TEST(Viewer, RenderFieldTheInputLacksIsAUsageError) {
+  hgdtest::TempDir dir;
+  const std::string bar = dir.file("bar.ply"), png = dir.file("p.png");
+  hgd::writeShape(bar, hgd::shapes::bar(1.0f, 0.1f, 0.05f));
+  std::string out;
+  EXPECT_EQ(hgdtest::run(std::string(HGD_RENDER) + " " + hgdtest::quote(bar) + " -o " + hgdtest::quote(png) +
+                             " --field nosuch",
+                         out),
+            2)
+      << out;
+  EXPECT_NE(out.find("nosuch"), std::string::npos) << out;
+  EXPECT_NE(out.find("bar.ply"), std::string::npos) << out;
+  EXPECT_FALSE(hgdtest::exists(png));
 }
 
 // Issue 28: `hgdeform-render --size 100000x100000` ended in a raw X BadValue, and 20000x20000

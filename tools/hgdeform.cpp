@@ -46,7 +46,7 @@ const char* kUsage =
     "  deform  INPUT --scenario S.json -o OUT   deform the shape as the scenario's moves say\n"
     "  batch   --scenario S.json IN_DIR -o OUT_DIR   deform every scan in a folder\n"
     "\n"
-    "INPUT and OUT are PLY, PCD, OBJ, XYZ/TXT, OFF or STL files: OUT by extension, INPUT by its\n"
+    "INPUT and OUT are PLY, PCD, OBJ, XYZ/TXT, PTS, OFF or STL files: OUT by extension, INPUT by its\n"
     "content (a note says when that differs from the extension). 'hgdeform <command> --help' for options.\n"
     "\n"
     "options:\n"
@@ -82,7 +82,7 @@ struct DeformArgs {
 void setUpCommand(CLI::App& app, const std::string& tool, std::string& input, std::string& scenario,
                   std::string& output, const std::string& scenario_help) {
   hgdcli::configureApp(app, tool);
-  app.add_option("INPUT", input, "the shape: PLY, PCD, OBJ, XYZ/TXT, OFF or STL (read by its content)")
+  app.add_option("INPUT", input, "the shape: PLY, PCD, OBJ, XYZ/TXT, PTS, OFF or STL (read by its content)")
       ->required()
       ->type_name("");
   app.add_option("-s,--scenario", scenario, scenario_help)->required()->type_name("FILE");
@@ -276,8 +276,10 @@ int runDeform(const DeformArgs& a) {
   run.applyMoves();
   hgd::WriteOptions wo;
   if (a.ascii) wo.encoding = hgd::Encoding::Ascii;
+  hgd::PreviousOutput previous(output);              // what a failed run leaves at `output`
   run.writeAndRelease(output, wo, {scenario_path});  // the shape held once, not copied to write
-  // A failed run leaves no output: when the report cannot be made or written, the shape goes too.
+  // A failed run leaves no output: when the report cannot be made or written, the shape goes
+  // too, and a file that was there before is put back.
   hgd::DeformReport report;
   try {
     report = run.report();
@@ -305,7 +307,7 @@ int runDeform(const DeformArgs& a) {
       hgd::writeReportJson(report_path, report);
     }
   } catch (...) {
-    hgd::removeOutput(output);
+    previous.restore();
     throw;
   }
   for (const auto& note : report.notes) std::fprintf(stderr, "hgdeform: note: %s\n", note.c_str());

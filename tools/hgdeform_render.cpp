@@ -22,6 +22,7 @@
 #include "hgdeform/app/cleanup.h"
 #include "hgdeform/app/regions.h"
 #include "hgdeform/app/scenario.h"
+#include "hgdeform/io/fields.h"
 #include "hgdeform/io/geometry.h"
 #include "hgdeform/io/io.h"
 #include "hgdeform/render/render.h"
@@ -38,7 +39,7 @@ int main(int argc, char** argv) {
       "grey. A cloud is shaded: lit through its normals when it has them, else with eye-dome\n"
       "lighting. Needs an X display (run under xvfb-run on a headless machine).");
   hgdcli::configureApp(app, "hgdeform-render");
-  app.add_option("IN", inputs, "shapes to draw (PLY, PCD, OBJ, XYZ/TXT, OFF or STL), one viewport each")
+  app.add_option("IN", inputs, "shapes to draw (PLY, PCD, OBJ, XYZ/TXT, PTS, OFF or STL), one viewport each")
       ->required()
       ->type_name("")
       ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
@@ -53,8 +54,10 @@ int main(int argc, char** argv) {
       ->check(CLI::Validator(
           [&opt](std::string& s) -> std::string {
             Eigen::Vector3f v;
-            if (std::sscanf(s.c_str(), "%f,%f,%f", &v.x(), &v.y(), &v.z()) != 3 || v.norm() == 0)
-              return "must be x,y,z (got '" + s + "')";
+            int used = 0;
+            if (std::sscanf(s.c_str(), "%f,%f,%f%n", &v.x(), &v.y(), &v.z(), &used) != 3 ||
+                static_cast<std::size_t>(used) != s.size() || !v.allFinite() || v.norm() == 0)
+              return "must be three finite numbers x,y,z, not all 0 (got '" + s + "')";
             opt.view = v;
             return {};
           },
@@ -101,6 +104,13 @@ int main(int argc, char** argv) {
       for (const std::string& w : shapes.back().warnings)
         std::cerr << "hgdeform-render: warning: " << w << "\n";
     }
+    // A field to colour by that an input does not have is a mistake in the command, not a
+    // picture without colours.
+    if (!opt.field.empty())
+      for (std::size_t k = 0; k < shapes.size(); ++k)
+        if (hgd::findField(shapes[k].cloud, opt.field) < 0)
+          throw hgdcli::UsageError("--field " + opt.field + ": " + inputs[k] + " has no field '" + opt.field +
+                                   "'");
     std::vector<const hgd::Shape*> ptrs;
     for (const auto& s : shapes) ptrs.push_back(&s);
     hgd::Shape rest;
@@ -128,6 +138,8 @@ int main(int argc, char** argv) {
     hgd::renderPng(ptrs, output, opt);
     std::cout << "wrote " << output << "\n";
     return 0;
+  } catch (const hgdcli::UsageError& e) {
+    return hgdcli::usageError("hgdeform-render", e.what());
   } catch (const std::bad_alloc&) {  // what pictureSizeProblem could not foresee
     std::cerr << "hgdeform-render: " << output << ": out of memory drawing a " << opt.width << "x"
               << opt.height << " picture\n";

@@ -70,19 +70,34 @@ std::vector<int> select(const Region& region, const Geometry& geometry, const Sh
                         const std::string& scenario_name) {
   std::vector<int> out;
   const std::string where = scenario_name + ": " + (region.json_path.empty() ? "region" : region.json_path);
+  // Given the shape, regions test the file's own values (a double 0.3 is in a box whose max is
+  // 0.3); else the geometry's float positions.
+  const XyzFields xyz = shape ? findXyzFields(shape->cloud) : XyzFields{};
+  const bool exact = shape && xyz.hasXyz() && geometry.finite_index.size() == shape->size();
+  const auto at = [&](std::size_t i) -> Eigen::Vector3d {
+    const pcl::PCLPointCloud2& c = shape->cloud;
+    const auto r = static_cast<std::size_t>(geometry.raw_index[i]);
+    return {readValue(c, r, c.fields[static_cast<std::size_t>(xyz.x)]),
+            readValue(c, r, c.fields[static_cast<std::size_t>(xyz.y)]),
+            readValue(c, r, c.fields[static_cast<std::size_t>(xyz.z)])};
+  };
+  const Eigen::Vector3d shift = exact ? Eigen::Vector3d::Zero() : geometry.origin;
+  // Point i's position in the frame the region is compared in (world, or the geometry's local).
+  const auto position = [&](std::size_t i) -> Eigen::Vector3d {
+    return exact ? at(i) : (*geometry.points)[i].getVector3fMap().cast<double>();
+  };
   switch (region.kind) {
     case Region::Kind::Sphere: {
       const double r2 = region.radius * region.radius;
-      const Eigen::Vector3d c = region.centre - geometry.origin;
-      out = indicesWhere(static_cast<long long>(geometry.size()), [&](std::size_t i) {
-        return ((*geometry.points)[i].getVector3fMap().cast<double>() - c).squaredNorm() <= r2;
-      });
+      const Eigen::Vector3d c = region.centre - shift;
+      out = indicesWhere(static_cast<long long>(geometry.size()),
+                         [&](std::size_t i) { return (position(i) - c).squaredNorm() <= r2; });
       break;
     }
     case Region::Kind::Box: {
-      const Eigen::Vector3d lo = region.min - geometry.origin, hi = region.max - geometry.origin;
+      const Eigen::Vector3d lo = region.min - shift, hi = region.max - shift;
       out = indicesWhere(static_cast<long long>(geometry.size()), [&](std::size_t i) {
-        const Eigen::Vector3d p = (*geometry.points)[i].getVector3fMap().cast<double>();
+        const Eigen::Vector3d p = position(i);
         return (p.array() >= lo.array()).all() && (p.array() <= hi.array()).all();
       });
       break;
@@ -102,10 +117,10 @@ std::vector<int> select(const Region& region, const Geometry& geometry, const Sh
     }
     case Region::Kind::Cylinder: {
       // Within `radius` of the axis segment, the projection on the axis between its ends.
-      const Eigen::Vector3d a = region.start - geometry.origin, d = region.end - region.start;
+      const Eigen::Vector3d a = region.start - shift, d = region.end - region.start;
       const double len2 = d.squaredNorm(), r2 = region.radius * region.radius;
       out = indicesWhere(static_cast<long long>(geometry.size()), [&](std::size_t i) {
-        const Eigen::Vector3d p = (*geometry.points)[i].getVector3fMap().cast<double>() - a;
+        const Eigen::Vector3d p = position(i) - a;
         const double t = p.dot(d) / len2;
         return t >= 0 && t <= 1 && (p - t * d).squaredNorm() <= r2;
       });

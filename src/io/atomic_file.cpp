@@ -45,6 +45,24 @@ void unregisterTemp(int slot) {
   if (slot >= 0) g_temp_slots[slot].state.store(0);
 }
 
+/// A temporary name in `dir` for a file named `name`: ".NAME.tmp-PID-HEX", NAME cut (at a
+/// character's start) where the whole would pass the file system's longest name, so that an
+/// output named with 229-255 bytes is still written.
+fs::path tempBeside(const fs::path& dir, const std::string& name, std::random_device& rd) {
+  char suffix[64];
+  std::snprintf(suffix, sizeof suffix, ".tmp-%ld-%08x%08x", static_cast<long>(::getpid()), rd(), rd());
+  std::string base = name;
+  const long name_max = ::pathconf(dir.c_str(), _PC_NAME_MAX);
+  const std::size_t room =
+      (name_max > 0 ? static_cast<std::size_t>(name_max) : 255) - 1 - std::strlen(suffix);
+  if (base.size() > room) {
+    std::size_t cut = room;
+    while (cut > 0 && (static_cast<unsigned char>(base[cut]) & 0xC0) == 0x80) --cut;
+    base.resize(cut);
+  }
+  return dir / ("." + base + suffix);
+}
+
 /// The descriptor an absolute, normalised path names: /dev/stdin, /dev/stdout, /dev/stderr,
 /// /dev/fd/N, /proc/self/fd/N, /proc/thread-self/fd/N or /proc/<this process>/fd/N; else -1.
 int descriptorNamed(const std::string& p) {
@@ -135,9 +153,7 @@ AtomicWriter::AtomicWriter(const std::string& target) : target_(target) {
   if (dir.empty()) dir = ".";
   std::random_device rd;
   for (int attempt = 0; attempt < 16; ++attempt) {
-    char suffix[64];
-    std::snprintf(suffix, sizeof suffix, ".tmp-%ld-%08x%08x", static_cast<long>(::getpid()), rd(), rd());
-    const fs::path tmp = dir / ("." + t.filename().string() + suffix);
+    const fs::path tmp = tempBeside(dir, t.filename().string(), rd);
     // Registered before it is created: a signal never finds it there and not yet registered
     // (removing a name not created yet does nothing).
     const int slot = registerTemp(tmp.string());
@@ -231,6 +247,63 @@ void removeOutput(const std::string& path) noexcept {
   if (S_ISREG(st.st_mode)) ::unlink(path.c_str());
 }
 
+PreviousOutput::PreviousOutput(std::string path) : path_(std::move(path)) {
+  if (io_internal::descriptorPath(path_) >= 0) return;  // a descriptor: nothing is replaced
+  std::error_code ec;
+  struct stat lst {};
+  if (::lstat(path_.c_str(), &lst) != 0) return;  // nothing there yet: restore() removes
+  target_ = path_;
+  if (S_ISLNK(lst.st_mode)) {
+    const fs::path t = fs::canonical(path_, ec);
+    if (ec) return;
+    target_ = t.string();
+  }
+  struct stat st {};
+  if (::stat(target_.c_str(), &st) != 0 || !S_ISREG(st.st_mode)) {
+    target_.clear();  // a FIFO or a device is written to, never replaced: nothing to keep
+    return;
+  }
+  const fs::path t(target_);
+  fs::path dir = t.parent_path();
+  if (dir.empty()) dir = ".";
+  std::random_device rd;
+  for (int attempt = 0; attempt < 16; ++attempt) {
+    const std::string aside = tempBeside(dir, t.filename().string(), rd).string();
+    const int slot = registerTemp(aside);
+    if (::link(target_.c_str(), aside.c_str()) == 0) {
+      aside_ = aside;
+      slot_ = slot;
+      return;
+    }
+    const int e = errno;
+    unregisterTemp(slot);
+    if (e != EEXIST) return;  // no hard links here: a failed run then leaves no output at all
+  }
+}
+
+PreviousOutput::~PreviousOutput() {
+  keep();
+}
+
+void PreviousOutput::restore() noexcept {
+  if (!aside_.empty()) {
+    if (::rename(aside_.c_str(), target_.c_str()) != 0) ::unlink(aside_.c_str());
+    aside_.clear();
+    unregisterTemp(slot_);
+    slot_ = -1;
+    return;
+  }
+  if (target_.empty()) removeOutput(path_);
+}
+
+void PreviousOutput::keep() noexcept {
+  if (aside_.empty()) return;
+  ::unlink(aside_.c_str());
+  aside_.clear();
+  unregisterTemp(slot_);
+  slot_ = -1;
+}
+
 void removeTemporaryFiles() noexcept {
   for (auto& slot : g_temp_slots)
     if (slot.state.load() == 2) ::unlink(slot.path);
@@ -258,7 +331,11 @@ void onTerminatingSignal(int sig) {
 
 void removeTemporaryFilesOnSignals(void (*also)(int)) noexcept {
   g_also_on_signal.store(also);
-  const int signals[] = {SIGINT, SIGTERM, SIGHUP, SIGPIPE};
+  // Every signal whose default ends the process and that a run may meet: a user's, a batch
+  // system's (SIGUSR1/2 before a time limit, SIGXCPU), a timer's, and SIGXFSZ when the output
+  // passes `ulimit -f`.
+  const int signals[] = {SIGINT,  SIGTERM, SIGHUP,    SIGPIPE, SIGQUIT, SIGUSR1,
+                         SIGUSR2, SIGALRM, SIGVTALRM, SIGXFSZ, SIGXCPU};
   struct sigaction sa {};
   sa.sa_handler = onTerminatingSignal;
   sigemptyset(&sa.sa_mask);

@@ -105,7 +105,7 @@ std::size_t xyzCommentStart(std::string_view line) {
 }
 
 bool conventionalCloud(const Shape& shape, FileFormat target, pcl::PCLPointCloud2* out) {
-  if (shape.path.empty() || shape.format == target || target == FileFormat::Stl) return false;
+  if (shape.format == target || target == FileFormat::Stl) return false;
   const pcl::PCLPointCloud2& c = shape.cloud;
   const std::vector<Field>& in = c.fields;
   std::unordered_map<std::string, std::size_t> exact;  // name -> first field of that name
@@ -119,6 +119,7 @@ bool conventionalCloud(const Shape& shape, FileFormat target, pcl::PCLPointCloud
   };
   std::vector<std::string> name(in.size());
   for (std::size_t k = 0; k < in.size(); ++k) name[k] = in[k].name;
+  std::vector<char> narrow(in.size(), 0);  // double fields written as float
   bool changed = false;
   // The first field whose name is one of `aliases` (any case), unless a field is called `to`.
   const auto findAlias = [&](std::initializer_list<const char*> aliases, const char* to) -> long {
@@ -135,13 +136,23 @@ bool conventionalCloud(const Shape& shape, FileFormat target, pcl::PCLPointCloud
     for (int a = 0; a < 3; ++a)
       idx[a] = findAlias({normal_names[0][a], normal_names[1][a]}, normal_names[pcd ? 1 : 0][a]);
     if (idx[0] >= 0 && idx[1] >= 0 && idx[2] >= 0)
-      for (int a = 0; a < 3; ++a) name[static_cast<std::size_t>(idx[a])] = normal_names[pcd ? 1 : 0][a];
+      for (int a = 0; a < 3; ++a) {
+        name[static_cast<std::size_t>(idx[a])] = normal_names[pcd ? 1 : 0][a];
+        // PCD normals are floats: PCL's typed readers and Open3D's binary reader see no
+        // double ones (extrasLost says so).
+        if (pcd && in[static_cast<std::size_t>(idx[a])].datatype == Field::FLOAT64)
+          narrow[static_cast<std::size_t>(idx[a])] = 1;
+      }
     const long i = findAlias({"intensity", "scalar_intensity"}, "intensity");
     if (i >= 0) name[static_cast<std::size_t>(i)] = "intensity";
     const long cv = findAlias({"curvature", "scalar_curvature"}, "curvature");
     if (cv >= 0) name[static_cast<std::size_t>(cv)] = "curvature";
   }
-  for (std::size_t k = 0; k < in.size(); ++k) changed = changed || name[k] != in[k].name;
+  if (target == FileFormat::Pts) {
+    const long i = findAlias({"intensity", "scalar_intensity"}, "intensity");
+    if (i >= 0) name[static_cast<std::size_t>(i)] = "intensity";
+  }
+  for (std::size_t k = 0; k < in.size(); ++k) changed = changed || name[k] != in[k].name || narrow[k];
 
   // The fields written, each a copy of a field (renamed), a byte of a packed colour, or a
   // packed colour made of red/green/blue(/alpha) bytes.
@@ -150,6 +161,7 @@ bool conventionalCloud(const Shape& shape, FileFormat target, pcl::PCLPointCloud
     long src = -1;                    // a field copied
     int shift = -1;                   // a byte of the packed colour `src`
     long rgba[4] = {-1, -1, -1, -1};  // packed from these bytes
+    bool narrow = false;              // `src` is a double, written as a float
   };
   std::vector<Part> parts;
   const auto byteField = [&](const char* n) {
@@ -182,11 +194,16 @@ bool conventionalCloud(const Shape& shape, FileFormat target, pcl::PCLPointCloud
   for (std::size_t k = 0; k < in.size(); ++k) {
     const long kl = static_cast<long>(k);
     if (kl == packed) {
-      // rgba has an alpha; rgb's alpha byte (PCL's 255) is kept too where it holds anything else.
+      // rgba has an alpha. rgb's alpha byte means nothing to PCL, which writes it as 255 or as
+      // 0 (a cloud converted from PLY): either for every point is no alpha (an alpha of 0 would
+      // show every point transparent in MeshLab); any other alpha is kept.
       bool alpha = in[k].name == "rgba";
       const std::size_t npts = static_cast<std::size_t>(c.width) * c.height;
+      const auto alphaOf = [&](std::size_t i) {
+        return c.data[i * c.point_step + in[k].offset + (kHostBigEndian ? 0 : 3)];
+      };
       for (std::size_t i = 0; i < npts && !alpha; ++i)
-        alpha = c.data[i * c.point_step + in[k].offset + (kHostBigEndian ? 0 : 3)] != 255;
+        alpha = alphaOf(i) != alphaOf(0) || (alphaOf(i) != 0 && alphaOf(i) != 255);
       const char* const channel[4] = {"red", "green", "blue", "alpha"};
       const int shifts[4] = {16, 8, 0, 24};
       for (int j = 0; j < (alpha ? 4 : 3); ++j) {
@@ -214,6 +231,10 @@ bool conventionalCloud(const Shape& shape, FileFormat target, pcl::PCLPointCloud
       p.f = in[k];
       p.f.name = name[k];
       p.src = kl;
+      if (narrow[k]) {
+        p.f.datatype = Field::FLOAT32;
+        p.narrow = true;
+      }
       parts.push_back(p);
     }
   }
@@ -244,6 +265,11 @@ bool conventionalCloud(const Shape& shape, FileFormat target, pcl::PCLPointCloud
         std::uint32_t bits = 0;
         std::memcpy(&bits, src + in[static_cast<std::size_t>(p.src)].offset, 4);
         *d = static_cast<std::uint8_t>((bits >> p.shift) & 0xFFu);
+      } else if (p.narrow) {
+        double v;
+        std::memcpy(&v, src + in[static_cast<std::size_t>(p.src)].offset, 8);
+        const auto f = static_cast<float>(v);
+        std::memcpy(d, &f, 4);
       } else if (p.src >= 0) {
         const Field& f = in[static_cast<std::size_t>(p.src)];
         std::memcpy(d, src + f.offset, datatypeSize(f.datatype) * fieldCount(f));

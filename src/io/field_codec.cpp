@@ -116,15 +116,19 @@ void encodeValue(std::uint8_t* p, std::uint8_t type, double v) {
 }
 
 Parse parseValue(std::string_view tok, std::uint8_t type, std::uint8_t* dst) {
+  // A finite number beyond the type's range (1e39 in a float, 1e400 in a double) would become
+  // an infinity: out of range, as an integer that does not fit is.
   if (type == Field::FLOAT32) {
     float f = 0;
     if (!parseFloating(tok, &f)) return Parse::Bad;
+    if (overflowed(tok, f)) return Parse::Range;
     std::memcpy(dst, &f, sizeof f);
     return Parse::Ok;
   }
   if (type == Field::FLOAT64) {
     double d = 0;
     if (!parseFloating(tok, &d)) return Parse::Bad;
+    if (overflowed(tok, d)) return Parse::Range;
     std::memcpy(dst, &d, sizeof d);
     return Parse::Ok;
   }

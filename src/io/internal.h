@@ -77,6 +77,25 @@ bool parseFloating(std::string_view s, T* v) {
   return false;
 }
 
+/// Whether `v`, read from `token`, is an infinity the text did not spell ("1e400", not "inf").
+template <typename T>
+bool overflowed(std::string_view token, T v) {
+  return std::isinf(v) && token.find_first_of("iI") == std::string_view::npos;
+}
+
+/// Whether float32 holds the number `v` was read as: its shortest float spelling reads back as
+/// the same double (so "0.25" and "255" fit, "1634567890.123456" and "16777217" do not).
+/// Not-a-numbers and infinities fit.
+inline bool floatHolds(double v) {
+  if (!std::isfinite(v)) return true;
+  const float f = static_cast<float>(v);
+  if (!std::isfinite(f)) return false;
+  char buf[64];
+  const auto r = std::to_chars(buf, buf + sizeof buf, f);
+  double back = 0;
+  return std::from_chars(buf, r.ptr, back).ec == std::errc() && back == v;
+}
+
 /// An integer token; integral floating-point spellings ("255.0", "1e3") are accepted too.
 Parse parseInteger(std::string_view s, long long* v);
 
@@ -152,8 +171,8 @@ pcl::PCLPointCloud2 makeCloud(std::size_t n, const std::vector<std::pair<std::st
 std::size_t xyzCommentStart(std::string_view line);
 
 /// The cloud of `shape` with its fields under the names and layouts the readers of `target`
-/// expect, when the shape was read from a file of another format (`shape.path` set,
-/// `shape.format` not `target`): normals normal_x/normal_y/normal_z (PCD) or nx/ny/nz (PLY),
+/// expect, when the shape was read from a file of another format, or made in memory as one
+/// (`shape.format` not `target`): normals normal_x/normal_y/normal_z (PCD) or nx/ny/nz (PLY),
 /// intensity and curvature (also from CloudCompare's scalar_intensity, scalar_curvature), a
 /// packed rgb/rgba split into uchar red/green/blue(/alpha) for the text and mesh formats (PLY,
 /// XYZ, OBJ, OFF) and uchar red/green/blue(/alpha) packed into rgb (float, as PCL's PointXYZRGB)
@@ -383,7 +402,12 @@ void writeObj(const std::string& path, const Shape& shape);
 Shape readXyz(const std::string& path);
 Shape readOff(const std::string& path);
 Shape readStl(const std::string& path);
-void writeXyz(const std::string& path, const Shape& shape);
+/// The field a PTS file's intensity column is written from: a scalar named intensity (any
+/// case), or -1.
+int ptsIntensity(const pcl::PCLPointCloud2& cloud, const XyzFields& xyz);
+
+/// `pts`: as Leica PTS (the point count first; x y z, intensity, red green blue; no row of names).
+void writeXyz(const std::string& path, const Shape& shape, bool pts);
 void writeOff(const std::string& path, const Shape& shape);
 void writeStl(const std::string& path, const Shape& shape, bool ascii);
 

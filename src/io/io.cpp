@@ -22,6 +22,7 @@ const char* formatName(FileFormat f) {
     case FileFormat::Xyz: return "XYZ";
     case FileFormat::Off: return "OFF";
     case FileFormat::Stl: return "STL";
+    case FileFormat::Pts: return "PTS";
   }
   return "?";
 }
@@ -33,6 +34,7 @@ std::optional<FileFormat> formatOfExtension(const std::string& ext) {
   if (ext == ".xyz" || ext == ".txt") return FileFormat::Xyz;
   if (ext == ".off") return FileFormat::Off;
   if (ext == ".stl") return FileFormat::Stl;
+  if (ext == ".pts") return FileFormat::Pts;
   return std::nullopt;
 }
 
@@ -109,8 +111,8 @@ std::optional<FileFormat> sniff(std::string_view head, std::uint64_t size, bool 
   if (head.rfind("# .PCD", 0) == 0) return FileFormat::Pcd;
   if (binary_stl && sizeOfBinaryStl(head, size)) return FileFormat::Stl;
   Lexer lex(head, 0);
-  std::size_t header_columns = 0;  // XYZ: a first line of names, then rows of as many numbers
-  bool first = true;
+  std::size_t header_columns = 0;         // XYZ: a first line of names, then rows of as many numbers
+  bool first = true, count_line = false;  // PTS: a first line with the point count
   while (lex.nextLine()) {
     if (lex.peek() == '#') continue;
     const std::string_view text = lex.lineText();
@@ -127,13 +129,18 @@ std::optional<FileFormat> sniff(std::string_view head, std::uint64_t size, bool 
         return FileFormat::Obj;
       const std::size_t cols = numericColumns(line);
       if (cols >= 3) return FileFormat::Xyz;
+      if (cols == 1 && plainUnsigned(w)) {
+        count_line = true;
+        continue;
+      }
       if (cols == 0) {
         header_columns = splitColumns(line.substr(line.rfind("//", 0) == 0 ? 2 : 0)).size();
         if (header_columns >= 3) continue;
       }
       return std::nullopt;
     }
-    // The line after an XYZ header: as many numbers as names.
+    // After a PTS count, a row of numbers; after an XYZ header, as many numbers as names.
+    if (count_line) return numericColumns(line) >= 3 ? std::optional(FileFormat::Pts) : std::nullopt;
     if (numericColumns(line) == header_columns) return FileFormat::Xyz;
     return std::nullopt;
   }
@@ -153,7 +160,7 @@ FileFormat formatFromPath(const std::string& path) {
   const std::string ext = lower(fs::path(path).extension().string());
   if (const auto f = formatOfExtension(ext)) return *f;
   fail(path, "unsupported file extension " + excerpt(ext) +
-                 " (expected .ply, .pcd, .obj, .xyz, .txt, .off or .stl)");
+                 " (expected .ply, .pcd, .obj, .xyz, .txt, .pts, .off or .stl)");
 }
 
 FileFormat sniffFormat(const std::string& path) {
@@ -165,7 +172,17 @@ FileFormat sniffFormat(const std::string& path) {
   fail(path, "the content matches no format hgdeform reads (PLY, PCD, OBJ, XYZ/TXT, OFF, STL)");
 }
 
+namespace {
+/// A path with a NUL byte would be cut there by the system (another file): refused.
+void refuseNul(const std::string& path) {
+  const std::size_t nul = path.find('\0');
+  if (nul != std::string::npos)
+    fail(path.substr(0, nul) + "\\0" + path.substr(nul + 1), "the path holds a NUL byte");
+}
+}  // namespace
+
 Shape readShape(const std::string& path) {
+  refuseNul(path);
   const std::string ext = lower(fs::path(path).extension().string());
   const std::optional<FileFormat> by_ext = formatOfExtension(ext);
   std::optional<FileFormat> by_content;
@@ -201,7 +218,8 @@ Shape readShape(const std::string& path) {
     case FileFormat::Ply: shape = readPly(path); break;
     case FileFormat::Pcd: shape = readPcd(path); break;
     case FileFormat::Obj: shape = readObj(path); break;
-    case FileFormat::Xyz: shape = readXyz(path); break;
+    case FileFormat::Xyz:
+    case FileFormat::Pts: shape = readXyz(path); break;
     case FileFormat::Off: shape = readOff(path); break;
     case FileFormat::Stl: shape = readStl(path); break;
   }
@@ -225,10 +243,11 @@ std::string extrasLost(const Shape& shape, FileFormat format) {
   if (!x.ply_elements.empty() && format != FileFormat::Ply)
     lost.emplace_back(
         "the PLY's other elements, face properties and list properties are kept only when writing PLY");
-  if (shape.isMesh() && (format == FileFormat::Pcd || format == FileFormat::Xyz))
+  if (shape.isMesh() && (format == FileFormat::Pcd || format == FileFormat::Xyz || format == FileFormat::Pts))
     lost.push_back(std::string(formatName(format)) + " holds points only: the " + num(shape.polygons.size()) +
                    " faces are dropped");
-  if (format == FileFormat::Stl || format == FileFormat::Off || format == FileFormat::Obj) {
+  if (format == FileFormat::Stl || format == FileFormat::Off || format == FileFormat::Obj ||
+      format == FileFormat::Pts) {
     // STL holds positions and triangles only; OFF also normals and colours; OBJ colours (its
     // normals are kept only as the 'vn' lines of an OBJ written back as it was read). The fields
     // as the writer gets them: a packed colour is written as red, green and blue.
@@ -245,7 +264,8 @@ std::string extrasLost(const Shape& shape, FileFormat format) {
           i == xyz.x || i == xyz.y || i == xyz.z || name == "_" ||
           (format == FileFormat::Off && ((xyz.hasNormals() && (i == xyz.nx || i == xyz.ny || i == xyz.nz)) ||
                                          colour || (rgb && name == "alpha"))) ||
-          (format == FileFormat::Obj && colour);
+          (format == FileFormat::Obj && colour) ||
+          (format == FileFormat::Pts && (colour || ptsIntensity(c, xyz) == i));
       if (!kept) fields += (fields.empty() ? "" : ", ") + name;
     }
     if (!fields.empty())
@@ -253,12 +273,25 @@ std::string extrasLost(const Shape& shape, FileFormat format) {
   }
   if (format == FileFormat::Stl)
     if (std::string stl = stlLosses(shape); !stl.empty()) lost.push_back(std::move(stl));
+  if (format == FileFormat::Pcd) {
+    pcl::PCLPointCloud2 converted;
+    if (conventionalCloud(shape, format, &converted)) {
+      const XyzFields before = findXyzFields(shape.cloud), after = findXyzFields(converted);
+      if (before.hasNormals() && after.hasNormals() &&
+          shape.cloud.fields[static_cast<std::size_t>(before.nx)].datatype == Field::FLOAT64 &&
+          converted.fields[static_cast<std::size_t>(after.nx)].datatype == Field::FLOAT32)
+        lost.emplace_back(
+            "PCD gets the double normals as float normal_x normal_y normal_z (the type PCL's "
+            "and Open3D's readers take)");
+    }
+  }
   std::string out;
   for (const std::string& l : lost) out += (out.empty() ? "" : "; ") + l;
   return out;
 }
 
 void writeShape(const std::string& path, const Shape& shape, const WriteOptions& options) {
+  refuseNul(path);
   const FileFormat format = formatFromPath(path);
   refuseInputs(path, {shape.path});
   const bool ascii = options.encoding == Encoding::Ascii;
@@ -275,7 +308,8 @@ void writeShape(const std::string& path, const Shape& shape, const WriteOptions&
     case FileFormat::Ply: writePly(path, s, ascii); break;
     case FileFormat::Pcd: writePcd(path, s, ascii); break;
     case FileFormat::Obj: writeObj(path, s); break;
-    case FileFormat::Xyz: writeXyz(path, s); break;
+    case FileFormat::Xyz: writeXyz(path, s, false); break;
+    case FileFormat::Pts: writeXyz(path, s, true); break;
     case FileFormat::Off: writeOff(path, s); break;
     case FileFormat::Stl: writeStl(path, s, ascii); break;
   }

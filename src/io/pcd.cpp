@@ -197,9 +197,22 @@ Shape readPcd(const std::string& path) {
   if (data_kind == "binary") {
     cloud.data.resize(need);
     in.read(cloud.data.data(), need, "point data");
-    if (in.remaining() >= step)
-      fail(path, "malformed data: " + num(in.remaining()) + " bytes after the last point: more data than " +
-                     declared);
+    // PCL's binary writer sizes the file to whole pages: zeros after the last point are that
+    // padding (PCL and Open3D read past them). Anything else there is data the header does not
+    // declare.
+    const std::uint64_t after = in.remaining();
+    std::uint64_t nonzero = 0;
+    for (std::uint64_t done = 0; done < after && nonzero == 0;) {
+      std::uint8_t block[4096];
+      const std::size_t len = static_cast<std::size_t>(std::min<std::uint64_t>(sizeof block, after - done));
+      in.read(block, len, "data after the last point");
+      for (std::size_t k = 0; k < len && nonzero == 0; ++k)
+        if (block[k] != 0) nonzero = done + k + 1;
+      done += len;
+    }
+    if (nonzero != 0)
+      fail(path, "malformed data: " + num(after) + " bytes after the last point, not all zero (byte " +
+                     num(nonzero) + " is not): more data than " + declared);
   } else if (data_kind == "binary_compressed") {
     shape.extras.pcd_compressed = true;
     const std::uint64_t need_nopad = points * (step - pad_bytes);

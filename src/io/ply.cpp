@@ -142,9 +142,11 @@ Shape readPly(const std::string& path) {
   const std::uint64_t avail = in.remaining();
   std::uint64_t total = 0;
   for (const auto& el : elements) {
-    const std::uint64_t per = binary ? el.minBytes() : el.props.size();
+    // A record of no properties is counted as a byte: it holds nothing, yet writing it back
+    // as ascii takes a line, and a count of them no file could hold (1e18) is no shape.
+    const std::uint64_t per = std::max<std::uint64_t>(binary ? el.minBytes() : 2 * el.props.size(), 1);
     std::uint64_t need = 0;
-    if (!mulOk(el.count, binary ? per : 2 * per, &need) || !addOk(total, need, &total))
+    if (!mulOk(el.count, per, &need) || !addOk(total, need, &total))
       fail(path, "truncated data: header declares " + num(el.count) + " '" + el.name +
                      "' records, more than any file can hold");
     if ((binary && total > avail) || (!binary && total > avail + 1))

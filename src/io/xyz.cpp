@@ -5,14 +5,24 @@
 // Column names, conservatively:
 //   - a first row that is not all numbers names the columns (a leading "//", as CloudCompare
 //     writes, is dropped). Columns named x, y and z (any case) are the coordinates; if it names
-//     no x, y and z the first three columns are. The others keep their names, as float fields.
+//     no x, y and z the first three columns are. The others keep their names, as float fields
+//     (double where a value needs it, below).
 //   - without such a row the first three columns are x, y, z. With exactly 6 columns, columns
 //     4-6 are normals nx ny nz when every row's is a unit vector (within 1e-3); else colours
 //     red green blue when every row's are integers 0..255 (stored as uchar, as in PLY) or numbers
 //     in 0..1 (floats, as in OBJ). Any other column k (counted from 0) is the float field
 //     "field<k>".
+// A column other than the coordinates is float32 unless one of its values does not fit one
+// (more digits than a float holds: a GPS time 1634567890.123456, an integer above 2^24): such a
+// column is double, so that every value is written back as it was read.
 // Written back with the same columns in the same order, the same separator (as between the
 // first row's first two values) and the row of names as it was written.
+//
+// Leica PTS (.pts, as scanners and Open3D write it) is the same with a first line holding the
+// point count (checked against the rows) and no row of names: 4 columns are x y z intensity,
+// 7 are x y z intensity red green blue, 6 as above (Open3D reads them as x y z red green blue).
+// Written as PTS, a shape gives x y z, its intensity and its red green blue; what else it has
+// is said lost.
 #include <algorithm>
 #include <cmath>
 #include <string>
@@ -25,14 +35,21 @@ namespace hgd::io_internal {
 namespace {
 
 /// Names and types of the columns of a file without a row of names (see the top of the file).
-std::vector<std::pair<std::string, std::uint8_t>> inferColumns(std::size_t cols,
-                                                               const std::vector<double>& v) {
+std::vector<std::pair<std::string, std::uint8_t>> inferColumns(std::size_t cols, const std::vector<double>& v,
+                                                               const std::vector<char>& wide, bool pts) {
+  const auto real = [&](std::size_t k) {
+    return static_cast<std::uint8_t>(wide[k] ? Field::FLOAT64 : Field::FLOAT32);
+  };
   std::vector<std::pair<std::string, std::uint8_t>> out = {
       {"x", Field::FLOAT64}, {"y", Field::FLOAT64}, {"z", Field::FLOAT64}};
   const std::size_t n = v.size() / cols;
-  bool unit = cols == 6, bytes = cols == 6, unit_range = cols == 6;
+  // PTS: an intensity in the fourth column of 4 or 7; the colours after it.
+  const std::size_t first = pts && (cols == 4 || cols == 7) ? 4 : 3;
+  if (first == 4) out.emplace_back("intensity", real(3));
+  const bool three = pts ? cols == 7 || cols == 6 : cols == 6;
+  bool unit = three && !pts, bytes = three, unit_range = three;
   for (std::size_t i = 0; i < n && (unit || bytes || unit_range); ++i) {
-    const double* c = &v[i * cols + 3];
+    const double* c = &v[i * cols + first];
     if (unit) unit = std::abs(std::sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]) - 1.0) <= 1e-3;
     for (int k = 0; k < 3; ++k) {
       bytes = bytes && c[k] >= 0 && c[k] <= 255 && c[k] == std::floor(c[k]);
@@ -40,12 +57,12 @@ std::vector<std::pair<std::string, std::uint8_t>> inferColumns(std::size_t cols,
     }
   }
   if (unit) {
-    for (const char* name : {"nx", "ny", "nz"}) out.emplace_back(name, Field::FLOAT32);
+    for (const char* name : {"nx", "ny", "nz"}) out.emplace_back(name, real(out.size()));
   } else if (bytes || unit_range) {
     for (const char* name : {"red", "green", "blue"})
-      out.emplace_back(name, static_cast<std::uint8_t>(bytes ? Field::UINT8 : Field::FLOAT32));
+      out.emplace_back(name, bytes ? std::uint8_t{Field::UINT8} : real(out.size()));
   }
-  for (std::size_t k = out.size(); k < cols; ++k) out.emplace_back("field" + num(k), Field::FLOAT32);
+  for (std::size_t k = out.size(); k < cols; ++k) out.emplace_back("field" + num(k), real(k));
   return out;
 }
 
@@ -55,8 +72,10 @@ Shape readXyz(const std::string& path) {
   TextFile xyz(path);
   std::vector<std::string> names;
   std::vector<double> values;
-  DecimalsSeen decimals;  // per column, for writing the values back as spelt
-  std::size_t cols = 0, first_row = 0;
+  DecimalsSeen decimals;   // per column, for writing the values back as spelt
+  std::vector<char> wide;  // per column: a value float32 does not hold
+  std::size_t cols = 0, first_row = 0, count_row = 0;
+  std::uint64_t count = 0;  // PTS: the point count on the first line
   std::string separator = " ", header;
   while (xyz.lex.nextLine()) {
     if (xyz.lex.peek() == '#') continue;
@@ -97,6 +116,12 @@ Shape readXyz(const std::string& path) {
       first_row = xyz.lex.line();
       continue;
     }
+    // PTS: a first line with one whole number, the count of the rows that follow.
+    if (cols == 0 && count_row == 0 && words.size() == 1 && plainUnsigned(words[0]) &&
+        parseU64(words[0], &count)) {
+      count_row = xyz.lex.line();
+      continue;
+    }
     if (values.empty()) {
       if (cols == 0) {
         cols = words.size();
@@ -120,20 +145,28 @@ Shape readXyz(const std::string& path) {
       fail(path, "non-numeric value " + excerpt(w) + " at line " + num(xyz.lex.line()) + " (column " +
                      num(bad + 1) + (hex ? "; hexadecimal numbers are not read" : "") + ")");
     }
+    wide.resize(cols, 0);
     for (std::size_t k = 0; k < words.size(); ++k) {
       double d = 0;
       parseFloating(words[k], &d);
+      if (overflowed(words[k], d))
+        fail(path, "value out of range " + excerpt(words[k]) + " at line " + num(xyz.lex.line()) +
+                       " (column " + num(k + 1) + "): beyond a double's range");
       values.push_back(d);
       decimals.see(k, words[k]);
+      if (!wide[k] && !floatHolds(d)) wide[k] = 1;
     }
   }
   if (values.empty()) fail(path, "no points: the file has no rows of numbers");
   const std::size_t n = values.size() / cols;
+  if (count_row != 0 && count != n)
+    fail(path, "malformed data: line " + num(count_row) + " gives the point count " + num(count) +
+                   ", the file has " + num(n) + " rows of points");
   if (n > std::numeric_limits<std::uint32_t>::max()) fail(path, "unsupported: more than 4294967295 points");
 
   std::vector<std::pair<std::string, std::uint8_t>> fields;
   if (names.empty()) {
-    fields = inferColumns(cols, values);
+    fields = inferColumns(cols, values, wide, count_row != 0);
   } else {
     std::vector<std::string> low(names.size());
     std::transform(names.begin(), names.end(), low.begin(), [](const std::string& s) { return lower(s); });
@@ -145,7 +178,7 @@ Shape readXyz(const std::string& path) {
       if (coord)
         fields.emplace_back(named_xyz ? low[k] : std::string(1, "xyz"[k]), Field::FLOAT64);
       else
-        fields.emplace_back(names[k], Field::FLOAT32);
+        fields.emplace_back(names[k], wide[k] ? Field::FLOAT64 : Field::FLOAT32);
     }
     std::unordered_set<std::string_view> seen;  // "x" renamed from "X" may meet another column "x"
     for (const auto& f : fields)
@@ -158,13 +191,35 @@ Shape readXyz(const std::string& path) {
   decimals.store(shape.extras, shape.extras.xyz_names);
   shape.extras.xyz_header = std::move(header);
   shape.extras.xyz_separator = separator;
+  shape.extras.xyz_count_line = count_row != 0;
   return shape;
 }
 
-void writeXyz(const std::string& path, const Shape& shape) {
-  const std::vector<const Field*> fields = checkShape(path, shape, false);
+int ptsIntensity(const pcl::PCLPointCloud2& cloud, const XyzFields& xyz) {
+  for (std::size_t k = 0; k < cloud.fields.size(); ++k) {
+    const Field& f = cloud.fields[k];
+    const int i = static_cast<int>(k);
+    if (lower(f.name) == "intensity" && fieldCount(f) == 1 && i != xyz.x && i != xyz.y && i != xyz.z)
+      return i;
+  }
+  return -1;
+}
+
+void writeXyz(const std::string& path, const Shape& shape, bool pts) {
+  std::vector<const Field*> fields = checkShape(path, shape, false);
   const pcl::PCLPointCloud2& c = shape.cloud;
-  if (!findXyzFields(c).hasXyz()) fail(path, "cannot write: no x/y/z fields");
+  const XyzFields xyz = findXyzFields(c);
+  if (!xyz.hasXyz()) fail(path, "cannot write: no x/y/z fields");
+  if (pts) {  // x y z, intensity, red green blue: the columns PTS readers know (extrasLost says the rest)
+    const auto at = [&](int k) { return &c.fields[static_cast<std::size_t>(k)]; };
+    std::vector<const Field*> kept = {at(xyz.x), at(xyz.y), at(xyz.z)};
+    if (const int i = ptsIntensity(c, xyz); i >= 0) kept.push_back(at(i));
+    const int r = findField(c, "red"), g = findField(c, "green"), b = findField(c, "blue");
+    if (r >= 0 && g >= 0 && b >= 0 && fieldCount(*at(r)) == 1 && fieldCount(*at(g)) == 1 &&
+        fieldCount(*at(b)) == 1)
+      kept.insert(kept.end(), {at(r), at(g), at(b)});
+    fields = kept;
+  }
   // The separator the file was read with: blanks and at most one comma, else a space.
   std::string sep = shape.extras.xyz_separator;
   if (sep.empty() || std::count(sep.begin(), sep.end(), ',') > 1 ||
@@ -180,10 +235,14 @@ void writeXyz(const std::string& path, const Shape& shape) {
   // The file's own row of names, as it was written, while the columns keep the names read from
   // it; else a row of names unless the reader would give the columns these names without one.
   const bool plain = names == std::vector<std::string>{"x", "y", "z"};
+  // A file read as PTS names its columns by their count alone: written as XYZ it gets a row of
+  // names. PTS has none.
   std::string buf;
-  if (names == shape.extras.xyz_names && !shape.extras.xyz_header.empty()) {
+  if (pts) {
+    buf = num(shape.size()) + "\n";
+  } else if (names == shape.extras.xyz_names && !shape.extras.xyz_header.empty()) {
     buf = shape.extras.xyz_header + "\n";
-  } else if (!plain && names != shape.extras.xyz_names) {
+  } else if (!plain && (names != shape.extras.xyz_names || shape.extras.xyz_count_line)) {
     for (std::size_t k = 0; k < names.size(); ++k) {
       if (k) buf += sep;
       buf += names[k];

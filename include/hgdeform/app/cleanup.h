@@ -5,7 +5,8 @@
 
 namespace hgd {
 
-/// Installs, for SIGINT, SIGTERM, SIGHUP and SIGPIPE, a handler that removes the temporary files
+/// Installs, for SIGINT, SIGTERM, SIGHUP, SIGPIPE, SIGQUIT, SIGUSR1, SIGUSR2, SIGALRM, SIGVTALRM,
+/// SIGXFSZ (an output past `ulimit -f`) and SIGXCPU, a handler that removes the temporary files
 /// of writes in progress (removeTemporaryFiles, <hgdeform/io.h>), then calls `also(signal)` when
 /// given (it must be async-signal-safe), then ends the process by the same signal with its
 /// default action, so that the exit status says it was killed (a shell shows 128 + the number:

@@ -45,7 +45,7 @@ struct WriteOptions {
   Encoding encoding = Encoding::Binary;
 };
 
-/// Writes a shape as PLY, PCD, OBJ, XYZ/TXT, OFF or STL (by the extension of `path`; XYZ, OFF
+/// Writes a shape as PLY, PCD, OBJ, XYZ/TXT, PTS, OFF or STL (by the extension of `path`; XYZ, OFF
 /// and OBJ are text whatever the encoding; STL needs faces), atomically: the data goes
 /// to a temporary file in the same directory which is renamed over `path` only when complete.
 /// Refuses (IoError) to write over `shape.path`, the file the shape was read from.
@@ -86,6 +86,26 @@ void refuseInputs(const std::string& output, const std::vector<std::string>& inp
 /// FIFO, a device or what a descriptor path such as /dev/stdout leads to). For "a failed run
 /// leaves no output".
 void removeOutput(const std::string& path) noexcept;
+
+/// Keeps the file an output is about to replace, so that a run that fails after writing its
+/// output (its report cannot be written) leaves the previous one as it was. Construct before
+/// writing: a regular file at `path` (or the file a link there names) is hard-linked aside as
+/// `.NAME.tmp-PID-HEX` (removed on SIGINT/SIGTERM like a write in progress, and by `batch` when
+/// its process is gone). restore() puts it back, or removes what was written where nothing was;
+/// keep() (or the destructor) drops the copy and keeps the new output.
+class PreviousOutput {
+ public:
+  explicit PreviousOutput(std::string path);
+  ~PreviousOutput();
+  PreviousOutput(const PreviousOutput&) = delete;
+  PreviousOutput& operator=(const PreviousOutput&) = delete;
+  void restore() noexcept;
+  void keep() noexcept;
+
+ private:
+  std::string path_, target_, aside_;
+  int slot_ = -1;
+};
 
 /// Removes the temporary files of writes in progress (in any thread). Async-signal-safe: a
 /// SIGINT/SIGTERM handler calls it before exiting so that an interrupted run leaves no

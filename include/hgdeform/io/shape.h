@@ -14,7 +14,9 @@ namespace hgd {
 
 /// File formats hgdeform reads and writes: PLY, PCD, OBJ, ASCII XYZ/TXT point lists, OFF
 /// and STL (ascii or binary).
-enum class FileFormat { Ply, Pcd, Obj, Xyz, Off, Stl };
+/// Pts: Leica's ASCII point list (a line with the point count, then `x y z [intensity] [r g b]`
+/// rows), as scanners and Open3D write it; read and written by the XYZ code.
+enum class FileFormat { Ply, Pcd, Obj, Xyz, Off, Stl, Pts };
 
 /// Encoding of a written file. Binary is the default, as in PCL.
 enum class Encoding { Binary, Ascii };
@@ -60,6 +62,8 @@ struct FileExtras {
   std::vector<std::string> xyz_names;
   std::string xyz_header;
   std::string xyz_separator = " ";
+  /// XYZ/TXT/PTS: the file began with a line holding its point count (PTS).
+  bool xyz_count_line = false;
   /// Text formats: how a field's values were spelt, for each field whose values written in fixed
   /// notation all had decimals: the fewest any had ("1.500000" everywhere: 6), and whether some
   /// were written with an exponent. Written back the same way (padded with zeros to as many
