@@ -23,12 +23,13 @@ from ._hgdeform import (  # noqa: F401  (the public names)
     ScenarioError,
     Shape,
     __version__,
-    read,
 )
 
 __all__ = [
     "HandleDeformation",
     "IoError",
+    "MissingFileError",
+    "MissingScenarioError",
     "Region",
     "Scenario",
     "ScenarioError",
@@ -40,7 +41,44 @@ __all__ = [
     "write",
 ]
 
-for _cls in (IoError, ScenarioError, Region, Scenario, Shape):
+class MissingFileError(IoError, FileNotFoundError):
+    """A shape file that is not there: an IoError and a FileNotFoundError (errno ENOENT,
+    filename the path); its message is the library's, '<path>: cannot open: ...'."""
+
+    def __str__(self):
+        return str(self.args[0])
+
+
+class MissingScenarioError(ScenarioError, FileNotFoundError):
+    """A scenario file that is not there: a ScenarioError and a FileNotFoundError."""
+
+    def __str__(self):
+        return str(self.args[0])
+
+
+def _refuse_missing(path, error):
+    """Raises `error` (a FileNotFoundError) naming `path` when nothing is there."""
+    import errno
+    import os
+
+    path = os.fspath(path)
+    if isinstance(path, str) and "\0" not in path and not os.path.lexists(path):
+        e = error(path + ": cannot open: No such file or directory")
+        e.errno, e.strerror, e.filename = errno.ENOENT, "No such file or directory", path
+        raise e
+
+
+def _scenario_path(scenario):
+    """The path a scenario argument names, or None (a Scenario, a dict, JSON text)."""
+    import os
+
+    if isinstance(scenario, str):
+        return None if scenario.lstrip().startswith("{") else scenario
+    return scenario if isinstance(scenario, os.PathLike) else None
+
+
+for _cls in (IoError, ScenarioError, MissingFileError, MissingScenarioError, Region, Scenario,
+             Shape):
     try:
         _cls.__module__ = "hgdeform"
     except (AttributeError, TypeError):
@@ -53,11 +91,33 @@ def _is_open3d(obj):
     return type(obj).__module__.startswith("open3d")
 
 
+def _open3d_tensor(geometry):
+    """Whether `geometry` is one of Open3D's tensor geometries (open3d.t.geometry)."""
+    return ".t." in type(geometry).__module__ + "."
+
+
 def _open3d_arrays(geometry):
-    """(points, normals or None, faces or None) of an Open3D PointCloud or TriangleMesh."""
+    """(points, normals or None, faces or None) of an Open3D PointCloud or TriangleMesh (legacy
+    or tensor, open3d.t.geometry), or of a Vector3dVector of points."""
     import numpy as np
 
     name = type(geometry).__name__
+    if name == "Vector3dVector":
+        return np.asarray(geometry), None, None
+    if _open3d_tensor(geometry):
+        def column(attributes, key):
+            return attributes[key].numpy() if key in attributes else None
+
+        if name == "PointCloud":
+            attrs = geometry.point
+            return column(attrs, "positions"), column(attrs, "normals"), None
+        if name == "TriangleMesh":
+            attrs = geometry.vertex
+            faces = column(geometry.triangle, "indices")
+            return (column(attrs, "positions"), column(attrs, "normals"),
+                    faces if faces is not None and len(faces) else None)
+        raise TypeError("an Open3D PointCloud or TriangleMesh is taken, got open3d.t "
+                        + name)
     if name == "PointCloud":
         points = np.asarray(geometry.points)
         normals = np.asarray(geometry.normals) if geometry.has_normals() else None
@@ -73,11 +133,29 @@ def _open3d_arrays(geometry):
 
 
 def _open3d_like(geometry, points, normals):
-    """A copy of `geometry` with these points (and normals)."""
+    """A copy of `geometry` with these points (and normals), of the same kind: a legacy or a
+    tensor geometry (its positions and normals keep their dtype), or a Vector3dVector."""
     import open3d
 
     vectors = open3d.utility.Vector3dVector
-    if type(geometry).__name__ == "PointCloud":
+    name = type(geometry).__name__
+    if name == "Vector3dVector":
+        return vectors(points)
+    if _open3d_tensor(geometry):
+        out = geometry.clone()
+        attrs = out.point if name == "PointCloud" else out.vertex
+
+        def store(key, values):
+            dtype = attrs[key].numpy().dtype
+            attrs[key] = open3d.core.Tensor(values.astype(dtype, copy=False))
+
+        store("positions", points)
+        if normals is not None:
+            store("normals", normals)
+        if name == "TriangleMesh" and "normals" in out.triangle:
+            out.compute_triangle_normals()  # the input's would be stale: the faces turned
+        return out
+    if name == "PointCloud":
         out = open3d.geometry.PointCloud(geometry)
         out.points = vectors(points)
         if normals is not None:
@@ -96,7 +174,18 @@ def _open3d_colors(geometry):
     """An Open3D geometry's colours as (N, 3) uint8 (what PLY files hold), or None."""
     import numpy as np
 
-    if type(geometry).__name__ == "PointCloud":
+    name = type(geometry).__name__
+    if name == "Vector3dVector":
+        return None
+    if _open3d_tensor(geometry):
+        attrs = geometry.point if name == "PointCloud" else geometry.vertex
+        if "colors" not in attrs:
+            return None
+        colors = attrs["colors"].numpy()
+        if colors.dtype == np.uint8:
+            return colors.copy()
+        colors = colors.astype(np.float64)
+    elif name == "PointCloud":
         if not geometry.has_colors():
             return None
         colors = np.asarray(geometry.colors)
@@ -108,6 +197,17 @@ def _open3d_colors(geometry):
 
 
 # --- the functions -----------------------------------------------------------------------------
+
+def read(path):
+    """Reads a PLY, PCD, OBJ, XYZ/TXT, PTS, OFF or STL file (by its content) into a Shape.
+
+    path: a str or an os.PathLike. Raises IoError (an OSError) naming the file and the problem;
+    MissingFileError (an IoError and a FileNotFoundError) when there is no file at `path`;
+    ValueError for a path with a NUL byte, as open() does.
+    """
+    _refuse_missing(path, MissingFileError)
+    return _hgdeform.read(path)
+
 
 def deform(points, scenario, normals=None, faces=None, **options):
     """Deforms a shape as a scenario says (what ``hgdeform deform`` does).
@@ -125,6 +225,8 @@ def deform(points, scenario, normals=None, faces=None, **options):
     geometry of the same kind. The report is a dict with the keys of ``--report``.
     Raises ScenarioError (a ValueError) or IoError (an OSError) with the library's message.
     """
+    if _scenario_path(scenario) is not None:
+        _refuse_missing(_scenario_path(scenario), MissingScenarioError)
     if isinstance(points, Shape):
         _no_arrays(normals, faces, "a Shape")
         return _hgdeform._deform_shape(points, scenario, options)
@@ -147,6 +249,8 @@ def field(points, scenario, normals=None, faces=None, **options):
     in the input's order: 1 on the manipulated handle, 0 on the fixed ones (and on parts no
     handle reaches), NaN for points that are not finite.
     """
+    if _scenario_path(scenario) is not None:
+        _refuse_missing(_scenario_path(scenario), MissingScenarioError)
     if isinstance(points, Shape):
         _no_arrays(normals, faces, "a Shape")
         return _hgdeform._field_shape(points, scenario, options)
@@ -158,7 +262,7 @@ def field(points, scenario, normals=None, faces=None, **options):
 
 def write(path, shape, ascii=False):
     """Writes a Shape (or an (N, 3) array, or an Open3D geometry: its normals and colours, the
-    colours as uint8 red/green/blue fields) to a PLY, PCD, OBJ, XYZ/TXT, OFF or STL file, chosen
+    colours as uint8 red/green/blue fields) to a PLY, PCD, OBJ, XYZ/TXT, PTS, OFF or STL file, chosen
     by the extension; binary unless ascii. Atomic: a failed write
     leaves no file. Warns (UserWarning) about what the format cannot hold. Raises IoError.
     """

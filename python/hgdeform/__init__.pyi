@@ -20,6 +20,12 @@ class ScenarioError(ValueError):
 class IoError(OSError):
     """A shape file that cannot be read or written; '<path>: <problem>'."""
 
+class MissingFileError(IoError, FileNotFoundError):
+    """No shape file at the path (errno ENOENT)."""
+
+class MissingScenarioError(ScenarioError, FileNotFoundError):
+    """No scenario file at the path (errno ENOENT)."""
+
 class Region:
     @staticmethod
     def sphere(center: Vec3, radius: float) -> Region: ...
@@ -95,7 +101,7 @@ class Shape:
     def __len__(self) -> int: ...
 
 def read(path: PathLike) -> Shape:
-    """Reads PLY, PCD, OBJ, XYZ/TXT, OFF or STL (by content). Raises IoError."""
+    """Reads PLY, PCD, OBJ, XYZ/TXT, PTS, OFF or STL (by content). Raises IoError."""
 
 def write(path: PathLike, shape: Union[Shape, ArrayLike, Any], ascii: bool = False) -> None:
     """Writes by extension, atomically. Raises IoError."""

@@ -87,7 +87,10 @@ std::string pathArg(const py::handle& obj, const std::string& name) {
     throw py::type_error(name + " must be a str or an os.PathLike, got " + typeName(obj));
   const py::object p = py::module_::import("os").attr("fspath")(obj);
   if (!py::isinstance<py::str>(p)) throw py::type_error(name + " must be a text path, got bytes");
-  return p.cast<std::string>();
+  std::string path = p.cast<std::string>();
+  // As Python's open(): the C library would read the path only up to the NUL (another file).
+  if (path.find('\0') != std::string::npos) throw py::value_error(name + ": embedded null byte");
+  return path;
 }
 
 /// A 3-vector (a sequence or array of 3 real numbers).
@@ -261,8 +264,9 @@ hgd::Scenario scenarioArg(const py::handle& obj) {
     const std::string s = obj.cast<std::string>();
     const auto first = s.find_first_not_of(" \t\r\n");
     if (first != std::string::npos && s[first] == '{') return hgd::parseScenario(s, "scenario");
+    const std::string path = pathArg(obj, "scenario");
     py::gil_scoped_release release;
-    return hgd::readScenario(s);
+    return hgd::readScenario(path);
   }
   if (py::hasattr(obj, "__fspath__")) {
     const std::string path = pathArg(obj, "scenario");
@@ -542,6 +546,7 @@ const char* formatName(hgd::FileFormat f) {
     case hgd::FileFormat::Xyz: return "xyz";
     case hgd::FileFormat::Off: return "off";
     case hgd::FileFormat::Stl: return "stl";
+    case hgd::FileFormat::Pts: return "pts";
   }
   return "?";
 }
@@ -1099,10 +1104,11 @@ PYBIND11_MODULE(_hgdeform, m) {
         return PyShape{hgd::readShape(path)};
       },
       py::arg("path"),
-      "Reads a PLY, PCD, OBJ, XYZ/TXT, OFF or STL file (by its content) into a Shape. Raises IoError.");
+      "Reads a PLY, PCD, OBJ, XYZ/TXT, PTS, OFF or STL file (by its content) into a Shape. Raises IoError.");
   m.def(
       "_write",
-      [](const std::string& path, const PyShape& shape, bool ascii) {
+      [](const py::handle& p, const PyShape& shape, bool ascii) {
+        const std::string path = pathArg(p, "path");
         hgd::WriteOptions wo;
         if (ascii) wo.encoding = hgd::Encoding::Ascii;
         // A copy taken with the GIL held: once it is released another thread may change the
@@ -1236,6 +1242,22 @@ PYBIND11_MODULE(_hgdeform, m) {
             const Doubles t = rowsArg(transform, "transform", 4, 4, "a 4×4 matrix");
             Eigen::Affine3d a;
             a.matrix() = Eigen::Map<const Eigen::Matrix<double, 4, 4, Eigen::RowMajor>>(t.data());
+            // A rigid motion, as documented: a bottom row other than 0 0 0 1 (a transposed
+            // translation) was dropped, a scaling or singular matrix applied.
+            if (!a.matrix().allFinite()) throw py::value_error("transform: not finite");
+            if (a.matrix().row(3) != Eigen::RowVector4d(0, 0, 0, 1))
+              throw py::value_error(
+                  "transform: the bottom row must be 0 0 0 1 (a rigid motion; is the matrix "
+                  "transposed?)");
+            const Eigen::Matrix3d r = a.linear();
+            const double off = (r.transpose() * r - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+            if (off > 1e-6 || r.determinant() <= 0)
+              throw py::value_error(
+                  "transform: the upper-left 3×3 must be a rotation (orthonormal, determinant 1); "
+                  "got one " +
+                  std::string(r.determinant() <= 0 ? "that reflects or is singular"
+                                                   : "that scales or shears") +
+                  " (|RᵀR − I| = " + std::to_string(off) + ")");
             hgd::SolveStats s;
             {
               py::gil_scoped_release release;
@@ -1244,8 +1266,8 @@ PYBIND11_MODULE(_hgdeform, m) {
             return solveStats(s, h.lastInterpolationMs());
           },
           py::arg("transform"),
-          "Frame metaphor: the manipulated handle gets this (4, 4) transform (world, relative to rest) "
-          "exactly.")
+          "Frame metaphor: the manipulated handle gets this (4, 4) rigid transform (world, relative to rest) "
+          "exactly. A matrix that is not a rotation and a translation (bottom row 0 0 0 1) is a ValueError.")
       .def(
           "reset",
           [](PyHandleDeformation& h) {

@@ -146,3 +146,57 @@ def test_bad_options(points):
         hgdeform.deform(points, tube_scenario(), k=10.0)
     with pytest.raises(TypeError, match="normals and faces are given with points arrays"):
         hgdeform.deform(hgdeform.Shape(points), tube_scenario(), normals=points)
+
+
+def test_a_path_with_a_nul_byte_is_refused_as_open_refuses_it(tmp_path, points):
+    # The C library would stop at the NUL: 'victim\0.ply' is the file 'victim'.
+    victim = tmp_path / "victim"
+    victim.write_bytes(b"precious")
+    for call in (lambda: hgdeform.write(str(victim) + "\0.ply", points),
+                 lambda: hgdeform.read(str(victim) + "\0.ply"),
+                 lambda: hgdeform.deform(points, str(victim) + "\0.json")):
+        with pytest.raises(ValueError, match="embedded null byte"):
+            call()
+    with pytest.raises(ValueError):
+        open(str(victim) + "\0.ply", "rb")  # what Python's own open() does
+    assert victim.read_bytes() == b"precious"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["victim"]
+
+
+def test_handle_transform_must_be_rigid(points):
+    h = hgdeform.HandleDeformation(points)
+    h.set_fixed([np.flatnonzero(points[:, 0] < 1.0)])
+    h.set_manipulated(np.flatnonzero(points[:, 0] > 9.0))
+    before = h.points.copy()
+    t = np.eye(4)
+    t[3, :3] = [0.0, 2.0, 0.0]  # a translation in the bottom row: the matrix transposed
+    with pytest.raises(ValueError, match="bottom row must be 0 0 0 1"):
+        h.set_handle_transform(t)
+    for bad, why in ((np.diag([2.0, 2.0, 2.0, 1.0]), "scales or shears"),
+                     (np.diag([1.0, 1.0, 0.0, 1.0]), "reflects or is singular"),
+                     (np.diag([1.0, 1.0, -1.0, 1.0]), "reflects or is singular"),
+                     (np.full((4, 4), np.nan), "not finite")):
+        with pytest.raises(ValueError, match=why):
+            h.set_handle_transform(bad)
+    assert np.array_equal(h.points, before)  # nothing was applied
+    c, s = np.cos(0.3), np.sin(0.3)
+    rigid = np.array([[c, -s, 0, 0.5], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]])
+    h.set_handle_transform(rigid)  # a rotation and a translation is taken
+    assert not np.array_equal(h.points, before)
+
+
+def test_a_missing_file_is_a_file_not_found_error(tmp_path, points):
+    import inspect
+
+    missing = tmp_path / "nothere.ply"
+    with pytest.raises(FileNotFoundError) as e:
+        hgdeform.read(missing)
+    assert isinstance(e.value, hgdeform.IoError) and e.value.filename == str(missing)
+    assert "nothere.ply" in str(e.value)
+    for call in (hgdeform.deform, hgdeform.field):
+        with pytest.raises(FileNotFoundError) as e:
+            call(points, tmp_path / "none.json")
+        assert isinstance(e.value, hgdeform.ScenarioError)
+        with pytest.raises(FileNotFoundError):
+            call(points, str(tmp_path / "none.json"))
+    assert list(inspect.signature(hgdeform.read).parameters) == ["path"]

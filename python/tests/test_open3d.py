@@ -102,3 +102,65 @@ def test_a_deformed_meshs_triangle_normals_are_recomputed():
     expected.compute_triangle_normals()
     assert not np.allclose(np.asarray(out.triangle_normals), np.asarray(mesh.triangle_normals))
     assert np.array_equal(np.asarray(out.triangle_normals), np.asarray(expected.triangle_normals))
+
+
+def test_tensor_geometries_come_back_in_kind():
+    points, normals = tube(n=900, seed=41)
+    pc = o3d.t.geometry.PointCloud(o3d.core.Tensor(points))  # float64 positions
+    pc.point.normals = o3d.core.Tensor(normals.astype(np.float32))
+    pc.point.intensity = o3d.core.Tensor(np.arange(len(points), dtype=np.float32)[:, None])
+    out, report = hgdeform.deform(pc, tube_scenario())
+    assert type(out) is o3d.t.geometry.PointCloud and out is not pc
+    expected, expected_normals, _ = hgdeform.deform(points, tube_scenario(),
+                                                    normals=normals.astype(np.float32))
+    assert out.point.positions.dtype == o3d.core.float64
+    assert same_bits(out.point.positions.numpy(), expected)
+    assert out.point.normals.dtype == o3d.core.float32  # each attribute keeps its dtype
+    assert np.array_equal(out.point.normals.numpy(), expected_normals.astype(np.float32))
+    assert np.array_equal(out.point.intensity.numpy(), pc.point.intensity.numpy())  # kept
+    assert same_bits(pc.point.positions.numpy(), points)  # the input is left as it was
+    assert report["points"] == len(points)
+
+    vertices, faces = tube_mesh()
+    mesh = o3d.t.geometry.TriangleMesh(o3d.core.Tensor(vertices.astype(np.float32)),
+                                       o3d.core.Tensor(faces))
+    out, _ = hgdeform.deform(mesh, tube_scenario())
+    assert type(out) is o3d.t.geometry.TriangleMesh
+    expected, _ = hgdeform.deform(vertices.astype(np.float32), tube_scenario(), faces=faces)
+    assert out.vertex.positions.dtype == o3d.core.float32
+    assert np.array_equal(out.vertex.positions.numpy(), expected.astype(np.float32))
+    assert np.array_equal(out.triangle.indices.numpy(), faces)
+
+
+def test_a_vector3dvector_is_taken_and_returned():
+    points, _ = tube(n=700, seed=42)
+    out, _ = hgdeform.deform(o3d.utility.Vector3dVector(points), tube_scenario())
+    assert isinstance(out, o3d.utility.Vector3dVector)
+    expected, _ = hgdeform.deform(points, tube_scenario())
+    assert same_bits(np.asarray(out), expected)
+    phi = hgdeform.field(o3d.utility.Vector3dVector(points), tube_scenario())
+    assert same_bits(phi, hgdeform.field(points, tube_scenario()))
+
+
+def test_written_pcd_is_read_by_open3d_with_normals_and_colours(tmp_path):
+    # Open3D and PCL look for normal_x and a packed rgb in a PCD: a shape made from arrays or an
+    # Open3D cloud is written with those names.
+    points, normals = tube(n=600, seed=43)
+    colors = np.random.default_rng(5).integers(0, 256, (len(points), 3)) / 255.0
+    pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
+    pc.normals = o3d.utility.Vector3dVector(normals)
+    pc.colors = o3d.utility.Vector3dVector(colors)
+    for binary in (True, False):
+        path = tmp_path / ("pc%d.pcd" % binary)
+        hgdeform.write(path, pc, ascii=not binary)
+        header = path.read_bytes()[:400].decode("latin-1")
+        assert "normal_x normal_y normal_z rgb" in header, header
+        back = o3d.io.read_point_cloud(str(path))
+        assert back.has_normals() and back.has_colors()
+        assert np.abs(np.asarray(back.normals) - normals).max() < 1e-6
+        assert np.abs(np.asarray(back.colors) - colors).max() < 1e-9
+    shape = hgdeform.Shape(points, normals)
+    hgdeform.write(tmp_path / "shape.pcd", shape)
+    back = o3d.io.read_point_cloud(str(tmp_path / "shape.pcd"))
+    assert back.has_normals()
+    assert np.abs(np.asarray(back.normals) - normals).max() < 1e-6
