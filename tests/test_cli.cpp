@@ -926,10 +926,10 @@ TEST_F(CliErrors, TruncatedBinaryPly) {
 
 TEST_F(CliErrors, UnsupportedExtension) {
   // An input is read by its content: one of no format is refused, naming the file.
-  writeText(in_.file("cloud.las"), "LASF\n");
+  writeText(in_.file("cloud.e57"), "ASTM-E57\n");
   for (const char* cmd : {"field", "deform"}) {
-    expectFailure(cmd, in_.file("cloud.las"), scenario_, {"cloud.las", "matches no format"});
-    expectFailure(cmd, bar_, scenario_, {"out.las", "extension"}, "", "out.las");
+    expectFailure(cmd, in_.file("cloud.e57"), scenario_, {"cloud.e57", "matches no format"});
+    expectFailure(cmd, bar_, scenario_, {"out.e57", "extension"}, "", "out.e57");
   }
 }
 

@@ -268,12 +268,16 @@ TEST_F(IoTest, PlyBinaryBigEndianRoundTrip) {
   roundTrip(*this, write("be.ply", samplePlyBinary(true)), checkSample);
 }
 
-TEST_F(IoTest, PlyWrittenBinaryIsLittleEndianWithOwnTypes) {
+// Written in the byte order it was read in (issue 48: a big-endian PLY came back little-endian).
+TEST_F(IoTest, PlyWrittenBinaryKeepsItsByteOrderAndOwnTypes) {
+  const Shape le = hgd::readShape(write("le.ply", samplePlyBinary(false)));
+  hgd::writeShape(path("le_out.ply"), le);
+  EXPECT_NE(slurp(path("le_out.ply")).find("format binary_little_endian 1.0"), std::string::npos);
   const Shape s = hgd::readShape(write("in.ply", samplePlyBinary(true)));
   const std::string out = path("out.ply");
   hgd::writeShape(out, s);
   const std::string text = slurp(out);
-  EXPECT_NE(text.find("format binary_little_endian 1.0"), std::string::npos);
+  EXPECT_NE(text.find("format binary_big_endian 1.0"), std::string::npos);
   EXPECT_NE(text.find("property uchar red\n"), std::string::npos);
   EXPECT_NE(text.find("property int label\n"), std::string::npos);
   EXPECT_EQ(text.find("element face"), std::string::npos);
@@ -732,9 +736,9 @@ TEST_F(IoTest, EmptyFile) {
 TEST_F(IoTest, UnsupportedExtension) {
   // An unknown extension is read by its content (tests/test_formats.cpp); content of no format
   // is refused.
-  expectReadError(write("x.las", "LASF not a format hgdeform reads\n"), "matches no format");
+  expectReadError(write("x.e57", "ASTM-E57 not a format hgdeform reads\n"), "matches no format");
   Shape s = hgd::readShape(write("a.ply", samplePlyAscii()));
-  expectIoError([&] { hgd::writeShape(path("out.las"), s); }, path("out.las"), "unsupported");
+  expectIoError([&] { hgd::writeShape(path("out.e57"), s); }, path("out.e57"), "unsupported");
   EXPECT_EQ(hgd::formatFromPath("A.PLY"), hgd::FileFormat::Ply);
   EXPECT_EQ(hgd::formatFromPath("dir.x/a.Pcd"), hgd::FileFormat::Pcd);
   EXPECT_EQ(hgd::formatFromPath("a.obj"), hgd::FileFormat::Obj);

@@ -477,6 +477,47 @@ TEST_F(OthersFiles, AShapeMadeInMemoryIsWrittenWithPclsNames) {
   }
 }
 
+// A big-endian binary PLY (as SGI-era tools and some scanners write) comes back big-endian,
+// every byte of its body the same, and PCL reads it.
+TEST_F(OthersFiles, ABigEndianPlyComesBackBigEndian) {
+  const auto cloud = as<pcl::PointXYZ>(scanLike(64, 21));
+  std::string body;
+  const auto be = [&body](const void* p, std::size_t n) {
+    const auto* b = static_cast<const char*>(p);
+    for (std::size_t k = n; k-- > 0;) body += b[k];
+  };
+  for (const auto& p : cloud) {
+    be(&p.x, 4);
+    be(&p.y, 4);
+    be(&p.z, 4);
+    const std::uint16_t label = static_cast<std::uint16_t>(&p - &cloud[0]) * 1000u;
+    be(&label, 2);
+  }
+  for (std::int32_t f = 0; f + 2 < 64; f += 3) {
+    body += '\3';
+    for (std::int32_t k = 0; k < 3; ++k) {
+      const std::int32_t v = f + k;
+      be(&v, 4);
+    }
+  }
+  const std::string head =
+      "ply\nformat binary_big_endian 1.0\nelement vertex 64\nproperty float x\nproperty float y\n"
+      "property float z\nproperty ushort label\nelement face 21\nproperty list uchar int vertex_indices\n"
+      "end_header\n";
+  writeText(path("be.ply"), head + body);
+  const Shape s = hgd::readShape(path("be.ply"));
+  hgd::writeShape(path("back.ply"), s);
+  const std::string back = slurp(path("back.ply"));
+  EXPECT_NE(back.find("format binary_big_endian 1.0\n"), std::string::npos) << back.substr(0, 200);
+  const std::size_t end = back.find("end_header\n");
+  ASSERT_NE(end, std::string::npos);
+  EXPECT_TRUE(back.substr(end + 11) == body) << "the body differs";
+  pcl::PointCloud<pcl::PointXYZ> pcl_back;
+  ASSERT_EQ(pcl::io::loadPLYFile(path("back.ply"), pcl_back), 0);
+  ASSERT_EQ(pcl_back.size(), cloud.size());
+  for (std::size_t i = 0; i < cloud.size(); ++i) ASSERT_EQ(bits(pcl_back[i].y), bits(cloud[i].y)) << i;
+}
+
 // A box's faces are compared with the file's own values: a double row at y = 0.3 is in a box
 // whose max y is 0.3, wherever the shape lies (here 10 km from the origin, where a float step
 // is a millimetre).

@@ -46,7 +46,7 @@ const char* kUsage =
     "  deform  INPUT --scenario S.json -o OUT   deform the shape as the scenario's moves say\n"
     "  batch   --scenario S.json IN_DIR -o OUT_DIR   deform every scan in a folder\n"
     "\n"
-    "INPUT and OUT are PLY, PCD, OBJ, XYZ/TXT, PTS, OFF or STL files: OUT by extension, INPUT by its\n"
+    "INPUT and OUT are PLY, PCD, OBJ, XYZ/TXT, PTS, LAS, OFF or STL files: OUT by extension, INPUT by its\n"
     "content (a note says when that differs from the extension). 'hgdeform <command> --help' for options.\n"
     "\n"
     "options:\n"
@@ -82,7 +82,8 @@ struct DeformArgs {
 void setUpCommand(CLI::App& app, const std::string& tool, std::string& input, std::string& scenario,
                   std::string& output, const std::string& scenario_help) {
   hgdcli::configureApp(app, tool);
-  app.add_option("INPUT", input, "the shape: PLY, PCD, OBJ, XYZ/TXT, PTS, OFF or STL (read by its content)")
+  app.add_option("INPUT", input,
+                 "the shape: PLY, PCD, OBJ, XYZ/TXT, PTS, LAS, OFF or STL (read by its content)")
       ->required()
       ->type_name("");
   app.add_option("-s,--scenario", scenario, scenario_help)->required()->type_name("FILE");

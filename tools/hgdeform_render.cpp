@@ -39,7 +39,8 @@ int main(int argc, char** argv) {
       "grey. A cloud is shaded: lit through its normals when it has them, else with eye-dome\n"
       "lighting. Needs an X display (run under xvfb-run on a headless machine).");
   hgdcli::configureApp(app, "hgdeform-render");
-  app.add_option("IN", inputs, "shapes to draw (PLY, PCD, OBJ, XYZ/TXT, PTS, OFF or STL), one viewport each")
+  app.add_option("IN", inputs,
+                 "shapes to draw (PLY, PCD, OBJ, XYZ/TXT, PTS, LAS, OFF or STL), one viewport each")
       ->required()
       ->type_name("")
       ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);

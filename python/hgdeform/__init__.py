@@ -199,7 +199,7 @@ def _open3d_colors(geometry):
 # --- the functions -----------------------------------------------------------------------------
 
 def read(path):
-    """Reads a PLY, PCD, OBJ, XYZ/TXT, PTS, OFF or STL file (by its content) into a Shape.
+    """Reads a PLY, PCD, OBJ, XYZ/TXT, PTS, LAS, OFF or STL file (by its content) into a Shape.
 
     path: a str or an os.PathLike. Raises IoError (an OSError) naming the file and the problem;
     MissingFileError (an IoError and a FileNotFoundError) when there is no file at `path`;
@@ -262,7 +262,7 @@ def field(points, scenario, normals=None, faces=None, **options):
 
 def write(path, shape, ascii=False):
     """Writes a Shape (or an (N, 3) array, or an Open3D geometry: its normals and colours, the
-    colours as uint8 red/green/blue fields) to a PLY, PCD, OBJ, XYZ/TXT, PTS, OFF or STL file, chosen
+    colours as uint8 red/green/blue fields) to a PLY, PCD, OBJ, XYZ/TXT, PTS, LAS, OFF or STL file, chosen
     by the extension; binary unless ascii. Atomic: a failed write
     leaves no file. Warns (UserWarning) about what the format cannot hold. Raises IoError.
     """

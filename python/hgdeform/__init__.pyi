@@ -101,7 +101,7 @@ class Shape:
     def __len__(self) -> int: ...
 
 def read(path: PathLike) -> Shape:
-    """Reads PLY, PCD, OBJ, XYZ/TXT, PTS, OFF or STL (by content). Raises IoError."""
+    """Reads PLY, PCD, OBJ, XYZ/TXT, PTS, LAS, OFF or STL (by content). Raises IoError."""
 
 def write(path: PathLike, shape: Union[Shape, ArrayLike, Any], ascii: bool = False) -> None:
     """Writes by extension, atomically. Raises IoError."""

@@ -402,6 +402,14 @@ void writeObj(const std::string& path, const Shape& shape);
 Shape readXyz(const std::string& path);
 Shape readOff(const std::string& path);
 Shape readStl(const std::string& path);
+/// ASPRS LAS 1.0-1.4 (las.cpp). lasLosses: what writing `shape` as LAS would not keep, or move
+/// (fields LAS has no place for; an offset moved so that moved points fit), "" if nothing.
+Shape readLas(const std::string& path);
+void writeLas(const std::string& path, const Shape& shape);
+std::string lasLosses(const Shape& shape);
+/// Whether a path names a LAZ file (.laz, any case).
+bool isLaz(const std::string& path);
+
 /// The field a PTS file's intensity column is written from: a scalar named intensity (any
 /// case), or -1.
 int ptsIntensity(const pcl::PCLPointCloud2& cloud, const XyzFields& xyz);

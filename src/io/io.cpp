@@ -23,6 +23,7 @@ const char* formatName(FileFormat f) {
     case FileFormat::Off: return "OFF";
     case FileFormat::Stl: return "STL";
     case FileFormat::Pts: return "PTS";
+    case FileFormat::Las: return "LAS";
   }
   return "?";
 }
@@ -35,6 +36,7 @@ std::optional<FileFormat> formatOfExtension(const std::string& ext) {
   if (ext == ".off") return FileFormat::Off;
   if (ext == ".stl") return FileFormat::Stl;
   if (ext == ".pts") return FileFormat::Pts;
+  if (ext == ".las" || ext == ".laz") return FileFormat::Las;
   return std::nullopt;
 }
 
@@ -109,6 +111,7 @@ bool hasObjStatement(std::string_view head) {
 std::optional<FileFormat> sniff(std::string_view head, std::uint64_t size, bool binary_stl = true) {
   if (head.rfind("ply\n", 0) == 0 || head.rfind("ply\r\n", 0) == 0) return FileFormat::Ply;
   if (head.rfind("# .PCD", 0) == 0) return FileFormat::Pcd;
+  if (head.rfind("LASF", 0) == 0) return FileFormat::Las;
   if (binary_stl && sizeOfBinaryStl(head, size)) return FileFormat::Stl;
   Lexer lex(head, 0);
   std::size_t header_columns = 0;         // XYZ: a first line of names, then rows of as many numbers
@@ -160,7 +163,7 @@ FileFormat formatFromPath(const std::string& path) {
   const std::string ext = lower(fs::path(path).extension().string());
   if (const auto f = formatOfExtension(ext)) return *f;
   fail(path, "unsupported file extension " + excerpt(ext) +
-                 " (expected .ply, .pcd, .obj, .xyz, .txt, .pts, .off or .stl)");
+                 " (expected .ply, .pcd, .obj, .xyz, .txt, .pts, .las, .off or .stl)");
 }
 
 FileFormat sniffFormat(const std::string& path) {
@@ -169,7 +172,7 @@ FileFormat sniffFormat(const std::string& path) {
   std::string head(static_cast<std::size_t>(std::min<std::uint64_t>(in.remaining(), 4096)), '\0');
   in.read(head.data(), head.size(), "the first bytes");
   if (const auto f = sniff(head, size)) return *f;
-  fail(path, "the content matches no format hgdeform reads (PLY, PCD, OBJ, XYZ/TXT, OFF, STL)");
+  fail(path, "the content matches no format hgdeform reads (PLY, PCD, OBJ, XYZ/TXT, PTS, LAS, OFF, STL)");
 }
 
 namespace {
@@ -209,7 +212,7 @@ Shape readShape(const std::string& path) {
   // file gets that format's own, precise error); content of a known format wins over the name.
   if (!by_content && !by_ext)
     fail(path,
-         "the content matches no format hgdeform reads (PLY, PCD, OBJ, XYZ/TXT, OFF, STL), and the "
+         "the content matches no format hgdeform reads (PLY, PCD, OBJ, XYZ/TXT, PTS, LAS, OFF, STL), and the "
          "extension " +
              excerpt(ext) + " names none");
   const FileFormat format = by_content ? *by_content : *by_ext;
@@ -220,6 +223,7 @@ Shape readShape(const std::string& path) {
     case FileFormat::Obj: shape = readObj(path); break;
     case FileFormat::Xyz:
     case FileFormat::Pts: shape = readXyz(path); break;
+    case FileFormat::Las: shape = readLas(path); break;
     case FileFormat::Off: shape = readOff(path); break;
     case FileFormat::Stl: shape = readStl(path); break;
   }
@@ -243,7 +247,14 @@ std::string extrasLost(const Shape& shape, FileFormat format) {
   if (!x.ply_elements.empty() && format != FileFormat::Ply)
     lost.emplace_back(
         "the PLY's other elements, face properties and list properties are kept only when writing PLY");
-  if (shape.isMesh() && (format == FileFormat::Pcd || format == FileFormat::Xyz || format == FileFormat::Pts))
+  if (!x.las_header.empty() && format != FileFormat::Las)
+    lost.emplace_back(
+        "the LAS's header, VLRs (its coordinate system among them) and EVLRs are kept only when "
+        "writing LAS");
+  if (format == FileFormat::Las)
+    if (std::string las = lasLosses(shape); !las.empty()) lost.push_back(std::move(las));
+  if (shape.isMesh() && (format == FileFormat::Pcd || format == FileFormat::Xyz ||
+                         format == FileFormat::Pts || format == FileFormat::Las))
     lost.push_back(std::string(formatName(format)) + " holds points only: the " + num(shape.polygons.size()) +
                    " faces are dropped");
   if (format == FileFormat::Stl || format == FileFormat::Off || format == FileFormat::Obj ||
@@ -310,6 +321,7 @@ void writeShape(const std::string& path, const Shape& shape, const WriteOptions&
     case FileFormat::Obj: writeObj(path, s); break;
     case FileFormat::Xyz: writeXyz(path, s, false); break;
     case FileFormat::Pts: writeXyz(path, s, true); break;
+    case FileFormat::Las: writeLas(path, s); break;
     case FileFormat::Off: writeOff(path, s); break;
     case FileFormat::Stl: writeStl(path, s, ascii); break;
   }

@@ -368,6 +368,7 @@ Shape readPly(const std::string& path) {
 
   cloud.is_dense = computeDense(cloud);
   shape.extras.ply_comments = std::move(comments);
+  shape.extras.ply_big_endian = format == PlyFormat::BinaryBE;
   if (any_extra) shape.extras.ply_elements = std::move(extra);
   return shape;
 }

@@ -1,5 +1,6 @@
-// PLY writing: ascii or binary in the host's byte order; a shape read from a PLY is written
-// back with every element, property and comment the file had (ply.cpp reads them).
+// PLY writing: ascii or binary (big-endian when the PLY read was, else little-endian); a shape
+// read from a PLY is written back with every element, property and comment the file had
+// (ply.cpp reads them).
 #include <algorithm>
 #include <cstring>
 #include <limits>
@@ -11,6 +12,20 @@
 namespace hgd::io_internal {
 
 namespace {
+
+/// The byte order a binary PLY of `shape` is written in: the file's own (big-endian when it was
+/// read so), else little-endian. Whether values must be swapped from the host's order.
+bool bigEndianOut(const Shape& shape) {
+  return shape.extras.ply_big_endian;
+}
+const char* binaryFormat(const Shape& shape) {
+  return bigEndianOut(shape) ? "binary_big_endian" : "binary_little_endian";
+}
+
+/// The last `size` bytes of `b` in the other byte order, when `swap`.
+void swapLast(std::vector<std::uint8_t>& b, std::size_t size, bool swap) {
+  if (swap) std::reverse(b.end() - static_cast<std::ptrdiff_t>(size), b.end());
+}
 
 /// Whether a shape's kept PLY elements still fit it (the same vertex and face counts).
 bool plyExtrasFit(const Shape& shape) {
@@ -36,7 +51,7 @@ void writePlyWithExtras(const std::string& path, const Shape& shape, bool ascii,
   const pcl::PCLPointCloud2& c = shape.cloud;
   const std::size_t n = shape.size();
   std::string h = "ply\nformat ";
-  h += ascii ? "ascii" : (kHostBigEndian ? "binary_big_endian" : "binary_little_endian");
+  h += ascii ? "ascii" : binaryFormat(shape);
   h += " 1.0\n";
   for (const auto& line : shape.extras.ply_comments) h += line + "\n";
   h += "comment written by hgdeform\n";
@@ -107,6 +122,7 @@ void writePlyWithExtras(const std::string& path, const Shape& shape, bool ascii,
 
   AtomicWriter w(path);
   w.write(h);
+  const bool swap = bigEndianOut(shape) != kHostBigEndian;
   std::vector<std::uint8_t> bin;
   std::string txt;
   std::vector<std::uint8_t>* b = ascii ? nullptr : &bin;
@@ -117,7 +133,7 @@ void writePlyWithExtras(const std::string& path, const Shape& shape, bool ascii,
     const std::uint64_t records = is_vertex ? n : el.count;
     // Binary vertices made of cloud fields alone (a file's usual case): copied per point, or in
     // one write where the cloud holds exactly those fields in that order, not value by value.
-    if (b && is_vertex && std::all_of(sources[e].begin(), sources[e].end(), [](const Source& so) {
+    if (b && !swap && is_vertex && std::all_of(sources[e].begin(), sources[e].end(), [](const Source& so) {
           return so.field != nullptr;
         })) {
       std::vector<const Field*> packed;
@@ -140,30 +156,37 @@ void writePlyWithExtras(const std::string& path, const Shape& shape, bool ascii,
           const std::size_t sz = datatypeSize(so.field->datatype);
           for (std::size_t k = 0; k < fieldCount(*so.field); ++k) {
             sep();
-            if (t)
+            if (t) {
               appendValue(*t, pt + k * sz, so.field->datatype, so.text.decimals, so.text.exponents);
-            else
+            } else {
               b->insert(b->end(), pt + k * sz, pt + (k + 1) * sz);
+              swapLast(*b, sz, swap);
+            }
           }
         } else if (so.indices) {
           const auto& poly = shape.polygons[r];
           sep();
           putValue(static_cast<double>(poly.vertices.size()), so.count_type, b, t);
+          if (b) swapLast(*b, datatypeSize(so.count_type), swap);
           for (const auto idx : poly.vertices) {
             sep();
             putValue(static_cast<double>(idx), so.prop->type, b, t);
+            if (b) swapLast(*b, datatypeSize(so.prop->type), swap);
           }
         } else if (so.prop->list) {
           const auto len = static_cast<std::size_t>(el.values.at(at++));
           sep();
           putValue(static_cast<double>(len), so.prop->count_type, b, t);
+          if (b) swapLast(*b, datatypeSize(so.prop->count_type), swap);
           for (std::size_t j = 0; j < len; ++j) {
             sep();
             putValue(el.values.at(at++), so.prop->type, b, t);
+            if (b) swapLast(*b, datatypeSize(so.prop->type), swap);
           }
         } else {
           sep();
           putValue(el.values.at(at++), so.prop->type, b, t);
+          if (b) swapLast(*b, datatypeSize(so.prop->type), swap);
         }
       }
       if (t) *t += '\n';
@@ -194,7 +217,7 @@ void writePly(const std::string& path, const Shape& shape, bool ascii) {
   const bool wide_count = max_face > 255;
 
   std::string h = "ply\nformat ";
-  h += ascii ? "ascii" : (kHostBigEndian ? "binary_big_endian" : "binary_little_endian");
+  h += ascii ? "ascii" : binaryFormat(shape);
   h += " 1.0\n";
   for (const auto& line : shape.extras.ply_comments) h += line + "\n";
   h += "comment written by hgdeform\nelement vertex " + num(n) + "\n";
@@ -220,13 +243,29 @@ void writePly(const std::string& path, const Shape& shape, bool ascii) {
     appendFaceLines(w, buf, shape.polygons);
     w.write(buf);
   } else {
-    writePackedBinary(w, c, n, fields);
+    const bool swap = bigEndianOut(shape) != kHostBigEndian;
     std::vector<std::uint8_t> buf;
+    if (!swap) {
+      writePackedBinary(w, c, n, fields);
+    } else {
+      for (std::size_t i = 0; i < n; ++i) {
+        const std::uint8_t* pt = c.data.data() + i * c.point_step;
+        for (const Field* f : fields) {
+          const std::size_t sz = datatypeSize(f->datatype);
+          for (std::size_t k = 0; k < fieldCount(*f); ++k) {
+            buf.insert(buf.end(), pt + f->offset + k * sz, pt + f->offset + (k + 1) * sz);
+            swapLast(buf, sz, true);
+          }
+        }
+        flushIfFull(w, buf);
+      }
+    }
     for (const auto& poly : shape.polygons) {
       if (wide_count) {
         const auto cnt = static_cast<std::uint32_t>(poly.vertices.size());
         const auto* b = reinterpret_cast<const std::uint8_t*>(&cnt);
         buf.insert(buf.end(), b, b + sizeof cnt);
+        swapLast(buf, sizeof cnt, swap);
       } else {
         buf.push_back(static_cast<std::uint8_t>(poly.vertices.size()));
       }
@@ -234,6 +273,7 @@ void writePly(const std::string& path, const Shape& shape, bool ascii) {
         const auto v = static_cast<std::int32_t>(idx);
         const auto* b = reinterpret_cast<const std::uint8_t*>(&v);
         buf.insert(buf.end(), b, b + sizeof v);
+        swapLast(buf, sizeof v, swap);
       }
       flushIfFull(w, buf);
     }

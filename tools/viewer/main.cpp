@@ -54,7 +54,7 @@ struct ViewArgs {
 int parseArgs(int argc, char** argv, ViewArgs& a) {
   CLI::App app(kDescription);
   hgdcli::configureApp(app, "hgdeform-view");
-  app.add_option("INPUT", a.input, "the shape: PLY, PCD, OBJ, XYZ/TXT, OFF or STL")
+  app.add_option("INPUT", a.input, "the shape: PLY, PCD, OBJ, XYZ/TXT, PTS, LAS, OFF or STL")
       ->required()
       ->type_name("");
   app.add_option("-s,--scenario", a.scenario, "handles to load (docs/scenario.md)")->type_name("S.json");

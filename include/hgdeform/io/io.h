@@ -45,7 +45,7 @@ struct WriteOptions {
   Encoding encoding = Encoding::Binary;
 };
 
-/// Writes a shape as PLY, PCD, OBJ, XYZ/TXT, PTS, OFF or STL (by the extension of `path`; XYZ, OFF
+/// Writes a shape as PLY, PCD, OBJ, XYZ/TXT, PTS, LAS, OFF or STL (by the extension of `path`; XYZ, OFF
 /// and OBJ are text whatever the encoding; STL needs faces), atomically: the data goes
 /// to a temporary file in the same directory which is renamed over `path` only when complete.
 /// Refuses (IoError) to write over `shape.path`, the file the shape was read from.

@@ -15,8 +15,9 @@ namespace hgd {
 /// File formats hgdeform reads and writes: PLY, PCD, OBJ, ASCII XYZ/TXT point lists, OFF
 /// and STL (ascii or binary).
 /// Pts: Leica's ASCII point list (a line with the point count, then `x y z [intensity] [r g b]`
-/// rows), as scanners and Open3D write it; read and written by the XYZ code.
-enum class FileFormat { Ply, Pcd, Obj, Xyz, Off, Stl, Pts };
+/// rows), as scanners and Open3D write it; read and written by the XYZ code. Las: ASPRS LAS
+/// 1.0-1.4, point formats 0-10, uncompressed.
+enum class FileFormat { Ply, Pcd, Obj, Xyz, Off, Stl, Pts, Las };
 
 /// Encoding of a written file. Binary is the default, as in PCL.
 enum class Encoding { Binary, Ascii };
@@ -55,6 +56,12 @@ struct FileExtras {
   /// as many 'vn' as 'v', the vertex of the same rank (as MeshLab and CloudCompare read one).
   std::vector<int> obj_normal_vertex;
   bool pcd_compressed = false;  ///< PCD read as binary_compressed
+  /// LAS: the public header block as read (every byte, a newer version's too), the bytes from its
+  /// end to the point records (the VLRs, the CRS among them, and any bytes a writer left there)
+  /// and every byte after the point records (waveform data, EVLRs). Written back as LAS with the
+  /// header's counts, bounds and (when points left what it could hold) offsets made true.
+  std::vector<std::uint8_t> las_header, las_vlrs, las_tail;
+  bool ply_big_endian = false;  ///< PLY read as binary_big_endian (written back so)
   /// XYZ/TXT: the names its columns were given (written back without a line of names, or with
   /// `xyz_header`, while the fields are these). The file's line of column names as it was
   /// written ("" if it had none), and the separator of its values as in its first row ("\t",
@@ -75,7 +82,10 @@ struct FileExtras {
     bool exponents = false;
   };
   std::vector<TextColumn> text_decimals;
-  bool empty() const { return ply_elements.empty() && obj_lines.empty() && !pcd_compressed; }
+  bool empty() const {
+    return ply_elements.empty() && obj_lines.empty() && !pcd_compressed && las_header.empty() &&
+           !ply_big_endian;
+  }
 };
 
 /// A point cloud or mesh with all its per-point fields.
