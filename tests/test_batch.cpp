@@ -920,6 +920,27 @@ TEST(Batch, SaysWhichEntriesAreNotScans) {
   EXPECT_TRUE(contains(top.err, "pipe.ply")) << top.err;
 }
 
+// Issue 48: a link named like a scan to a file that is none (a password file, a log) failed
+// quoting its text on stderr and in summary.json. It fails saying the content is of no format.
+TEST(Batch, AFileThatIsNoScanIsNotQuoted) {
+  TempDir dir;
+  const fs::path in = dir.path() / "in", out = dir.path() / "out", rep = dir.path() / "report";
+  const Folder f = makeScans(in, false);
+  writeText((dir.path() / "private.txt").string(), "alpha bravo charlie delta\nsecret words follow here\n");
+  fs::create_symlink(dir.path() / "private.txt", in / "linked.xyz");
+  const Result r = cli(batch(in, out, "--recursive --report " + q(rep)));
+  EXPECT_NE(r.code, 0);
+  EXPECT_EQ(countOf(r.out, ": ok "), f.good.size()) << r.out;
+  const std::string summary = slurp(rep / "summary.json");
+  for (const char* word : {"alpha", "secret", "words"}) {
+    EXPECT_FALSE(contains(r.err, word)) << r.err;
+    EXPECT_FALSE(contains(r.out, word)) << r.out;
+    EXPECT_FALSE(contains(summary, word)) << summary;
+  }
+  EXPECT_TRUE(contains(r.err, "linked.xyz")) << r.err;
+  EXPECT_TRUE(contains(r.err, "matches no format")) << r.err;
+}
+
 // Issue 28: a scan's own scenario that is there but cannot be read (a dangling link, a FIFO, a
 // folder, a loop of links) was passed over in silence: the scan took the default scenario. It
 // fails, saying which file and why; the scans beside it go on.

@@ -206,6 +206,10 @@ ScanResult processScan(const Scan& s, const Context& ctx) {
           rec && rec->invalid.empty() && rec->input == s.rel && batch::sameInput(*rec, in_before);
       input_hash = recorded ? rec->input_hash : batch::hashFile(s.input.string());
     }
+    // A file whose content is of no format (a link to a text file, a log) is said to be so, not
+    // read by its name: the reader's precise error would quote its text into stderr and the
+    // summary (the first line of a file that is no scan).
+    hgd::sniffFormat(s.input.string());
     hgd::ScenarioRunner run = hgd::ScenarioRunner::read(s.input.string());
     run.setScenario(scenario);
     run.applyMoves();
