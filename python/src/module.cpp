@@ -4,14 +4,19 @@
 //
 // One translation unit on the library's PCL-light API (Shape, Geometry, ScenarioRunner, Deformer):
 // no PCL algorithm headers, so that the module builds in well under a minute.
+#include <omp.h>
+#include <pthread.h>
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
+#include <sys/resource.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <cstring>
 #include <limits>
 #include <memory>
@@ -79,6 +84,41 @@ Doubles rowsArg(const py::handle& obj, const std::string& name, py::ssize_t cols
     throw py::value_error(want + ", got shape " + shapeText(a));
   }
   return Doubles::ensure(a);
+}
+
+/// Under an address-space limit (ulimit -v), whether the OpenMP team's stacks still fit: libgomp
+/// ends the whole interpreter when it cannot create a thread (status 1, no exception, no
+/// `finally`). The command-line tools check the same at start (blas_guard.cpp); a module
+/// cannot restart itself, so it raises MemoryError before the library works.
+void checkThreadStacks() {
+  rlimit rl{};
+  if (getrlimit(RLIMIT_AS, &rl) != 0 || rl.rlim_cur == RLIM_INFINITY) return;
+  std::size_t stack = 8u << 20;
+  pthread_attr_t attr;
+  if (pthread_getattr_default_np(&attr) == 0) {
+    pthread_attr_getstacksize(&attr, &stack);
+    pthread_attr_destroy(&attr);
+  }
+  // CHOLMOD asks for a team of 4 whatever the thread count.
+  const int threads = std::max(omp_get_max_threads(), 4);
+  const unsigned long long team = static_cast<unsigned long long>(threads - 1) * (stack + (1u << 20));
+  unsigned long long pages = 0;
+  if (std::FILE* f = std::fopen("/proc/self/statm", "r")) {
+    if (std::fscanf(f, "%llu", &pages) != 1) pages = 0;
+    std::fclose(f);
+  }
+  const unsigned long long mapped = pages * static_cast<unsigned long long>(sysconf(_SC_PAGESIZE));
+  const unsigned long long limit = rl.rlim_cur;
+  if (limit >= mapped + team + (64ull << 20)) return;
+  char msg[400];
+  std::snprintf(
+      msg, sizeof msg,
+      "the address-space limit (ulimit -v %llu kB) leaves %lld MB; %d OpenMP threads need %llu MB of "
+      "stacks: set OMP_NUM_THREADS lower (or raise the limit)",
+      limit / 1024, (static_cast<long long>(limit) - static_cast<long long>(mapped)) / (1 << 20), threads,
+      (team + (64ull << 20)) >> 20);
+  PyErr_SetString(PyExc_MemoryError, msg);
+  throw py::error_already_set();
 }
 
 /// A path: a str or an os.PathLike (pathlib.Path).
@@ -547,6 +587,7 @@ const char* formatName(hgd::FileFormat f) {
     case hgd::FileFormat::Off: return "off";
     case hgd::FileFormat::Stl: return "stl";
     case hgd::FileFormat::Pts: return "pts";
+    case hgd::FileFormat::Las: return "las";
   }
   return "?";
 }
@@ -681,7 +722,7 @@ double cppDeformMs(const py::handle& points, const hgd::Scenario& scenario, cons
 class PyHandleDeformation {
  public:
   PyHandleDeformation(hgd::Shape shape, hgd::RunOptions options)
-      : shape_(std::move(shape)),
+      : shape_((checkThreadStacks(), std::move(shape))),
         // extractGeometry's own geometry (Morton order, its origin), as ScenarioRunner builds it
         // for `hgdeform deform`: the library's sampling depends on the points' order, so any
         // other order gives another (equally valid, not bit-equal) result.
@@ -1104,7 +1145,8 @@ PYBIND11_MODULE(_hgdeform, m) {
         return PyShape{hgd::readShape(path)};
       },
       py::arg("path"),
-      "Reads a PLY, PCD, OBJ, XYZ/TXT, PTS, OFF or STL file (by its content) into a Shape. Raises IoError.");
+      "Reads a PLY, PCD, OBJ, XYZ/TXT, PTS, LAS, OFF or STL file (by its content) into a Shape. Raises "
+      "IoError.");
   m.def(
       "_write",
       [](const py::handle& p, const PyShape& shape, bool ascii) {
@@ -1130,12 +1172,14 @@ PYBIND11_MODULE(_hgdeform, m) {
       "_deform_arrays",
       [](const py::handle& points, const py::handle& scenario, const py::handle& normals,
          const py::handle& faces, const py::dict& options) {
+        checkThreadStacks();
         return deformArrays(points, scenarioArg(scenario), normals, faces, options);
       },
       py::arg("points"), py::arg("scenario"), py::arg("normals"), py::arg("faces"), py::arg("options"));
   m.def(
       "_deform_shape",
       [](const PyShape& shape, const py::handle& scenario, const py::dict& options) {
+        checkThreadStacks();
         return deformShape(shape, scenarioArg(scenario), options);
       },
       py::arg("shape"), py::arg("scenario"), py::arg("options"));
@@ -1143,6 +1187,7 @@ PYBIND11_MODULE(_hgdeform, m) {
       "_field_arrays",
       [](const py::handle& points, const py::handle& scenario, const py::handle& normals,
          const py::handle& faces, const py::dict& options) {
+        checkThreadStacks();
         PyShape s = shapeFromPython(points, normals, faces);
         return fieldOf(std::move(s.s), scenarioArg(scenario), options);
       },
@@ -1150,6 +1195,7 @@ PYBIND11_MODULE(_hgdeform, m) {
   m.def(
       "_field_shape",
       [](const PyShape& shape, const py::handle& scenario, const py::dict& options) {
+        checkThreadStacks();
         const hgd::Scenario sc = scenarioArg(scenario);  // (may release the GIL: a scenario file)
         return fieldOf(shape.s, sc, options);            // a copy, taken with the GIL held
       },

@@ -89,3 +89,29 @@ def test_a_handle_deformation_frame_releases_the_gil():
     assert len(inside) >= 5, (len(inside), end - start)
     gaps = np.diff([start, *inside, end])
     assert gaps.max() < 0.5 * (end - start), (gaps.max(), end - start)
+
+
+def test_too_many_threads_under_an_address_space_limit_is_a_memory_error():
+    # libgomp ended the interpreter (status 1, no exception, no `finally`) when it could not
+    # create its threads' stacks under `ulimit -v`: the module checks first, as the tools do.
+    import os
+    import subprocess
+    import sys
+
+    code = (
+        "import numpy as np, hgdeform\n"
+        "from conftest import tube, tube_scenario\n"
+        "p, n = tube(n=600)\n"
+        "try:\n"
+        "    hgdeform.deform(p, tube_scenario())\n"
+        "    print('ran')\n"
+        "except MemoryError as e:\n"
+        "    print('MemoryError', 'OMP_NUM_THREADS' in str(e))\n"
+        "finally:\n"
+        "    print('finally')\n")
+    env = dict(os.environ, OMP_NUM_THREADS="1000", OPENBLAS_NUM_THREADS="1")
+    here = os.path.dirname(os.path.abspath(__file__))
+    r = subprocess.run(["bash", "-c", 'ulimit -v 4000000; exec "$0" -c "$1"', sys.executable, code],
+                       capture_output=True, text=True, env=env, cwd=here, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.split("\n")[:2] == ["MemoryError True", "finally"], r.stdout + r.stderr
