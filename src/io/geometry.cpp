@@ -135,6 +135,40 @@ Geometry extractGeometry(const Shape& shape) {
   // size, or beyond 1e12 units: a corrupt block decoded to 1e22) cannot be deformed with it in any precision
   // that means something (and their squared distances would overflow): they are set apart like NaN points,
   // written back untouched, with a warning.
+  // A scanner's "no return": points at exactly (0, 0, 0) while the shape lies far from the origin
+  // (over a thousand times its size). However many they are (60% of a georeferenced patch),
+  // they are no part of it, yet they would set the frame's origin and size (the median and the
+  // spread) and cost the deformation its precision. Set apart like far points: untouched, said.
+  std::size_t no_return = 0;
+  {
+    const auto isZero = [](const Eigen::Vector3d& w) { return w.x() == 0 && w.y() == 0 && w.z() == 0; };
+    const std::size_t zeros = static_cast<std::size_t>(std::count_if(world.begin(), world.end(), isZero));
+    if (zeros > 0 && zeros < world.size()) {
+      std::vector<Eigen::Vector3d> rest;
+      rest.reserve(world.size() - zeros);
+      for (const auto& w : world)
+        if (!isZero(w)) rest.push_back(w);
+      const RobustFrame nz = robustFrame(rest);
+      const double distance = nz.centre.cwiseAbs().maxCoeff();
+      if (distance > 1000 * nz.extent) {
+        std::size_t k = 0;
+        for (std::size_t j = 0; j < world.size(); ++j) {
+          if (isZero(world[j])) continue;  // finite_index stays -1: written back as it is
+          g.raw_index[k] = g.raw_index[j];
+          world[k++] = world[j];
+        }
+        world.resize(k);
+        g.raw_index.resize(k);
+        no_return = zeros;
+        char buf[300];
+        std::snprintf(buf, sizeof buf,
+                      "%zu %s at exactly (0, 0, 0), %.3g units from the shape (whose size is %.3g): a "
+                      "scanner's 'no return' points, left where they are, untouched",
+                      zeros, zeros == 1 ? "point lies" : "points lie", distance, nz.extent);
+        g.warnings.push_back((shape.path.empty() ? std::string() : shape.path + ": ") + buf);
+      }
+    }
+  }
   const RobustFrame frame = robustFrame(world);
   if (frame.extent > kMaxExtent) {
     char buf[200];
@@ -197,7 +231,7 @@ Geometry extractGeometry(const Shape& shape) {
       body_lo = body_lo.cwiseMin(lo_in[b]);
       body_hi = body_hi.cwiseMax(hi_in[b]);
     }
-    g.far_points = far_count;
+    g.far_points = far_count + no_return;
     if (far_count > 0) {
       char buf[300];
       std::snprintf(buf, sizeof buf,
