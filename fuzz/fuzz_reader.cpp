@@ -1,5 +1,5 @@
-// libFuzzer target: one shape reader (HGD_FUZZ_EXTENSION picks PLY, PCD, OBJ, XYZ, OFF or STL). The input is
-// written to a temporary file with that extension and read with hgd::readShape. It must give a
+// libFuzzer target: one shape reader (HGD_FUZZ_EXTENSION picks PLY, PCD, OBJ, XYZ, OFF, STL, PTS or LAS). The
+// input is written to a temporary file with that extension and read with hgd::readShape. It must give a
 // consistent shape or throw hgd::IoError; a crash, a sanitizer report or any other exception is
 // a bug. A shape that reads is also written back and read again.
 #include <unistd.h>
@@ -17,7 +17,8 @@
 #include "hgdeform/io/io.h"
 
 #ifndef HGD_FUZZ_EXTENSION
-#error "define HGD_FUZZ_EXTENSION (\".ply\", \".pcd\", \".obj\", \".xyz\", \".off\" or \".stl\")"
+#error \
+    "define HGD_FUZZ_EXTENSION (\".ply\", \".pcd\", \".obj\", \".xyz\", \".off\", \".stl\", \".pts\" or \".las\")"
 #endif
 
 namespace {

@@ -129,6 +129,65 @@ out("stl", "binary.stl", b" " * 80 + struct.pack("<I", len(TRIS)) + b"".join(
     struct.pack("<3f", 0, 0, 1) + b"".join(struct.pack("<3f", *v) for v in t) + struct.pack("<H", 0) for t in TRIS))
 out("stl", "bad_count.stl", b" " * 80 + struct.pack("<I", 9) + b"\0" * 50)
 
+# --- PTS (Leica) ------------------------------------------------------------------------------
+
+out("pts", "plain.pts", "5\n" + "".join("%g %g %g\n" % p for p in PTS))
+out("pts", "intensity_rgb.pts", "5\n" + "".join("%g %g %g -1200 10 200 30\n" % p for p in PTS))
+out("pts", "intensity.pts", "5\n" + "".join("%g %g %g 17\n" % p for p in PTS))
+out("pts", "count_wrong.pts", "9\n1 2 3\n4 5 6\n")
+out("pts", "no_count.pts", "1 2 3\n4 5 6\n")
+
+# --- LAS -----------------------------------------------------------------------------------
+
+
+def las_file(minor, fmt, rec_len, points, vlrs=b"", nvlr=0, evlrs=b"", nevlr=0):
+    """An ASPRS LAS file: 1.<minor> header, the VLR bytes, the point records, the EVLR bytes."""
+    hsize = {0: 227, 1: 227, 2: 227, 3: 235, 4: 375}[minor]
+    offset = hsize + len(vlrs)
+    n = len(points) // rec_len
+    h = b"LASF" + struct.pack("<HH", 7, 0) + b"\0" * 16 + struct.pack("<BB", 1, minor)
+    h += b"seed".ljust(32, b"\0") + b"make_corpus.py".ljust(32, b"\0") + struct.pack("<HH", 1, 2026)
+    h += struct.pack("<HIIBH", hsize, offset, nvlr, fmt, rec_len)
+    h += struct.pack("<I", n if fmt < 6 else 0) + struct.pack("<5I", n, 0, 0, 0, 0)
+    h += struct.pack("<3d", 0.01, 0.01, 0.01) + struct.pack("<3d", 100.0, 200.0, 0.0)
+    h += struct.pack("<6d", 101.0, 100.0, 201.0, 200.0, 1.0, 0.0)
+    if minor >= 3:
+        h += struct.pack("<Q", 0)
+    if minor >= 4:
+        h += struct.pack("<QI", offset + len(points) if nevlr else 0, nevlr)
+        h += struct.pack("<Q", n) + struct.pack("<15Q", n, *([0] * 14))
+    assert len(h) == hsize
+    return h + vlrs + points + evlrs
+
+
+def vlr(user, rid, data, desc=b"seed"):
+    return struct.pack("<H", 0) + user.ljust(16, b"\0") + struct.pack("<HH", rid, len(data)) + desc.ljust(
+        32, b"\0") + data
+
+
+def ints(p):
+    return struct.pack("<3i", int(p[0] * 100), int(p[1] * 100), int(p[2] * 100))
+
+
+# format 0 (1.0), format 3 (1.2, GPS time and RGB), format 1 with a truncated record block
+f0 = b"".join(ints(p) + struct.pack("<HBBbBH", 10 * i, 0x09, 2, -5, 1, 7) for i, p in enumerate(PTS))
+out("las", "format0_v10.las", las_file(0, 0, 20, f0))
+f3 = b"".join(ints(p) + struct.pack("<HBBbBHd3H", i, 0x11, 5, 3, 0, 1, 1e5 + i, 65535, i, 0)
+              for i, p in enumerate(PTS))
+out("las", "format3_v12.las", las_file(2, 3, 34, f3, vlr(b"LASF_Projection", 34735, struct.pack("<8H", 1, 1, 0, 1,
+                                                                                                  1024, 0, 1, 1)), 1))
+out("las", "truncated.las", las_file(2, 1, 28, f0[:40] + b"\0" * 16)[:-10])
+# format 6 (1.4) with two extra bytes (a scaled short), its descriptor VLR and a WKT EVLR
+eb = struct.pack("<2sBB32s4s", b"\0\0", 4, 0x08, b"height".ljust(32, b"\0"), b"\0" * 4) + b"\0" * 72
+eb += struct.pack("<d", 0.1) + b"\0" * 16 + b"\0" * 24 + b"above ground".ljust(32, b"\0")
+assert len(eb) == 192
+f6 = b"".join(ints(p) + struct.pack("<HBBBBhHd", 3, 0x11, 0x40, 2, 0, -100, 4, 1e6 + i) + struct.pack("<h", i)
+              for i, p in enumerate(PTS))
+wkt = b'LOCAL_CS["seed"]\0'
+evlr = struct.pack("<H", 0) + b"LASF_Projection".ljust(16, b"\0") + struct.pack("<HQ", 2112, len(wkt)) + b"wkt".ljust(
+    32, b"\0") + wkt
+out("las", "format6_extra_v14.las", las_file(4, 6, 32, f6, vlr(b"LASF_Spec", 4, eb), 1, evlr, 1))
+
 # --- scenario --------------------------------------------------------------------------------
 
 F = "hgdeform-scenario/1"

@@ -11,7 +11,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 secs=${1:-60}
 build=build-fuzz
-targets=(fuzz_scenario fuzz_ply fuzz_pcd fuzz_obj fuzz_xyz fuzz_off fuzz_stl)
+targets=(fuzz_scenario fuzz_ply fuzz_pcd fuzz_obj fuzz_xyz fuzz_off fuzz_stl fuzz_pts fuzz_las)
 
 source scripts/ccache.sh
 cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo "${HGD_LAUNCHER[@]}" \
