@@ -213,10 +213,23 @@ Compared deformAndCompare(const std::string& path, const std::string& scenario, 
 
 // The issue's case: a no-move run with one far stray wrote every y as 0. Now every value comes
 // back bit for bit, in every format, and the far stray is named.
+static void noMoveWritesEveryValueBackBitForBit(const std::string& scenario);
+
+// A scenario without a move, and (issue 48) one whose move is no motion: a frame of 0 rewrote
+// every point outside the fixed handle by the rounding of a solve about a far origin.
 TEST(Precision, NoMoveWritesEveryValueBackBitForBit) {
+  for (const char* move : {"", R"(, "move": {"frame": {"translate": [0, 0, 0]}})",
+                           R"(, "move": {"frame": {"rotate": {"axis": [0, 0, 1], "degrees": 0}}})"}) {
+    SCOPED_TRACE(move);
+    noMoveWritesEveryValueBackBitForBit(
+        std::string(kGridScenarioNoMove).insert(std::string(kGridScenarioNoMove).rfind('}'), move));
+  }
+}
+
+static void noMoveWritesEveryValueBackBitForBit(const std::string& scenario) {
   TempDir dir;
   const auto pts = grid({{0, 1e10, 0}});
-  writeText(dir.file("s.json"), kGridScenarioNoMove);
+  writeText(dir.file("s.json"), scenario);
   std::vector<std::string> inputs;
   writePly(dir.file("float.ply"), pts, false);
   writePly(dir.file("double.ply"), pts, true);

@@ -214,6 +214,11 @@ DragResult Deformer::dragTo(const Eigen::Vector3d& from, const Eigen::Vector3d& 
   });
   last_to_ = from;
   const double diag = 1.0 / scale_;
+  if (start == to) {  // the picked point is already there: nothing to solve, nothing moves
+    r.reached = true;
+    r.last.converged = true;
+    return r;
+  }
   // The cursor's path in frames of at most max_drag_step; a target absurdly far away gets at
   // most half the frame budget for the path (longer steps) instead of running for ever.
   const double steps = std::ceil((to - start).norm() / (options_.max_drag_step * diag));
@@ -256,6 +261,13 @@ Eigen::Vector3d Deformer::handleCentre() const {
 
 SolveStats Deformer::moveHandle(const Eigen::Affine3d& motion) {
   if (!motion.matrix().allFinite()) throw std::invalid_argument("moveHandle: motion is not finite");
+  // No motion at all (a frame move of 0): nothing is solved, so nothing moves, not even by the
+  // rounding of a solve about a far origin (what did not move comes back bit for bit).
+  if (motion.matrix() == Eigen::Matrix4d::Identity()) {
+    SolveStats none;
+    none.converged = true;
+    return none;
+  }
   // A large jump (a half turn given at once) has no preferred way round for the clusters in
   // between: Gauss-Newton from the old pose would sit at the saddle and collapse them. So the
   // handle travels there as a user would move it: in steps of at most 20 degrees and a tenth
