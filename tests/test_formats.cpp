@@ -240,12 +240,40 @@ TEST(Xyz, SeparatorsAndRowOfNamesAreKeptAsWritten) {
   // The names as read: the coordinates x y z whatever the row called them.
   hgdtest::writeText(in, "a b c d\n1 2 3 4\n");
   EXPECT_EQ(names(hgd::readShape(in)), (std::vector<std::string>{"x", "y", "z", "d"}));
-  // A field added since: a new row of names, with the file's separator.
+  // A field added since: a new row of names, with the file's separator, in CloudCompare's
+  // spelling (issue 48: CloudCompare ignores a row of names without the "//").
   hgdtest::writeText(in, "1\t2\t3\n");
   Shape s = hgd::readShape(in);
   hgd::addFloatField(s.cloud, "w");
   hgd::writeShape(out, s);
-  EXPECT_EQ(hgdtest::slurp(out), "x\ty\tz\tw\n1\t2\t3\t0\n");
+  EXPECT_EQ(hgdtest::slurp(out), "//X\tY\tZ\tw\n1\t2\t3\t0\n");
+  EXPECT_EQ(names(hgd::readShape(out)), (std::vector<std::string>{"x", "y", "z", "w"}));
+}
+
+// CloudCompare's ASCII header names normals Nx Ny Nz and colours R G B (A): they are the normals
+// (turned by a deformation) and uchar colours, and a PLY made from the file declares them so.
+TEST(Xyz, CloudComparesColumnNamesAreNormalsAndColours) {
+  TempDir dir;
+  const std::string in = dir.file("cc.txt");
+  hgdtest::writeText(
+      in,
+      "//X Y Z R G B A Intensity Nx Ny Nz\n0 0 0 10 20 30 255 0.5 0 0 1\n1 0 0 40 50 60 128 0.25 0 1 0\n"
+      "0 1 0 70 80 90 0 1 1 0 0\n");
+  const Shape s = hgd::readShape(in);
+  EXPECT_EQ(names(s), (std::vector<std::string>{"x", "y", "z", "red", "green", "blue", "alpha", "Intensity",
+                                                "nx", "ny", "nz"}));
+  EXPECT_TRUE(hgd::findXyzFields(s.cloud).hasNormals());
+  EXPECT_EQ(s.cloud.fields[3].datatype, pcl::PCLPointField::UINT8);
+  EXPECT_EQ(s.cloud.fields[6].datatype, pcl::PCLPointField::UINT8);
+  EXPECT_EQ(value(s, 1, "green"), 50);
+  const std::string out = dir.file("back.txt");
+  hgd::writeShape(out, s);
+  EXPECT_EQ(hgdtest::slurp(out), hgdtest::slurp(in));  // the header and rows as written
+  const std::string ply = dir.file("cc.ply");
+  hgd::writeShape(ply, s);
+  const std::string head = hgdtest::slurp(ply).substr(0, 500);
+  for (const char* p : {"property uchar red\n", "property uchar alpha\n", "property float nx\n"})
+    EXPECT_NE(head.find(p), std::string::npos) << p << head;
 }
 
 // A '#' comment after a row's values is skipped, as a whole-line comment is; a value that is no
@@ -331,6 +359,63 @@ TEST(Off, ColourAndNormalVariants) {
   EXPECT_EQ(names(b), names(s));
   for (std::size_t i = 0; i < 4; ++i)
     for (const auto& n : names(s)) EXPECT_EQ(value(b, i, n), value(s, i, n)) << n;
+}
+
+// Colours without alpha get an opaque one in OFF (Open3D and CloudCompare read r g b a and
+// misread three values); 0..1 colours (an OBJ's) become 0..255 there, as OFF's readers take any
+// colour (issue 48).
+TEST(Off, ColoursAreWrittenWithAlphaAndAsBytes) {
+  TempDir dir;
+  const std::string obj = dir.file("c.obj");
+  hgdtest::writeText(obj, "v 0 0 0 1 0 0.5\nv 1 0 0 0 1 0\nv 0 1 0 0.2 0.4 1\nf 1 2 3\n");
+  const std::string out = dir.file("c.off");
+  hgd::writeShape(out, hgd::readShape(obj));
+  // 0.5 * 255 = 127.5 rounds to 128; 0.2 * 255 = 51, 0.4 * 255 = 102
+  EXPECT_EQ(hgdtest::slurp(out),
+            "COFF\n3 1 0\n0 0 0 255 0 128 255\n1 0 0 0 255 0 255\n0 1 0 51 102 255 255\n3 0 1 2\n");
+  const std::string ply = dir.file("c.ply");
+  hgdtest::writeText(ply,
+                     "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
+                     "property float z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\n"
+                     "end_header\n1 2 3 4 5 6\n");
+  const std::string out2 = dir.file("p.off");
+  hgd::writeShape(out2, hgd::readShape(ply));
+  EXPECT_EQ(hgdtest::slurp(out2), "COFF\n1 0 0\n1 2 3 4 5 6 255\n");
+}
+
+// An OBJ whose every vertex has one normal (each corner v//vn naming the same one) gives them
+// as nx ny nz; corners that give a vertex two normals keep them with the lines only. A shape
+// with normals is written to OBJ with one 'vn' per 'v' and faces naming them (issue 48).
+TEST(Obj, VertexNormalsAreFieldsBothWays) {
+  TempDir dir;
+  const std::string p = dir.file("n.obj");
+  hgdtest::writeText(p,
+                     "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nvn 0 0 1\nvn 0.6 0 0.8\nvn 0 -1 0\n"
+                     "f 1//3 2//1 3//2\nf 2//1 4//2 3//2\n");
+  const Shape s = hgd::readShape(p);
+  ASSERT_EQ(names(s), (std::vector<std::string>{"x", "y", "z", "nx", "ny", "nz"}));
+  const float want[4][3] = {{0, -1, 0}, {0, 0, 1}, {0.6f, 0, 0.8f}, {0.6f, 0, 0.8f}};
+  for (std::size_t i = 0; i < 4; ++i)
+    for (int a = 0; a < 3; ++a)
+      EXPECT_EQ(value(s, i, std::string("n") + "xyz"[a]), want[i][a]) << i << " " << a;
+  const std::string ply = dir.file("n.ply");
+  hgd::writeShape(ply, s);
+  EXPECT_EQ(names(hgd::readShape(ply)), (std::vector<std::string>{"x", "y", "z", "nx", "ny", "nz"}));
+
+  // vertex 2 (index 1) with two normals: no fields
+  const std::string q = dir.file("m.obj");
+  hgdtest::writeText(q,
+                     "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nvn 0 1 0\nf 1//1 2//1 3//1\nf 1//1 3//1 2//2\n");
+  EXPECT_EQ(names(hgd::readShape(q)), (std::vector<std::string>{"x", "y", "z"}));
+
+  const std::string back = dir.file("back.obj");
+  hgd::writeShape(back, hgd::readShape(ply));
+  EXPECT_EQ(hgdtest::slurp(back),
+            "# written by hgdeform\nv 0 0 0\nvn 0 -1 0\nv 1 0 0\nvn 0 0 1\nv 0 1 0\nvn 0.6 0 0.8\n"
+            "v 1 1 0\nvn 0.6 0 0.8\nf 1//1 2//2 3//3\nf 2//2 4//4 3//3\n");
+  const Shape b = hgd::readShape(back);
+  for (std::size_t i = 0; i < 4; ++i)
+    for (const auto& n : names(s)) EXPECT_EQ(value(b, i, n), value(s, i, n)) << i << n;
 }
 
 // More lines than the header declares: an error naming the line, as PLY does, instead of

@@ -104,6 +104,19 @@ std::size_t xyzCommentStart(std::string_view line) {
   return std::string_view::npos;
 }
 
+bool unitColours(const pcl::PCLPointCloud2& c, std::initializer_list<long> channels) {
+  const std::size_t n = static_cast<std::size_t>(c.width) * c.height;
+  for (const long k : channels) {
+    const Field& f = c.fields[static_cast<std::size_t>(k)];
+    if ((f.datatype != Field::FLOAT32 && f.datatype != Field::FLOAT64) || fieldCount(f) != 1) return false;
+    for (std::size_t i = 0; i < n; ++i) {
+      const double v = readValue(c, i, f);
+      if (!(v >= 0 && v <= 1)) return false;
+    }
+  }
+  return true;
+}
+
 bool conventionalCloud(const Shape& shape, FileFormat target, pcl::PCLPointCloud2* out) {
   if (shape.format == target || target == FileFormat::Stl) return false;
   const pcl::PCLPointCloud2& c = shape.cloud;
@@ -148,11 +161,23 @@ bool conventionalCloud(const Shape& shape, FileFormat target, pcl::PCLPointCloud
     const long cv = findAlias({"curvature", "scalar_curvature"}, "curvature");
     if (cv >= 0) name[static_cast<std::size_t>(cv)] = "curvature";
   }
+  // PLY's readers (MeshLab, Open3D, CloudCompare, PCL) take colours as uchar, and OFF's (Open3D,
+  // MeshLab) as 0..255 whatever their spelling: colours of 0..1 floats (an OBJ's, an XYZ's)
+  // become 0..255 (extrasLost says so).
+  std::vector<char> unit_colour(in.size(), 0);
+  if (ply || target == FileFormat::Off) {
+    const long r = exact.count("red") ? static_cast<long>(exact["red"]) : -1,
+               gr = exact.count("green") ? static_cast<long>(exact["green"]) : -1,
+               b = exact.count("blue") ? static_cast<long>(exact["blue"]) : -1;
+    if (r >= 0 && gr >= 0 && b >= 0 && unitColours(c, {r, gr, b}))
+      for (const long k : {r, gr, b}) unit_colour[static_cast<std::size_t>(k)] = 1;
+  }
   if (target == FileFormat::Pts) {
     const long i = findAlias({"intensity", "scalar_intensity"}, "intensity");
     if (i >= 0) name[static_cast<std::size_t>(i)] = "intensity";
   }
-  for (std::size_t k = 0; k < in.size(); ++k) changed = changed || name[k] != in[k].name || narrow[k];
+  for (std::size_t k = 0; k < in.size(); ++k)
+    changed = changed || name[k] != in[k].name || narrow[k] || unit_colour[k];
 
   // The fields written, each a copy of a field (renamed), a byte of a packed colour, or a
   // packed colour made of red/green/blue(/alpha) bytes.
@@ -162,6 +187,7 @@ bool conventionalCloud(const Shape& shape, FileFormat target, pcl::PCLPointCloud
     int shift = -1;                   // a byte of the packed colour `src`
     long rgba[4] = {-1, -1, -1, -1};  // packed from these bytes
     bool narrow = false;              // `src` is a double, written as a float
+    bool unit_colour = false;         // `src` is a 0..1 colour, written as a byte
   };
   std::vector<Part> parts;
   const auto byteField = [&](const char* n) {
@@ -235,6 +261,10 @@ bool conventionalCloud(const Shape& shape, FileFormat target, pcl::PCLPointCloud
         p.f.datatype = Field::FLOAT32;
         p.narrow = true;
       }
+      if (unit_colour[k]) {
+        p.f.datatype = Field::UINT8;
+        p.unit_colour = true;
+      }
       parts.push_back(p);
     }
   }
@@ -265,6 +295,9 @@ bool conventionalCloud(const Shape& shape, FileFormat target, pcl::PCLPointCloud
         std::uint32_t bits = 0;
         std::memcpy(&bits, src + in[static_cast<std::size_t>(p.src)].offset, 4);
         *d = static_cast<std::uint8_t>((bits >> p.shift) & 0xFFu);
+      } else if (p.unit_colour) {
+        const double v = readValue(c, i, in[static_cast<std::size_t>(p.src)]);
+        *d = static_cast<std::uint8_t>(std::lround(std::clamp(v, 0.0, 1.0) * 255.0));
       } else if (p.narrow) {
         double v;
         std::memcpy(&v, src + in[static_cast<std::size_t>(p.src)].offset, 8);

@@ -179,6 +179,8 @@ std::size_t xyzCommentStart(std::string_view line);
 /// or rgba (uint32) for PCD. A name is given only when no other field has it. False (and `out`
 /// untouched) when nothing changes: a shape written in its own format is written as read.
 bool conventionalCloud(const Shape& shape, FileFormat target, pcl::PCLPointCloud2* out);
+/// Whether these fields (red, green, blue) are floats, every value in 0..1.
+bool unitColours(const pcl::PCLPointCloud2& c, std::initializer_list<long> channels);
 
 /// False if any x, y or z value is NaN or infinite.
 bool computeDense(const pcl::PCLPointCloud2& cloud);

@@ -241,9 +241,10 @@ std::string extrasLost(const Shape& shape, FileFormat format) {
   const FileExtras& x = shape.extras;
   std::vector<std::string> lost;
   if (!x.obj_lines.empty() && format != FileFormat::Obj)
-    lost.emplace_back(
-        "the OBJ's texture coordinates, normals, groups, materials, face corners, vertex weights and "
-        "colours of some vertices only are kept only when writing OBJ");
+    lost.emplace_back(std::string("the OBJ's texture coordinates, ") +
+                      (findXyzFields(shape.cloud).hasNormals() ? "" : "normals, ") +
+                      "groups, materials, face corners, vertex weights and colours of some vertices only are "
+                      "kept only when writing OBJ");
   if (!x.ply_elements.empty() && format != FileFormat::Ply)
     lost.emplace_back(
         "the PLY's other elements, face properties and list properties are kept only when writing PLY");
@@ -259,8 +260,7 @@ std::string extrasLost(const Shape& shape, FileFormat format) {
                    " faces are dropped");
   if (format == FileFormat::Stl || format == FileFormat::Off || format == FileFormat::Obj ||
       format == FileFormat::Pts) {
-    // STL holds positions and triangles only; OFF also normals and colours; OBJ colours (its
-    // normals are kept only as the 'vn' lines of an OBJ written back as it was read). The fields
+    // STL holds positions and triangles only; OFF and OBJ also normals and colours. The fields
     // as the writer gets them: a packed colour is written as red, green and blue.
     pcl::PCLPointCloud2 converted;
     const pcl::PCLPointCloud2& c = conventionalCloud(shape, format, &converted) ? converted : shape.cloud;
@@ -275,7 +275,8 @@ std::string extrasLost(const Shape& shape, FileFormat format) {
           i == xyz.x || i == xyz.y || i == xyz.z || name == "_" ||
           (format == FileFormat::Off && ((xyz.hasNormals() && (i == xyz.nx || i == xyz.ny || i == xyz.nz)) ||
                                          colour || (rgb && name == "alpha"))) ||
-          (format == FileFormat::Obj && colour) ||
+          (format == FileFormat::Obj &&
+           ((xyz.hasNormals() && (i == xyz.nx || i == xyz.ny || i == xyz.nz)) || colour)) ||
           (format == FileFormat::Pts && (colour || ptsIntensity(c, xyz) == i));
       if (!kept) fields += (fields.empty() ? "" : ", ") + name;
     }
@@ -284,6 +285,13 @@ std::string extrasLost(const Shape& shape, FileFormat format) {
   }
   if (format == FileFormat::Stl)
     if (std::string stl = stlLosses(shape); !stl.empty()) lost.push_back(std::move(stl));
+  if ((format == FileFormat::Ply || format == FileFormat::Off) && shape.format != format) {
+    const pcl::PCLPointCloud2& c = shape.cloud;
+    const int r = findField(c, "red"), g = findField(c, "green"), b = findField(c, "blue");
+    if (r >= 0 && g >= 0 && b >= 0 && unitColours(c, {r, g, b}))
+      lost.emplace_back(std::string(formatName(format)) +
+                        " gets the 0..1 colours as 0..255 red green blue, as its readers take them");
+  }
   if (format == FileFormat::Pcd) {
     pcl::PCLPointCloud2 converted;
     if (conventionalCloud(shape, format, &converted)) {

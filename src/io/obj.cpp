@@ -2,6 +2,7 @@
 // (texture coordinates, normals, groups, materials, face corners) kept to be written back.
 // Normals ('vn') are paired with the vertices that faces give them, or, in a point cloud
 // without faces and with one 'vn' per 'v', by order.
+#include <algorithm>
 #include <charconv>
 #include <cstring>
 #include <limits>
@@ -28,6 +29,8 @@ Shape readObj(const std::string& path) {
   DecimalsSeen decimals;  // of x, y, z, for writing the values back as spelt
   std::vector<Eigen::Vector3f> normals;
   std::vector<int> normal_vertex;
+  std::vector<std::pair<long long, long long>> corner_normals;  // (vertex, normal) of each v//vn corner
+  bool corners_without_normal = false;
   while (lex.nextLine()) {
     lines.push_back(lex.lineText());
     if (lex.peek() == '#') {
@@ -78,9 +81,15 @@ Shape readObj(const std::string& path) {
           const auto rk = std::from_chars(vn.data(), vn.data() + vn.size(), k);
           const long long nn = static_cast<long long>(normals.size());
           const long long j = k > 0 ? k - 1 : nn + k;
-          if (rk.ec == std::errc() && k != 0 && j >= 0 && j < nn &&
-              normal_vertex[static_cast<std::size_t>(j)] < 0)
-            normal_vertex[static_cast<std::size_t>(j)] = static_cast<int>(idx);
+          if (rk.ec == std::errc() && k != 0 && j >= 0 && j < nn) {
+            if (normal_vertex[static_cast<std::size_t>(j)] < 0)
+              normal_vertex[static_cast<std::size_t>(j)] = static_cast<int>(idx);
+            corner_normals.emplace_back(idx, j);
+          } else {
+            corners_without_normal = true;
+          }
+        } else {
+          corners_without_normal = true;
         }
       }
       if (poly.vertices.size() < 3)
@@ -120,20 +129,52 @@ Shape readObj(const std::string& path) {
   if (shape.polygons.empty() && normals.size() == nverts)
     for (std::size_t k = 0; k < nverts; ++k) normal_vertex[k] = static_cast<int>(k);
 
-  // x/y/z as doubles (as written), colours as floats.
+  // Vertex normals: when every vertex has one 'vn' (each of its face corners names the same
+  // one, or, in a cloud, one per 'v' in order), they are also the cloud's nx/ny/nz, as Open3D,
+  // MeshLab and CloudCompare read them, so that a conversion keeps them. Otherwise (normals per
+  // corner, or on some vertices only) they stay with the lines, kept when writing OBJ.
+  std::vector<long long> vertex_normal;
+  if (shape.polygons.empty() && normals.size() == nverts) {
+    vertex_normal.resize(nverts);
+    for (std::size_t k = 0; k < nverts; ++k) vertex_normal[k] = static_cast<long long>(k);
+  } else if (!shape.polygons.empty() && !corners_without_normal && !corner_normals.empty()) {
+    vertex_normal.assign(nverts, -1);
+    for (const auto& [v, j] : corner_normals) {
+      long long& slot = vertex_normal[static_cast<std::size_t>(v)];
+      if (slot >= 0 && slot != j) {
+        vertex_normal.clear();
+        break;
+      }
+      slot = j;
+    }
+    if (std::find(vertex_normal.begin(), vertex_normal.end(), -1) != vertex_normal.end())
+      vertex_normal.clear();
+  }
+
+  // x/y/z as doubles (as written), colours and normals as floats.
   const bool colour = all_rgb && rgb.size() == xyz.size();
+  const bool vnormals = !vertex_normal.empty();
   std::vector<std::pair<std::string, std::uint8_t>> fields = {
       {"x", Field::FLOAT64}, {"y", Field::FLOAT64}, {"z", Field::FLOAT64}};
-  if (!colour) {
+  if (!colour && !vnormals) {
     shape.cloud = makeCloud(nverts, fields, xyz);
   } else {
-    for (const char* c : {"red", "green", "blue"}) fields.emplace_back(c, Field::FLOAT32);
-    std::vector<double> values(nverts * 6);
-    for (std::size_t i = 0; i < nverts; ++i)
-      for (std::size_t a = 0; a < 3; ++a) {
-        values[6 * i + a] = xyz[3 * i + a];
-        values[6 * i + 3 + a] = rgb[3 * i + a];
-      }
+    if (vnormals)
+      for (const char* c : {"nx", "ny", "nz"}) fields.emplace_back(c, Field::FLOAT32);
+    if (colour)
+      for (const char* c : {"red", "green", "blue"}) fields.emplace_back(c, Field::FLOAT32);
+    const std::size_t w = fields.size();
+    std::vector<double> values(nverts * w);
+    for (std::size_t i = 0; i < nverts; ++i) {
+      double* row = values.data() + w * i;
+      std::size_t k = 0;
+      for (std::size_t a = 0; a < 3; ++a) row[k++] = xyz[3 * i + a];
+      if (vnormals)
+        for (std::size_t a = 0; a < 3; ++a)
+          row[k++] = normals[static_cast<std::size_t>(vertex_normal[i])][static_cast<Eigen::Index>(a)];
+      if (colour)
+        for (std::size_t a = 0; a < 3; ++a) row[k++] = rgb[3 * i + a];
+    }
     shape.cloud = makeCloud(nverts, fields, values);
   }
   decimals.store(shape.extras, {"x", "y", "z"});
@@ -227,6 +268,9 @@ void writeObj(const std::string& path, const Shape& shape) {
   const int r = findField(c, "red"), g = findField(c, "green"), b = findField(c, "blue");
   const bool colour = r >= 0 && g >= 0 && b >= 0;
   const std::size_t n = shape.size();
+  // Per-vertex normals as one 'vn' per 'v', in order, and faces that name them ("f a//a b//b"):
+  // what Open3D, CloudCompare and MeshLab write and read as vertex normals.
+  const bool normals = xyz.hasNormals();
 
   AtomicWriter w(path);
   std::string buf = "# written by hgdeform\n";
@@ -246,6 +290,15 @@ void writeObj(const std::string& path, const Shape& shape) {
       }
     }
     buf += '\n';
+    if (normals) {
+      buf += "vn";
+      for (const int idx : {xyz.nx, xyz.ny, xyz.nz}) {
+        const Field& f = c.fields[static_cast<std::size_t>(idx)];
+        buf += ' ';
+        appendValue(buf, pt + f.offset, f.datatype);
+      }
+      buf += '\n';
+    }
     flushIfFull(w, buf);
   }
   for (const auto& poly : shape.polygons) {
@@ -253,6 +306,10 @@ void writeObj(const std::string& path, const Shape& shape) {
     for (const auto idx : poly.vertices) {
       buf += ' ';
       appendInt(buf, static_cast<long long>(idx) + 1);
+      if (normals) {
+        buf += "//";
+        appendInt(buf, static_cast<long long>(idx) + 1);
+      }
     }
     buf += '\n';
     flushIfFull(w, buf);

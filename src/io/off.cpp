@@ -128,7 +128,14 @@ void writeOff(const std::string& path, const Shape& shape) {
   std::vector<int> colour = {findField(c, "red"), findField(c, "green"), findField(c, "blue")};
   const bool has_colour = std::all_of(colour.begin(), colour.end(), [](int i) { return i >= 0; });
   if (!has_colour) colour.clear();
-  if (has_colour && findField(c, "alpha") >= 0) colour.push_back(findField(c, "alpha"));
+  // Colours without alpha get an opaque one: Open3D's and CloudCompare's OFF readers take four
+  // colour values (r g b a) and misread three.
+  const bool opaque = has_colour && findField(c, "alpha") < 0;
+  const char* alpha = opaque && c.fields[static_cast<std::size_t>(colour[0])].datatype != Field::FLOAT32 &&
+                              c.fields[static_cast<std::size_t>(colour[0])].datatype != Field::FLOAT64
+                          ? " 255"
+                          : " 1";
+  if (has_colour && !opaque) colour.push_back(findField(c, "alpha"));
   std::vector<int> cols = {xyz.x, xyz.y, xyz.z};
   if (xyz.hasNormals()) cols.insert(cols.end(), {xyz.nx, xyz.ny, xyz.nz});
   cols.insert(cols.end(), colour.begin(), colour.end());
@@ -146,6 +153,7 @@ void writeOff(const std::string& path, const Shape& shape) {
       const Field& f = c.fields[static_cast<std::size_t>(cols[k])];
       appendValue(buf, pt + f.offset, f.datatype, decimals[k].decimals, decimals[k].exponents);
     }
+    if (opaque) buf += alpha;
     buf += '\n';
     flushIfFull(w, buf);
   }

@@ -24,6 +24,7 @@
 // Written as PTS, a shape gives x y z, its intensity and its red green blue; what else it has
 // is said lost.
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <string>
 #include <unordered_set>
@@ -180,6 +181,53 @@ Shape readXyz(const std::string& path) {
       else
         fields.emplace_back(names[k], wide[k] ? Field::FLOAT64 : Field::FLOAT32);
     }
+    // CloudCompare's spellings: Nx Ny Nz are the normals and R G B (or Red Green Blue, any case)
+    // the colours, uchar when every value is a whole number 0..255, under the names the other
+    // formats' readers know. The row of names is kept as written (xyz_header).
+    const auto triple = [&](std::initializer_list<std::array<const char*, 3>> spellings,
+                            const char* const to[3], bool colour) {
+      for (const auto& sp : spellings) {
+        long k[3];
+        for (int a = 0; a < 3; ++a) k[a] = at(sp[static_cast<std::size_t>(a)]);
+        if (k[0] >= static_cast<long>(cols) || k[1] >= static_cast<long>(cols) ||
+            k[2] >= static_cast<long>(cols))
+          continue;
+        if (std::any_of(low.begin(), low.end(), [&](const std::string& l) {
+              return (l == to[0] || l == to[1] || l == to[2]) && l != sp[0] && l != sp[1] && l != sp[2];
+            }))
+          return;  // another column has the name already
+        bool bytes = colour;
+        for (int a = 0; a < 3 && bytes; ++a)
+          for (std::size_t i = 0; i < n && bytes; ++i) {
+            const double v = values[i * cols + static_cast<std::size_t>(k[a])];
+            bytes = v >= 0 && v <= 255 && v == std::floor(v);
+          }
+        for (int a = 0; a < 3; ++a) {
+          auto& f = fields[static_cast<std::size_t>(k[a])];
+          f.first = to[a];
+          if (bytes) f.second = Field::UINT8;
+        }
+        return;
+      }
+    };
+    static const char* const kNormals[3] = {"nx", "ny", "nz"};
+    static const char* const kColours[3] = {"red", "green", "blue"};
+    triple({{"nx", "ny", "nz"}}, kNormals, false);
+    triple({{"r", "g", "b"}, {"red", "green", "blue"}}, kColours, true);
+    // CloudCompare's A beside its R G B: the alpha, uchar with them when its values are bytes.
+    const long red = static_cast<long>(
+        std::find_if(fields.begin(), fields.end(), [](const auto& f) { return f.first == "red"; }) -
+        fields.begin());
+    const long a = std::min(at("a"), at("alpha"));
+    if (red < static_cast<long>(cols) && a < static_cast<long>(cols)) {
+      bool bytes = fields[static_cast<std::size_t>(red)].second == Field::UINT8;
+      for (std::size_t i = 0; i < n && bytes; ++i) {
+        const double v = values[i * cols + static_cast<std::size_t>(a)];
+        bytes = v >= 0 && v <= 255 && v == std::floor(v);
+      }
+      fields[static_cast<std::size_t>(a)].first = "alpha";
+      if (bytes) fields[static_cast<std::size_t>(a)].second = Field::UINT8;
+    }
     std::unordered_set<std::string_view> seen;  // "x" renamed from "X" may meet another column "x"
     for (const auto& f : fields)
       if (!seen.insert(f.first).second)
@@ -243,9 +291,18 @@ void writeXyz(const std::string& path, const Shape& shape, bool pts) {
   } else if (names == shape.extras.xyz_names && !shape.extras.xyz_header.empty()) {
     buf = shape.extras.xyz_header + "\n";
   } else if (!plain && (names != shape.extras.xyz_names || shape.extras.xyz_count_line)) {
+    // As CloudCompare writes and reads one: "//X Y Z R G B Nx Ny Nz ...", its spellings for the
+    // columns it knows (it ignores a row of names without the "//"); read back as these fields.
+    static const char* const cc[][2] = {{"x", "X"},     {"y", "Y"},    {"z", "Z"},     {"red", "R"},
+                                        {"green", "G"}, {"blue", "B"}, {"alpha", "A"}, {"nx", "Nx"},
+                                        {"ny", "Ny"},   {"nz", "Nz"}};
+    buf = "//";
     for (std::size_t k = 0; k < names.size(); ++k) {
       if (k) buf += sep;
-      buf += names[k];
+      std::string name = names[k];
+      for (const auto& m : cc)
+        if (name == m[0]) name = m[1];
+      buf += name;
     }
     buf += '\n';
   }
