@@ -25,6 +25,7 @@ packages=(
   python3-numpy                             # the Python module's arrays (numpy in and out)
   python3-pytest                            # the Python tests (python/tests, run by ctest)
   python3-open3d                            # the Python tests' Open3D interop (optional for the module; ~15 s to install)
+  cloudcompare meshlab pcl-tools            # tests/conformance: files written by CloudCompare, meshlabserver and pcl_* converters (headless under xvfb-run)
 )
 
 missing=()
