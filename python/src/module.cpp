@@ -39,7 +39,59 @@
 
 namespace py = pybind11;
 
+// Arguments taken as any Python object and checked by the function that takes them (arrays,
+// sequences, regions, paths). They bind as py::object does, but signatures and help() name
+// what is expected instead of pybind11's "handle" (`center: numpy.typing.ArrayLike | None`).
+namespace hgd_py {
+#define HGD_PY_ARG(Name)                                                      \
+  class Name : public py::object {                                            \
+   public:                                                                    \
+    PYBIND11_OBJECT_DEFAULT(Name, py::object, [](PyObject*) { return true; }) \
+  };
+HGD_PY_ARG(ArrayLike)
+HGD_PY_ARG(OptionalArrayLike)
+HGD_PY_ARG(RegionLike)
+HGD_PY_ARG(PathLike)
+HGD_PY_ARG(ScenarioLike)
+HGD_PY_ARG(FieldsLike)
+#undef HGD_PY_ARG
+}  // namespace hgd_py
+
+namespace pybind11::detail {
+template <>
+struct handle_type_name<hgd_py::ArrayLike> {
+  static constexpr auto name = const_name("numpy.typing.ArrayLike");
+};
+template <>
+struct handle_type_name<hgd_py::OptionalArrayLike> {
+  static constexpr auto name = const_name("numpy.typing.ArrayLike | None");
+};
+template <>
+struct handle_type_name<hgd_py::RegionLike> {
+  static constexpr auto name = const_name("Region | numpy.typing.ArrayLike");
+};
+template <>
+struct handle_type_name<hgd_py::PathLike> {
+  static constexpr auto name = const_name("str | os.PathLike");
+};
+template <>
+struct handle_type_name<hgd_py::ScenarioLike> {
+  static constexpr auto name = const_name("Scenario | dict | str | os.PathLike");
+};
+template <>
+struct handle_type_name<hgd_py::FieldsLike> {
+  static constexpr auto name = const_name("dict[str, numpy.typing.ArrayLike] | None");
+};
+}  // namespace pybind11::detail
+
 namespace {
+
+using hgd_py::ArrayLike;
+using hgd_py::FieldsLike;
+using hgd_py::OptionalArrayLike;
+using hgd_py::PathLike;
+using hgd_py::RegionLike;
+using hgd_py::ScenarioLike;
 
 using Doubles = py::array_t<double, py::array::c_style | py::array::forcecast>;
 using Field = pcl::PCLPointField;
@@ -976,26 +1028,25 @@ PYBIND11_MODULE(_hgdeform, m) {
                           "A part of a shape: a sphere, a box, a cylinder, point indices, or the points "
                           "whose per-point field has a value or lies in a range (docs/scenario.md).")
       .def_static(
-          "sphere",
-          [](const py::handle& c, double r) { return hgd::Region::sphere(vec3Arg(c, "center"), r); },
+          "sphere", [](const ArrayLike& c, double r) { return hgd::Region::sphere(vec3Arg(c, "center"), r); },
           py::arg("center"), py::arg("radius"), "The points within `radius` of `center` (3 numbers).")
       .def_static(
           "box",
-          [](const py::handle& lo, const py::handle& hi) {
+          [](const ArrayLike& lo, const ArrayLike& hi) {
             return hgd::Region::box(vec3Arg(lo, "min"), vec3Arg(hi, "max"));
           },
           py::arg("min"), py::arg("max"),
           "The points inside the axis-aligned box [min, max] (3 numbers each).")
       .def_static(
           "cylinder",
-          [](const py::handle& a, const py::handle& b, double r) {
+          [](const ArrayLike& a, const ArrayLike& b, double r) {
             return hgd::Region::cylinder(vec3Arg(a, "start"), vec3Arg(b, "end"), r);
           },
           py::arg("start"), py::arg("end"), py::arg("radius"),
           "The points within `radius` of the segment start-end, flat caps.")
       .def_static(
           "indices",
-          [](const py::handle& idx) { return hgd::Region::fromIndices(indicesArg(idx, "indices")); },
+          [](const ArrayLike& idx) { return hgd::Region::fromIndices(indicesArg(idx, "indices")); },
           py::arg("indices"),
           "The points with these 0-based indices (an integer array of shape (K,)), file order.")
       .def_static("field", &hgd::Region::field, py::arg("name"), py::arg("value"),
@@ -1017,28 +1068,28 @@ PYBIND11_MODULE(_hgdeform, m) {
       .def(py::init<>())
       .def(
           "fix",
-          [](hgd::Scenario& s, const py::handle& r) -> hgd::Scenario& {
+          [](hgd::Scenario& s, const RegionLike& r) -> hgd::Scenario& {
             return s.fix(regionArg(r, "region"));
           },
           py::arg("region"), py::return_value_policy::reference_internal,
           "Adds a fixed handle; returns self.")
       .def(
           "manipulate",
-          [](hgd::Scenario& s, const py::handle& r) -> hgd::Scenario& {
+          [](hgd::Scenario& s, const RegionLike& r) -> hgd::Scenario& {
             return s.manipulate(regionArg(r, "region"));
           },
           py::arg("region"), py::return_value_policy::reference_internal,
           "Sets the manipulated handle; returns self.")
       .def(
           "joint",
-          [](hgd::Scenario& s, const py::handle& r) -> hgd::Scenario& {
+          [](hgd::Scenario& s, const RegionLike& r) -> hgd::Scenario& {
             return s.joint(regionArg(r, "region"));
           },
           py::arg("region"), py::return_value_policy::reference_internal,
           "Adds a joint (skeletal deformation); returns self.")
       .def(
           "drag",
-          [](hgd::Scenario& s, const py::handle& from, const py::handle& to, bool keep) -> hgd::Scenario& {
+          [](hgd::Scenario& s, const ArrayLike& from, const ArrayLike& to, bool keep) -> hgd::Scenario& {
             return s.drag(vec3Arg(from, "from"), vec3Arg(to, "to"), keep);
           },
           py::arg("from_"), py::arg("to"), py::arg("keep_orientation") = false,
@@ -1046,8 +1097,8 @@ PYBIND11_MODULE(_hgdeform, m) {
           "Adds a drag: the manipulated handle's point nearest `from_` is dragged to `to`; returns self.")
       .def(
           "frame",
-          [](hgd::Scenario& s, const py::handle& translate, const py::handle& axis, double degrees,
-             const py::handle& center) -> hgd::Scenario& {
+          [](hgd::Scenario& s, const ArrayLike& translate, const ArrayLike& axis, double degrees,
+             const OptionalArrayLike& center) -> hgd::Scenario& {
             hgd::FrameMove f;
             f.translate = vec3Arg(translate, "translate");
             f.axis = vec3Arg(axis, "axis");
@@ -1083,7 +1134,7 @@ PYBIND11_MODULE(_hgdeform, m) {
                   "Parses hgdeform-scenario/1 JSON text (`name` in messages).")
       .def_static(
           "read",
-          [](const py::handle& p) {
+          [](const PathLike& p) {
             const std::string path = pathArg(p, "path");
             py::gil_scoped_release release;
             return hgd::readScenario(path);
@@ -1097,8 +1148,8 @@ PYBIND11_MODULE(_hgdeform, m) {
   py::class_<PyShape>(m, "Shape",
                       "A point cloud or mesh with every per-point field, in file order; what read() "
                       "gives and write() takes. Accessors return copies.")
-      .def(py::init([](const py::handle& points, const py::handle& normals, const py::handle& faces,
-                       const py::handle& fields) {
+      .def(py::init([](const ArrayLike& points, const OptionalArrayLike& normals,
+                       const OptionalArrayLike& faces, const FieldsLike& fields) {
              PyShape s = shapeFromPython(points, normals, faces);
              if (!fields.is_none())
                for (const auto& item : fields.cast<py::dict>())
@@ -1119,9 +1170,12 @@ PYBIND11_MODULE(_hgdeform, m) {
                              "stored dtype, (N,) or (N, k) (copies).")
       .def_property_readonly("field_names", &PyShape::fieldNames)
       .def("field", &PyShape::field, py::arg("name"), "One field's values, (N,) or (N, k), its stored dtype.")
-      .def("set_field", &PyShape::setField, py::arg("name"), py::arg("values"),
-           "Stores (N,) or (N, k) values: converted to the field's type if it exists, else added with the "
-           "array's dtype.")
+      .def(
+          "set_field",
+          [](PyShape& s, const std::string& name, const ArrayLike& values) { s.setField(name, values); },
+          py::arg("name"), py::arg("values"),
+          "Stores (N,) or (N, k) values: converted to the field's type if it exists, else added with the "
+          "array's dtype.")
       .def_property_readonly("path", [](const PyShape& s) { return s.s.path; })
       .def_property_readonly("format", [](const PyShape& s) { return formatName(s.s.format); })
       .def_property_readonly("width", [](const PyShape& s) { return s.s.cloud.width; })
@@ -1139,7 +1193,7 @@ PYBIND11_MODULE(_hgdeform, m) {
 
   m.def(
       "read",
-      [](const py::handle& p) {
+      [](const PathLike& p) {
         const std::string path = pathArg(p, "path");
         py::gil_scoped_release release;
         return PyShape{hgd::readShape(path)};
@@ -1149,7 +1203,7 @@ PYBIND11_MODULE(_hgdeform, m) {
       "IoError.");
   m.def(
       "_write",
-      [](const py::handle& p, const PyShape& shape, bool ascii) {
+      [](const PathLike& p, const PyShape& shape, bool ascii) {
         const std::string path = pathArg(p, "path");
         hgd::WriteOptions wo;
         if (ascii) wo.encoding = hgd::Encoding::Ascii;
@@ -1167,26 +1221,27 @@ PYBIND11_MODULE(_hgdeform, m) {
       },
       py::arg("shape"), py::arg("path"));
 
-  m.def("_scenario", &scenarioArg, py::arg("scenario"));
+  m.def(
+      "_scenario", [](const ScenarioLike& scenario) { return scenarioArg(scenario); }, py::arg("scenario"));
   m.def(
       "_deform_arrays",
-      [](const py::handle& points, const py::handle& scenario, const py::handle& normals,
-         const py::handle& faces, const py::dict& options) {
+      [](const ArrayLike& points, const ScenarioLike& scenario, const OptionalArrayLike& normals,
+         const OptionalArrayLike& faces, const py::dict& options) {
         checkThreadStacks();
         return deformArrays(points, scenarioArg(scenario), normals, faces, options);
       },
       py::arg("points"), py::arg("scenario"), py::arg("normals"), py::arg("faces"), py::arg("options"));
   m.def(
       "_deform_shape",
-      [](const PyShape& shape, const py::handle& scenario, const py::dict& options) {
+      [](const PyShape& shape, const ScenarioLike& scenario, const py::dict& options) {
         checkThreadStacks();
         return deformShape(shape, scenarioArg(scenario), options);
       },
       py::arg("shape"), py::arg("scenario"), py::arg("options"));
   m.def(
       "_field_arrays",
-      [](const py::handle& points, const py::handle& scenario, const py::handle& normals,
-         const py::handle& faces, const py::dict& options) {
+      [](const ArrayLike& points, const ScenarioLike& scenario, const OptionalArrayLike& normals,
+         const OptionalArrayLike& faces, const py::dict& options) {
         checkThreadStacks();
         PyShape s = shapeFromPython(points, normals, faces);
         return fieldOf(std::move(s.s), scenarioArg(scenario), options);
@@ -1194,7 +1249,7 @@ PYBIND11_MODULE(_hgdeform, m) {
       py::arg("points"), py::arg("scenario"), py::arg("normals"), py::arg("faces"), py::arg("options"));
   m.def(
       "_field_shape",
-      [](const PyShape& shape, const py::handle& scenario, const py::dict& options) {
+      [](const PyShape& shape, const ScenarioLike& scenario, const py::dict& options) {
         checkThreadStacks();
         const hgd::Scenario sc = scenarioArg(scenario);  // (may release the GIL: a scenario file)
         return fieldOf(shape.s, sc, options);            // a copy, taken with the GIL held
@@ -1202,7 +1257,7 @@ PYBIND11_MODULE(_hgdeform, m) {
       py::arg("shape"), py::arg("scenario"), py::arg("options"));
   m.def(
       "_cpp_deform_ms",
-      [](const py::handle& points, const py::handle& scenario, const py::dict& options) {
+      [](const ArrayLike& points, const ScenarioLike& scenario, const py::dict& options) {
         return cppDeformMs(points, scenarioArg(scenario), options);
       },
       py::arg("points"), py::arg("scenario"), py::arg("options"));
@@ -1213,8 +1268,8 @@ PYBIND11_MODULE(_hgdeform, m) {
       "Interactive deformation of one shape: set the handles (point indices, or a scenario), then "
       "drag or set the handle's transform frame by frame. `points` is a read-only view of the "
       "deformer's own buffer (no copy per frame).")
-      .def(py::init([](const py::handle& points, const py::handle& normals, const py::handle& faces,
-                       const py::kwargs& options) {
+      .def(py::init([](const ArrayLike& points, const OptionalArrayLike& normals,
+                       const OptionalArrayLike& faces, const py::kwargs& options) {
              hgd::Shape shape = py::isinstance<PyShape>(points) ? points.cast<const PyShape&>().s
                                                                 : shapeFromPython(points, normals, faces).s;
              requireFinitePoint(shape);
@@ -1227,20 +1282,21 @@ PYBIND11_MODULE(_hgdeform, m) {
            "options as deform()'s.")
       .def(
           "set_fixed",
-          [](PyHandleDeformation& h, const py::handle& handles) { h.setFixed(indexLists(handles, "fixed")); },
+          [](PyHandleDeformation& h, const ArrayLike& handles) { h.setFixed(indexLists(handles, "fixed")); },
           py::arg("handles"), "The fixed handles: a list of index arrays (or one index array).")
       .def(
           "set_manipulated",
-          [](PyHandleDeformation& h, const py::handle& handle) {
+          [](PyHandleDeformation& h, const ArrayLike& handle) {
             h.setManipulated(indicesArg(handle, "manipulated"));
           },
           py::arg("handle"), "The manipulated handle: an index array (K,).")
       .def(
           "set_joints",
-          [](PyHandleDeformation& h, const py::handle& joints) { h.setJoints(indexLists(joints, "joints")); },
+          [](PyHandleDeformation& h, const ArrayLike& joints) { h.setJoints(indexLists(joints, "joints")); },
           py::arg("joints"), "Joints (skeletal deformation): a list of index arrays.")
       .def(
-          "set_scenario", [](PyHandleDeformation& h, const py::handle& s) { h.setScenario(scenarioArg(s)); },
+          "set_scenario",
+          [](PyHandleDeformation& h, const ScenarioLike& s) { h.setScenario(scenarioArg(s)); },
           py::arg("scenario"),
           "Handles (and clusters, blend) from a scenario; its moves are applied when the deformer is built.")
       .def(
@@ -1252,7 +1308,7 @@ PYBIND11_MODULE(_hgdeform, m) {
           "Builds the deformer now (else the first frame or `points` does).")
       .def(
           "drag",
-          [](PyHandleDeformation& h, const py::handle& from, const py::handle& to) {
+          [](PyHandleDeformation& h, const ArrayLike& from, const ArrayLike& to) {
             const Eigen::Vector3d a = vec3Arg(from, "from_"), b = vec3Arg(to, "to");
             hgd::SolveStats s;
             {
@@ -1266,7 +1322,7 @@ PYBIND11_MODULE(_hgdeform, m) {
           "shape) is pulled towards `to`. Returns the solve's figures.")
       .def(
           "drag_to",
-          [](PyHandleDeformation& h, const py::handle& from, const py::handle& to) {
+          [](PyHandleDeformation& h, const ArrayLike& from, const ArrayLike& to) {
             const Eigen::Vector3d a = vec3Arg(from, "from_"), b = vec3Arg(to, "to");
             hgd::DragResult r;
             {
@@ -1284,7 +1340,7 @@ PYBIND11_MODULE(_hgdeform, m) {
           "A whole drag replayed until the picked point reaches `to` (a scenario's drag).")
       .def(
           "set_handle_transform",
-          [](PyHandleDeformation& h, const py::handle& transform) {
+          [](PyHandleDeformation& h, const ArrayLike& transform) {
             const Doubles t = rowsArg(transform, "transform", 4, 4, "a 4×4 matrix");
             Eigen::Affine3d a;
             a.matrix() = Eigen::Map<const Eigen::Matrix<double, 4, 4, Eigen::RowMajor>>(t.data());
