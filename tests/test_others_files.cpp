@@ -267,6 +267,78 @@ TEST_F(OthersFiles, AnOrganizedScanWithNanPointsKeepsItsGrid) {
   }
 }
 
+// PCL's PLYWriter of an organized scan without a camera element (as `pcl_pcd2ply -use_camera 0`
+// writes one): the valid points, then an element range_grid of one list per pixel, empty where
+// nothing returned. hgdeform reads the grid PCL's PLYReader reads (it read the 960 valid points
+// as an unorganized cloud); written back as PLY or PCD, PCL reads the same grid again.
+TEST_F(OthersFiles, PclsOrganizedPlyIsReadAsItsGrid) {
+  pcl::PointCloud<pcl::PointXYZRGB> scan(40, 30);
+  std::mt19937 rng(12);
+  std::size_t nans = 0;
+  for (std::uint32_t r = 0; r < 30; ++r)
+    for (std::uint32_t c = 0; c < 40; ++c) {
+      auto& p = scan.at(c, r);
+      const bool none = rng() % 5 == 0;
+      nans += none;
+      p.x = none ? std::numeric_limits<float>::quiet_NaN() : 0.01f * static_cast<float>(c) - 0.2f;
+      p.y = none ? std::numeric_limits<float>::quiet_NaN() : 0.01f * static_cast<float>(r) - 0.15f;
+      p.z = none ? std::numeric_limits<float>::quiet_NaN() : 0.6f + 0.001f * static_cast<float>(rng() % 100);
+      p.r = static_cast<std::uint8_t>(c * 6);
+      p.g = static_cast<std::uint8_t>(r * 8);
+      p.b = 9;
+    }
+  scan.is_dense = false;
+  ASSERT_GT(nans, 100u);
+  pcl::PCLPointCloud2 blob;
+  pcl::toPCLPointCloud2(scan, blob);
+  for (const bool binary : {false, true}) {
+    const std::string in = path(binary ? "grid_b.ply" : "grid_a.ply");
+    pcl::PLYWriter writer;
+    ASSERT_EQ(writer.write(in, blob, Eigen::Vector4f::Zero(), Eigen::Quaternionf::Identity(), binary, false),
+              0);
+    ASSERT_NE(slurp(in).find("element range_grid 1200"), std::string::npos);
+    pcl::PointCloud<pcl::PointXYZRGB> ref;  // PCL's reading of its own file
+    ASSERT_EQ(pcl::io::loadPLYFile(in, ref), 0);
+    ASSERT_EQ(ref.width, 40u);
+    ASSERT_EQ(ref.height, 30u);
+    const auto same = [&](const pcl::PointCloud<pcl::PointXYZRGB>& got, const std::string& what) {
+      ASSERT_EQ(got.width, 40u) << what;
+      ASSERT_EQ(got.height, 30u) << what;
+      std::size_t differ = 0, nan_pixels = 0;
+      for (std::size_t i = 0; i < ref.size(); ++i) {
+        differ +=
+            bits(got[i].x) != bits(ref[i].x) || bits(got[i].y) != bits(ref[i].y) ||
+            bits(got[i].z) != bits(ref[i].z) ||
+            (!std::isnan(ref[i].x) && (got[i].r != ref[i].r || got[i].g != ref[i].g || got[i].b != ref[i].b));
+        nan_pixels += std::isnan(got[i].x) && std::isnan(scan[i].x);
+      }
+      EXPECT_EQ(differ, 0u) << what;
+      EXPECT_EQ(nan_pixels, nans) << what;
+    };
+    const Shape s = hgd::readShape(in);
+    ASSERT_EQ(s.cloud.width, 40u);
+    ASSERT_EQ(s.cloud.height, 30u);
+    std::size_t differ = 0;
+    for (std::size_t i = 0; i < ref.size(); ++i) {
+      const float x = static_cast<float>(value(s, i, "x")), y = static_cast<float>(value(s, i, "y"));
+      differ += bits(x) != bits(ref[i].x) || bits(y) != bits(ref[i].y) ||
+                (!std::isnan(ref[i].x) && value(s, i, "red") != ref[i].r);
+    }
+    EXPECT_EQ(differ, 0u) << "hgdeform's reading of " << in;
+    for (const char* ext : {".ply", ".pcd"}) {
+      const std::string out = path(std::string(binary ? "grid_b_out" : "grid_a_out") + ext);
+      hgd::writeShape(out, s);
+      pcl::PointCloud<pcl::PointXYZRGB> back;
+      ASSERT_EQ(
+          std::string(ext) == ".ply" ? pcl::io::loadPLYFile(out, back) : pcl::io::loadPCDFile(out, back), 0);
+      same(back, out);
+      if (std::string(ext) == ".ply") {
+        EXPECT_NE(slurp(out).find("element range_grid 1200"), std::string::npos);
+      }
+    }
+  }
+}
+
 // CloudCompare's ASCII export with a header: a GPS time needs double's 16 digits and a point
 // count above 2^24 an integer float32 cannot hold. Unmoved, every row comes back as the same
 // text; converted to PLY each column is declared a type that holds its values.

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cerrno>
+#include <cmath>
 #include <cstring>
 #include <limits>
 #include <unordered_map>
@@ -115,6 +116,33 @@ bool unitColours(const pcl::PCLPointCloud2& c, std::initializer_list<long> chann
     }
   }
   return true;
+}
+
+std::vector<std::size_t> rangeGridPixels(const FileExtras& extras, std::uint64_t vertices) {
+  const FileExtras::Element* grid = nullptr;
+  for (const auto& el : extras.ply_elements)
+    if (el.name == "range_grid") grid = &el;
+  if (!grid || vertices == 0 || grid->props.size() != 1 || !grid->props[0].list || grid->kept.size() != 1 ||
+      !grid->kept[0] || grid->count < vertices)
+    return {};
+  constexpr std::size_t kNone = std::numeric_limits<std::size_t>::max();
+  std::vector<std::size_t> pixel(static_cast<std::size_t>(vertices), kNone);
+  const std::vector<double>& v = grid->values;
+  std::size_t at = 0, named = 0;
+  for (std::uint64_t k = 0; k < grid->count; ++k) {
+    if (at >= v.size()) return {};
+    const double len = v[at++];
+    if (len == 0) continue;
+    if (len != 1 || at >= v.size()) return {};
+    const double idx = v[at++];
+    if (!(idx >= 0 && idx < static_cast<double>(vertices)) || idx != std::floor(idx)) return {};
+    std::size_t& p = pixel[static_cast<std::size_t>(idx)];
+    if (p != kNone) return {};
+    p = static_cast<std::size_t>(k);
+    ++named;
+  }
+  if (named != vertices || at != v.size()) return {};
+  return pixel;
 }
 
 bool conventionalCloud(const Shape& shape, FileFormat target, pcl::PCLPointCloud2* out) {

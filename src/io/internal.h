@@ -182,6 +182,11 @@ bool conventionalCloud(const Shape& shape, FileFormat target, pcl::PCLPointCloud
 /// Whether these fields (red, green, blue) are floats, every value in 0..1.
 bool unitColours(const pcl::PCLPointCloud2& c, std::initializer_list<long> channels);
 
+/// PCL's organized PLY (its PLYWriter of an organized cloud): an element range_grid of one list
+/// per pixel, each empty (a NaN point) or naming one vertex, every one of `vertices` vertices
+/// named once. Per vertex, the pixel that names it; empty if `extras` holds no such grid.
+std::vector<std::size_t> rangeGridPixels(const FileExtras& extras, std::uint64_t vertices);
+
 /// False if any x, y or z value is NaN or infinite.
 bool computeDense(const pcl::PCLPointCloud2& cloud);
 

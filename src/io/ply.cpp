@@ -38,6 +38,56 @@ struct PlyElement {
 
 enum class PlyFormat { Ascii, BinaryLE, BinaryBE };
 
+/// PCL's organized PLY (rangeGridPixels) read as PCL's PLYReader reads it: the organized cloud
+/// of obj_info num_cols x num_rows, row by row, with NaN points (NaN in every float field, zero
+/// elsewhere) at the empty pixels. The grid stays with the extras: a PLY written back holds the
+/// valid points and the same grid (ply_write.cpp). Left as read when anything does not fit (a
+/// mesh, per-vertex lists, no or other sizes).
+void organizeRangeGrid(Shape& shape) {
+  const FileExtras& x = shape.extras;
+  if (!shape.polygons.empty()) return;
+  const FileExtras::Element* grid = nullptr;
+  for (const auto& el : x.ply_elements) {
+    if (el.name == "range_grid") grid = &el;
+    if (el.name == "vertex" && std::any_of(el.kept.begin(), el.kept.end(), [](char k) { return k != 0; }))
+      return;
+  }
+  if (!grid) return;
+  std::uint64_t cols = 0, rows = 0;
+  for (const auto& line : x.ply_comments) {
+    const auto w = splitWords(line);
+    if (w.size() == 3 && w[0] == "obj_info" && w[1] == "num_cols") parseU64(w[2], &cols);
+    if (w.size() == 3 && w[0] == "obj_info" && w[1] == "num_rows") parseU64(w[2], &rows);
+  }
+  if (cols == 0 || rows == 0 || cols > grid->count || cols * rows != grid->count ||
+      cols > std::numeric_limits<std::uint32_t>::max() || rows > std::numeric_limits<std::uint32_t>::max())
+    return;
+  const std::vector<std::size_t> pixel = rangeGridPixels(x, shape.size());
+  if (pixel.empty()) return;
+  pcl::PCLPointCloud2& c = shape.cloud;
+  const std::size_t step = c.point_step;
+  std::vector<std::uint8_t> nan_point(step, 0);
+  for (const auto& f : c.fields)
+    for (std::size_t k = 0; k < fieldCount(f); ++k) {
+      if (f.datatype == Field::FLOAT32) {
+        const float v = std::numeric_limits<float>::quiet_NaN();
+        std::memcpy(nan_point.data() + f.offset + 4 * k, &v, 4);
+      } else if (f.datatype == Field::FLOAT64) {
+        const double v = std::numeric_limits<double>::quiet_NaN();
+        std::memcpy(nan_point.data() + f.offset + 8 * k, &v, 8);
+      }
+    }
+  std::vector<std::uint8_t> data(static_cast<std::size_t>(grid->count) * step);
+  for (std::size_t k = 0; k < grid->count; ++k) std::memcpy(data.data() + k * step, nan_point.data(), step);
+  for (std::size_t v = 0; v < pixel.size(); ++v)
+    std::memcpy(data.data() + pixel[v] * step, c.data.data() + v * step, step);
+  c.data = std::move(data);
+  c.width = static_cast<std::uint32_t>(cols);
+  c.height = static_cast<std::uint32_t>(rows);
+  c.row_step = static_cast<std::uint32_t>(step * cols);
+  c.is_dense = false;
+}
+
 }  // namespace
 
 Shape readPly(const std::string& path) {
@@ -370,6 +420,7 @@ Shape readPly(const std::string& path) {
   shape.extras.ply_comments = std::move(comments);
   shape.extras.ply_big_endian = format == PlyFormat::BinaryBE;
   if (any_extra) shape.extras.ply_elements = std::move(extra);
+  organizeRangeGrid(shape);
   return shape;
 }
 

@@ -27,6 +27,21 @@ void swapLast(std::vector<std::uint8_t>& b, std::size_t size, bool swap) {
   if (swap) std::reverse(b.end() - static_cast<std::ptrdiff_t>(size), b.end());
 }
 
+/// PCL's organized PLY (read as the organized cloud, ply.cpp): the cloud's point that each
+/// vertex record is written from (the pixel its range_grid list names); empty for other shapes.
+std::vector<std::size_t> gridOrder(const Shape& shape) {
+  const FileExtras::Element* vertex = nullptr;
+  const FileExtras::Element* grid = nullptr;
+  for (const auto& el : shape.extras.ply_elements) {
+    if (el.name == "vertex") vertex = &el;
+    if (el.name == "range_grid") grid = &el;
+  }
+  if (!vertex || !grid || grid->count != shape.size() || vertex->count == shape.size() ||
+      std::any_of(vertex->kept.begin(), vertex->kept.end(), [](char k) { return k != 0; }))
+    return {};
+  return rangeGridPixels(shape.extras, vertex->count);
+}
+
 /// Whether a shape's kept PLY elements still fit it (the same vertex and face counts).
 bool plyExtrasFit(const Shape& shape) {
   const auto& els = shape.extras.ply_elements;
@@ -35,7 +50,7 @@ bool plyExtrasFit(const Shape& shape) {
   for (const auto& el : els) {
     if (el.name == "vertex") {
       vertex = true;
-      if (el.count != shape.size()) return false;
+      if (el.count != shape.size() && gridOrder(shape).empty()) return false;
     }
     const bool indices = std::any_of(el.kept.begin(), el.kept.end(), [](char k) { return !k; });
     if (el.name == "face" && indices && el.count != shape.polygons.size()) return false;
@@ -49,7 +64,9 @@ bool plyExtrasFit(const Shape& shape) {
 void writePlyWithExtras(const std::string& path, const Shape& shape, bool ascii,
                         const std::vector<const Field*>& fields) {
   const pcl::PCLPointCloud2& c = shape.cloud;
-  const std::size_t n = shape.size();
+  // An organized PLY of PCL's: the valid points, each from its pixel (gridOrder).
+  const std::vector<std::size_t> order = gridOrder(shape);
+  const std::size_t n = order.empty() ? shape.size() : order.size();
   std::string h = "ply\nformat ";
   h += ascii ? "ascii" : binaryFormat(shape);
   h += " 1.0\n";
@@ -133,9 +150,9 @@ void writePlyWithExtras(const std::string& path, const Shape& shape, bool ascii,
     const std::uint64_t records = is_vertex ? n : el.count;
     // Binary vertices made of cloud fields alone (a file's usual case): copied per point, or in
     // one write where the cloud holds exactly those fields in that order, not value by value.
-    if (b && !swap && is_vertex && std::all_of(sources[e].begin(), sources[e].end(), [](const Source& so) {
-          return so.field != nullptr;
-        })) {
+    if (b && !swap && is_vertex && order.empty() &&
+        std::all_of(sources[e].begin(), sources[e].end(),
+                    [](const Source& so) { return so.field != nullptr; })) {
       std::vector<const Field*> packed;
       for (const Source& so : sources[e]) packed.push_back(so.field);
       w.write(bin.data(), bin.size());
@@ -152,7 +169,8 @@ void writePlyWithExtras(const std::string& path, const Shape& shape, bool ascii,
       };
       for (const Source& so : sources[e]) {
         if (so.field) {
-          const std::uint8_t* pt = c.data.data() + r * c.point_step + so.field->offset;
+          const std::size_t point = order.empty() ? static_cast<std::size_t>(r) : order[r];
+          const std::uint8_t* pt = c.data.data() + point * c.point_step + so.field->offset;
           const std::size_t sz = datatypeSize(so.field->datatype);
           for (std::size_t k = 0; k < fieldCount(*so.field); ++k) {
             sep();

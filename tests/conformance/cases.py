@@ -26,9 +26,10 @@ class Case:
     lib.ToolUnavailable when the writer cannot run); `ext` its extension, `ascii` whether it is
     text, `mesh` whether it has faces; `open3d_format` the format Open3D reads it with."""
 
-    def __init__(self, writer, name, ext, make, ascii=False, mesh=False, open3d_format="auto"):
+    def __init__(self, writer, name, ext, make, ascii=False, mesh=False, open3d_format="auto", range_grid=False):
         self.writer, self.name, self.ext, self.make = writer, name, ext, make
         self.ascii, self.mesh, self.open3d_format = ascii, mesh, open3d_format
+        self.range_grid = range_grid  # a PLY holding PCL's organized layout (NaN pixels not in the vertices)
 
     @property
     def id(self):
@@ -210,7 +211,8 @@ def pcl_cases():
         # savePCDFile wrote (rgb of TYPE U) it writes PLYs that PCL itself cannot read (the packed
         # value in place of red green blue in ascii; a corrupt camera element in binary).
         Case("pcl", "pcl_pcd2ply_ascii_organized", "ply",
-             _pcl_chain("pcd2ply_ascii_organized", "organized", ["-format", "0", "-use_camera", "0"]), ascii=True),
+             _pcl_chain("pcd2ply_ascii_organized", "organized", ["-format", "0", "-use_camera", "0"]), ascii=True,
+             range_grid=True),
         Case("pcl", "pcl_pcd2ply_binary_camera", "ply",
              _pcl_chain("pcd2ply_binary_camera", "xyzrgbnormal", ["-format", "1", "-use_camera", "1"])),
         Case("pcl", "pcl_convert_to_compressed_organized", "pcd",

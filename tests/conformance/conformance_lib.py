@@ -500,16 +500,6 @@ def open3d_binary_f8_limit(path):
     return _O3D_F8["limit"]
 
 
-def ply_range_grid(path):
-    """Whether a PLY holds PCL's organized layout (an 'element range_grid')."""
-    p = pathlib.Path(path)
-    if p.suffix.lower() != ".ply":
-        return False
-    head = p.read_bytes()[:1 << 16]
-    end = head.find(b"end_header")
-    return re.search(rb"element\s+range_grid\b", head[:end] if end >= 0 else head) is not None
-
-
 def open3d_read(path, mesh, fmt="auto"):
     """Open3D's reading. Its OBJ (tinyobjloader), OFF and STL readers hold float32 values; its
     OBJ reader renumbers vertices. Its ascii PCD reader parses text into double whatever the
@@ -974,6 +964,20 @@ def compare_triangles(ref, got, problems):
             b[bad[0]].tolist()))
 
 
+def _without_nan_points(reading):
+    """The reading without its points whose position is NaN (a copy; itself if it has none)."""
+    if "xyz" not in reading.fields or reading.faces:
+        return reading
+    keep = ~np.isnan(np.asarray(reading.fields["xyz"], dtype=np.float64)).any(axis=1)
+    if keep.all():
+        return reading
+    out = Reading(reading.tool, reading.path)
+    out.command, out.capacity, out.unordered = reading.command, dict(reading.capacity), reading.unordered
+    for k, v in reading.fields.items():
+        out.add(k, np.asarray(v)[keep], reading.names[k])
+    return out
+
+
 def compare(ref, got, expect, own_format, problems, faces_held=True, capacity_override=None, ignore=()):
     """Appends to `problems` every difference between what a tool saw in the source (`ref`) and in
     the output (`got`), for the keys in `expect` (the keys the output's format holds and the tool
@@ -997,8 +1001,21 @@ def compare(ref, got, expect, own_format, problems, faces_held=True, capacity_ov
         compare_unordered(ref, got, present, capacity, want_faces, problems)
         return
     if ref.n != got.n:
+        # An organized scan's NaN points ("no return" pixels) are placeholders: a reader that
+        # drops them in one file (CloudCompare in a PLY's range grid) and keeps them in another
+        # (an XYZ's nan rows) sees the same points.
+        ref, got = _without_nan_points(ref), _without_nan_points(got)
+    if ref.n != got.n:
         problems.append("%d points in the source, %d in the output" % (ref.n, got.n))
         return
+    # At a NaN point the other values are no data either (PCL fills a no-return pixel's floats
+    # with NaN, its packed rgb too, where a PLY's uchar colours hold 0): compared at points only.
+    rows = None
+    if "xyz" in ref.fields and "xyz" in got.fields:
+        nan_a = np.isnan(np.asarray(ref.fields["xyz"], dtype=np.float64)).any(axis=1)
+        nan_b = np.isnan(np.asarray(got.fields["xyz"], dtype=np.float64)).any(axis=1)
+        if (nan_a & nan_b).any():
+            rows = np.flatnonzero(~(nan_a & nan_b))
     if own_format and ref.width is not None and (ref.width, ref.height) != (got.width, got.height):
         problems.append("organized %dx%d in the source, %sx%s in the output" % (ref.width, ref.height, got.width, got.height))
     unnamed = cloudcompare_unnamed(ref, got, paired_keys)
@@ -1006,14 +1023,14 @@ def compare(ref, got, expect, own_format, problems, faces_held=True, capacity_ov
         if k in unnamed:
             compare_values(k, ref.fields[k], got.fields[unnamed[k]], ref.names[k],
                            got.names[unnamed[k]] + " (CloudCompare's name for an ASCII column it does not name)",
-                           problems, ref.tool, capacity=capacity[k])
+                           problems, ref.tool, rows=rows, capacity=capacity[k])
             continue
         if k not in got.fields:
             problems.append("%s (%s) is missing in the output as %s reads it; it sees: %s" % (
                 ref.names[k], k, ref.tool, got.describe()))
             continue
         compare_values(k, ref.fields[k], got.fields[k], ref.names[k], got.names[k], problems, ref.tool,
-                       capacity=capacity[k])
+                       rows=None if k == "xyz" else rows, capacity=capacity[k])
     if "alpha" in got.fields and "alpha" not in ref.fields and "rgb" in ref.fields:
         alpha = np.asarray(got.fields["alpha"])
         opaque = 1.0 if alpha.dtype.kind == "f" else 255
