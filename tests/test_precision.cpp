@@ -262,7 +262,7 @@ static void noMoveWritesEveryValueBackBitForBit(const std::string& scenario) {
   }
 }
 
-// A drag with a stray at 1e5 (kept: it hangs from the surface), 1e10 or 1e22 (set apart): the
+// A drag with a stray at 1e5, 1e10 or 1e22 (each set apart: AFarStrayStaysWhereItIsAtAnyDistance): the
 // fixed points come back bit for bit, the moved ones within 1e-9 of the shape's size (double
 // input) or one ulp (float input) of the deformation computed here in double.
 TEST(Precision, StraysDoNotCostTheOtherPointsTheirPrecision) {
@@ -282,11 +282,10 @@ TEST(Precision, StraysDoNotCostTheOtherPointsTheirPrecision) {
           EXPECT_GT(c.unmoved, 50u);
           EXPECT_EQ(c.fixed_changed, 0u);
           EXPECT_EQ(c.unmoved_changed, 0u);
-          // The issue asks for 1e-9 of the size; measured 1.3e-15 on the grid, 1.5e-11 on the
-          // stray at 1e5: double rounding.
+          // The issue asks for 1e-9 of the size; measured 1.3e-15 on the grid: double rounding.
           if (as_double)
             EXPECT_LE(c.max_moved_error, 1e-10 * size) << c.max_moved_error;
-          else  // measured 0.5 on the grid, 1 on the stray at 1e5 (multi-resolution)
+          else  // measured 0.5 on the grid (1 on a stray at 1e5 when it was deformed)
             EXPECT_LE(c.max_float_ulps, 1.0 + 1e-9) << c.max_float_ulps;
           EXPECT_LE(c.max_float_path, 1e-5 * size) << c.max_float_path;  // float rounding
         }
@@ -438,6 +437,47 @@ TEST(Precision, HugeTranslationKeepsTheHandleRigid) {
   std::printf("  handle off the exact translation by at most %.3g\n", worst);
   EXPECT_LE(worst, 2.5e-4) << worst;
   EXPECT_EQ(worst_fixed, 0.0);
+}
+
+// One stray far off a 2.9-unit grid (a bad return), at any distance from 20 to 3e5 times the
+// grid's size: it stays where it is, bit for bit, said in a warning, and the other points come
+// out as the grid without it does. Before (issue 48), from 1e2 units on it turned with its
+// nearest cluster (flung 66 to 653,000 units by this drag) and the others moved by up to 0.8% of
+// the drag; only from a million sizes was it set apart.
+TEST(Precision, AFarStrayStaysWhereItIsAtAnyDistance) {
+  TempDir dir;
+  const std::vector<Eigen::Vector3d> clean = grid({});
+  writePly(dir.file("clean.ply"), clean, true);
+  const auto deform = [&](const std::string& in, const std::string& out) {
+    hgd::ScenarioRunner r = hgd::ScenarioRunner::read(in);
+    r.setScenario(hgd::parseScenario(kGridScenario, "s.json"));
+    r.applyMoves();
+    r.write(out);
+    return std::make_pair(r.geometry().far_points, r.report().warnings);
+  };
+  deform(dir.file("clean.ply"), dir.file("clean_out.ply"));
+  const hgd::Shape want = hgd::readShape(dir.file("clean_out.ply"));
+  const std::size_t at = clean.size() / 2;  // where grid() puts the stray
+  for (const double far : {60.0, 1e2, 1e3, 1e4, 1e5, 9.9e5}) {
+    SCOPED_TRACE("stray at y = " + shortest(far, false));
+    const Eigen::Vector3d stray(1.5, far, 0.02);
+    writePly(dir.file("in.ply"), grid({stray}), true);
+    const auto [apart, warnings] = deform(dir.file("in.ply"), dir.file("out.ply"));
+    EXPECT_EQ(apart, 1u);
+    bool said = false;
+    for (const auto& w : warnings) said = said || contains(w, "1 point lies more than");
+    EXPECT_TRUE(said);
+    const hgd::Shape got = hgd::readShape(dir.file("out.ply"));
+    ASSERT_EQ(got.size(), clean.size() + 1);
+    const Eigen::Vector3d s = valueOf(got, at);
+    EXPECT_TRUE(sameBits(s.x(), stray.x()) && sameBits(s.y(), stray.y()) && sameBits(s.z(), stray.z()))
+        << s.transpose();
+    double worst = 0;
+    for (std::size_t i = 0; i < clean.size(); ++i)
+      worst = std::max(worst, (valueOf(got, i < at ? i : i + 1) - valueOf(want, i)).cwiseAbs().maxCoeff());
+    // The grid's own points as without the stray: measured 0 (the stray never enters the build).
+    EXPECT_LE(worst, 1e-12) << worst;
+  }
 }
 
 // 50 runs with points at 1e22 among a 3-unit grid (a corrupt block's values): set apart, said,
