@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <random>
 #include <set>
 #include <string>
 #include <thread>
@@ -927,6 +928,65 @@ TEST(Viewer, StatsCountTheRenderTimeOfFrameKeys) {
   ASSERT_NE(at, std::string::npos) << r.out;
   EXPECT_TRUE(hgdtest::contains(r.out, "frames 3: ")) << r.out;
   EXPECT_GT(std::atof(r.out.c_str() + at + 7), 0.0) << r.out;
+}
+
+// Issue 49, defect 8: --stats after a session without drags or frame keys printed
+// "1000000000000.0 frames/s"; it says there was nothing to time.
+TEST(Viewer, StatsWithoutFramesSayThereWereNone) {
+  if (!haveXvfb()) GTEST_SKIP() << "xvfb-run not installed";
+  hgdtest::TempDir dir;
+  hgd::writeShape(dir.file("bar.pcd"), hgd::shapes::bar(1.0f, 0.1f, 0.02f));
+  hgdtest::writeText(dir.file("events.json"), R"({"events": [{"key": "v"}]})");
+  const hgdtest::CommandResult r = hgdtest::shell(
+      viewer(dir.file("bar.pcd") + " --replay " + dir.file("events.json") + " --stats --quiet"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(hgdtest::contains(r.out, "frames 0: no drag or frame key was timed")) << r.out;
+  EXPECT_FALSE(hgdtest::contains(r.out, "frames/s")) << r.out;
+}
+
+// Issue 49, defect 1: a z-up shape (a statue: tall along z, thin along y) opened as an empty
+// window: the eye sat on the z axis, along the up vector. It opens upright in three-quarter
+// view as hgdeform-render draws it: its top (red) at the top, its +x side (green) on the right.
+TEST(Viewer, AZUpStatueOpensUprightAndInView) {
+  if (!haveXvfb()) GTEST_SKIP() << "xvfb-run not installed";
+  hgdtest::TempDir dir;
+  pcl::PointCloud<pcl::PointXYZRGB> statue;
+  std::mt19937 rng(4);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  for (int i = 0; i < 30000; ++i) {  // points on the faces of a 1 x 0.3 x 2 box, random order
+    Eigen::Vector3f p(u(rng) - 0.5f, 0.3f * u(rng) - 0.15f, 2.0f * u(rng));
+    const int face = i % 6;
+    if (face == 0) p.x() = -0.5f;
+    if (face == 1) p.x() = 0.5f;
+    if (face == 2) p.y() = -0.15f;
+    if (face == 3) p.y() = 0.15f;
+    if (face == 4) p.z() = 0.0f;
+    if (face == 5) p.z() = 2.0f;
+    pcl::PointXYZRGB q;
+    q.getVector3fMap() = p;
+    const bool top = p.z() > 1.6f, side = !top && p.x() > 0.3f;
+    q.r = top ? 255 : (side ? 0 : 128);
+    q.g = side ? 255 : (top ? 0 : 128);
+    q.b = top || side ? 0 : 128;
+    statue.push_back(q);
+  }
+  hgd::Shape s;
+  pcl::toPCLPointCloud2(statue, s.cloud);
+  s.format = hgd::FileFormat::Pcd;
+  hgd::writeShape(dir.file("statue.pcd"), s);
+  std::string out;
+  ASSERT_EQ(hgdtest::run(viewer(dir.file("statue.pcd") + " --screenshot " + dir.file("statue.png") +
+                                " --size 600x500 --quiet"),
+                         out),
+            0)
+      << out;
+  const Image img = readPng(dir.file("statue.png"));
+  ASSERT_EQ(img.height, 500);
+  const Blob red = blob(img, 255, 0, 0), green = blob(img, 0, 255, 0);
+  ASSERT_GT(red.count, 500) << "the statue's top is not in view";
+  ASSERT_GT(green.count, 500) << "the statue's +x side is not in view";
+  EXPECT_LT(red.y, 200) << "the top is not at the top";
+  EXPECT_GT(green.x, 300) << "the +x side is not on the right";
 }
 
 }  // namespace

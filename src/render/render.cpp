@@ -308,6 +308,11 @@ std::vector<double> displacementFrom(const Shape& rest, const Shape& shape) {
   return d;
 }
 
+Eigen::Vector3d defaultView(const Shape& shape, const std::string& up) {
+  return chooseView(upAxis(up, {&shape}), axisSpread(shape), up == "auto", nullptr, nullptr,
+                    Eigen::Vector3d::Zero(), 1.0);
+}
+
 Eigen::Vector3f upAxis(const std::string& up, const std::vector<const Shape*>& shapes) {
   if (up == "auto") {
     const Shape* s = shapes.empty() ? nullptr : shapes.front();

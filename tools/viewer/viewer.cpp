@@ -54,6 +54,10 @@ void Viewer::printStats() const {
     std::sort(v.begin(), v.end());
     return v[v.size() / 2];
   };
+  if (stats_.solve.empty()) {  // (a rate of nothing over no time is no figure: it printed 1e12 frames/s)
+    std::printf("frames 0: no drag or frame key was timed\n");
+    return;
+  }
   const double s = median(stats_.solve), i = median(stats_.interpolate), r = median(stats_.render);
   std::printf(
       "frames %zu: solve %.2f ms, interpolate %.2f ms, render %.2f ms (medians); %.1f frames/s, %.0f "

@@ -123,10 +123,14 @@ void Viewer::addShapeCloud() {
 
 // The opening view, and `r`'s: the whole shape, upright by hgdeform-render's rule
 // (hgd::upAxis "auto": a camera-frame scan, organized or a PCD with a sensor pose, has -y up and
-// is seen from the sensor's side, +x to the right; anything else +y up, seen from +z).
+// is seen from the sensor's side, +x to the right; a shape clearly thinnest along y (a z-up
+// statue, a horse) has +z up and is seen as the renderer sees it, in three-quarter view across
+// its broad side; anything else +y up, seen from +z). Never along the up axis: a camera looking
+// along its up vector is degenerate (a z-up statue opened as an empty window).
 void Viewer::openingView() {
   const Eigen::Vector3d up = hgd::upAxis("auto", {&run_.shape()}).cast<double>();
-  const Eigen::Vector3d eye(0, 0, up.y() < 0 ? -1.0 : 1.0);
+  const Eigen::Vector3d eye = std::abs(up.z()) > 0.5 ? hgd::defaultView(run_.shape(), "auto").normalized()
+                                                     : Eigen::Vector3d(0, 0, up.y() < 0 ? -1.0 : 1.0);
   const Eigen::Vector3d c = centre(), at = c + 2.2 * diagonal_ * eye;
   if (opening_) {
     // PCL's own call once, at opening (nothing large is drawn yet, so its render is cheap):

@@ -106,6 +106,11 @@ std::string pictureSizeProblem(int width, int height);
 /// Throws std::invalid_argument naming the accepted values for anything else.
 Eigen::Vector3f upAxis(const std::string& up, const std::vector<const Shape*>& shapes);
 
+/// The direction from the target to the eye the renderer takes for `shape` when no view is given
+/// and nothing is coloured by displacement, with the up axis `up` names (see upAxis): a
+/// three-quarter view across the shape's broad side, never along the up axis.
+Eigen::Vector3d defaultView(const Shape& shape, const std::string& up);
+
 /// Renders the shapes side by side (one viewport each, one shared camera framing them all) and
 /// writes a PNG atomically. Throws std::runtime_error on failure.
 void renderPng(const std::vector<const Shape*>& shapes, const std::string& png_path,
