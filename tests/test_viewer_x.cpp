@@ -419,6 +419,29 @@ TEST(ViewerX, ShiftAndCapsLockGiveTheCapitalKeys) {
   EXPECT_TRUE(hgdtest::contains(v.named("saved ", 3), "deformed")) << v.log();
 }
 
+// Issue 49, defect 3: on a real keyboard < and > are Shift+comma and Shift+period. They change
+// the point size in any mode; in frame mode they do not turn the handle as , and . do (VTK gives
+// the unshifted character with the shift flag: only letters were shifted, so > arrived as . and
+// turned the handle -5 degrees).
+TEST(ViewerX, ShiftedPunctuationIsItsOwnKey) {
+  REQUIRE_X();
+  hgdtest::TempDir dir;
+  writeBar(dir);
+  const ViewerWindow v(x, hgdtest::quote(dir.file("bar.ply")) + " -s " + hgdtest::quote(dir.file("s.json")),
+                       dir.file("log.txt"));
+  ASSERT_TRUE(v.ok()) << v.log();
+  v.key("shift+period");
+  ASSERT_TRUE(v.waitFor("point size ")) << v.log();
+  v.key("shift+comma");
+  ASSERT_TRUE(v.waitFor("point size ", 2)) << v.log();
+  v.key("t");
+  ASSERT_TRUE(v.waitFor("frame mode")) << v.log();
+  v.key("shift+period");
+  // (in frame mode , and . turn the handle before any other binding is looked at: a > taken
+  // as . never reaches the point size)
+  ASSERT_TRUE(v.waitFor("point size ", 3)) << v.log();
+}
+
 }  // namespace
 
 namespace {

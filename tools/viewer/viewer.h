@@ -46,6 +46,8 @@ class Viewer;
 
 /// Whether Caps Lock is on (viewer_x11.cpp); `display` is the window's X Display.
 bool capsLockOn(void* display);
+/// The character the key that sends `keysym` gives with Shift, on the keyboard's layout (0: none).
+char shiftedChar(void* display, const char* keysym);
 
 /// The character a key press means: a letter in the case that Shift and Caps Lock make it
 /// (VTK hands `s` with the shift flag from a keyboard, `S` from XLookupString or a replay).

@@ -254,11 +254,22 @@ void Style::OnKeyDown() {
     return;
   }
   if (caps_lock < 0 || !burst) caps_lock = askCapsLock();
-  const char code =
-      keyChar(Interactor->GetKeyCode(), Interactor->GetShiftKey() != 0, !replaying && caps_lock == 1);
+  char code = keyChar(Interactor->GetKeyCode(), Interactor->GetShiftKey() != 0, !replaying && caps_lock == 1);
+  // Shift on anything but a letter: the character the layout gives (Shift+comma is < on a US
+  // keyboard), as a replay's {"key": "<"} names it. VTK says "comma", ',' and the shift flag:
+  // only letters were shifted, so > arrived as . (in frame mode, a turn of the handle).
+  std::string key_sym = sym;
+  if (!replaying && Interactor->GetShiftKey() && code != 0 &&
+      !std::isalpha(static_cast<unsigned char>(code))) {
+    vtkRenderWindow* w = Interactor->GetRenderWindow();
+    if (const char c = shiftedChar(w ? w->GetGenericDisplayId() : nullptr, sym.c_str()); c != 0) {
+      code = c;
+      key_sym = std::string(1, c);
+    }
+  }
   // Every key is ours (the help lists them): PCL's (u colour bar, g grid, j screenshot, e quit
   // at once, ...) and VTK's make no sense here and are off.
-  if (viewer) viewer->key(sym, code);
+  if (viewer) viewer->key(key_sym, code);
 }
 
 int Style::askCapsLock() {
