@@ -419,6 +419,49 @@ TEST(ViewerX, ShiftAndCapsLockGiveTheCapitalKeys) {
   EXPECT_TRUE(hgdtest::contains(v.named("saved ", 3), "deformed")) << v.log();
 }
 
+// Issue 49, defect 6: a press on the handle and a release without motion moves nothing. The
+// drag started from the handle's point nearest the cursor (up to 20 pixels away), so each such
+// click pulled that point to the cursor. Three clicks 8 pixels off the bar's corner, then a save:
+// the shape as it was. A drag after them still moves the corner by the pointer's motion.
+TEST(ViewerX, AClickWithoutMotionMovesNothing) {
+  REQUIRE_X();
+  hgdtest::TempDir dir;
+  writeBar(dir);
+  const ViewerWindow v(x, barArgs(dir), dir.file("log.txt"));
+  ASSERT_TRUE(v.ok()) << v.log();
+  const Eigen::Vector2d corner = onScreen(v, dir, kBarCorner);
+  const Eigen::Vector2d off = corner + Eigen::Vector2d(8, -8);
+  ASSERT_TRUE(startDrag(v, off));
+  v.release();
+  for (int k = 0; k < 2; ++k) {
+    v.press();
+    std::this_thread::sleep_for(100ms);
+    v.release();
+  }
+  std::this_thread::sleep_for(300ms);
+  v.key("s");
+  ASSERT_TRUE(v.waitFor("saved ")) << v.log();
+  const double clicked = maxDistance(dir.file("bar.ply"), v.named("saved "));
+  std::printf("largest motion after three clicks without motion: %.3g\n", clicked);
+  EXPECT_EQ(clicked, 0.0) << v.log();
+  // A drag from the same pixel by (+60, 0) pixels (still in drag mode): the corner moves right
+  // by about as much.
+  v.move(off.x(), off.y());
+  v.press();
+  for (int k = 1; k <= 6; ++k) {
+    v.move(off.x() + 10 * k, off.y());
+    std::this_thread::sleep_for(30ms);
+  }
+  std::this_thread::sleep_for(500ms);
+  v.release();
+  std::this_thread::sleep_for(300ms);
+  v.key("s");
+  ASSERT_TRUE(v.waitFor("saved ", 2)) << v.log();
+  const Eigen::Vector3d moved = whereIsPointNear(dir.file("bar.ply"), v.named("saved ", 2), kBarCorner);
+  const double per_pixel = (onScreen(v, dir, kBarCorner + Eigen::Vector3d(0.1, 0, 0)) - corner).x() / 0.1;
+  EXPECT_NEAR(moved.x() - kBarCorner.x(), 60.0 / per_pixel, 4.0 / per_pixel) << moved.transpose() << v.log();
+}
+
 // Issue 49, defect 3: on a real keyboard < and > are Shift+comma and Shift+period. They change
 // the point size in any mode; in frame mode they do not turn the handle as , and . do (VTK gives
 // the unshifted character with the shift flag: only letters were shifted, so > arrived as . and

@@ -237,6 +237,7 @@ class Viewer {
   bool quit_asked_ = false;     // q/e pressed once with unsaved changes
   vtkSmartPointer<vtkTextActor> help_, status_, mode_label_;
   Eigen::Vector3d drag_from_, drag_last_;
+  Eigen::Vector3d drag_press_;  // the pressed pixel at the picked point's depth: motions count from it
   double drag_depth_ = 0;
   std::string message_;
   std::string alert_;                  // see updateAlerts()

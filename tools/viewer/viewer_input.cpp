@@ -182,6 +182,9 @@ bool Viewer::dragBegin(int x, int y) {
   drag_from_ = deformed(static_cast<std::size_t>(hit));
   drag_depth_ = toDisplay(drag_from_).z();
   drag_last_ = drag_from_;
+  // The handle moves as the pointer does from where it was pressed (the picked point may be
+  // up to 20 pixels away): a press and release without motion moves nothing.
+  drag_press_ = fromDisplay(x, y, drag_depth_);
   return true;
 }
 
@@ -196,8 +199,8 @@ bool Viewer::dragMove(int x, int y) {
     showLod(false);
     return true;
   }
-  const Eigen::Vector3d to = fromDisplay(x, y, drag_depth_);
-  if (live_shown_ && to == drag_last_) return true;  // nothing new to show
+  const Eigen::Vector3d to = drag_from_ + (fromDisplay(x, y, drag_depth_) - drag_press_);
+  if (to == drag_last_) return true;  // nothing new to show (or, before any motion, nothing moved)
   hgd::Move m;
   m.kind = hgd::Move::Kind::Drag;
   m.drag.from = drag_from_;
