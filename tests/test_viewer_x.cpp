@@ -9,6 +9,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -16,6 +17,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <random>
 #include <string>
 #include <thread>
 #include <vector>
@@ -417,6 +419,52 @@ TEST(ViewerX, ShiftAndCapsLockGiveTheCapitalKeys) {
   v.key("s");  // Caps Lock is off again: the shape
   ASSERT_TRUE(v.waitFor("saved ", 3)) << v.log();
   EXPECT_TRUE(hgdtest::contains(v.named("saved ", 3), "deformed")) << v.log();
+}
+
+// Issue 49, defect 2: shift+click picks the point the user sees, not one behind the surface. A
+// closed box seen from its front (+z) face, its back face sampled more densely than the front
+// (so that a back point is often nearer the cursor on screen than any front one): five clicks
+// between front points each select around a front point, and the message says where it is.
+TEST(ViewerX, ShiftClickPicksTheFrontMostPoint) {
+  REQUIRE_X();
+  hgdtest::TempDir dir;
+  std::vector<Eigen::Vector3f> box;
+  auto face = [&](int n, float z) {
+    for (int i = 0; i < n; ++i)
+      for (int j = 0; j < n; ++j) box.emplace_back(-0.5f + i / (n - 1.0f), -0.5f + j / (n - 1.0f), z);
+  };
+  face(41, 0.5f);    // front, 0.025 apart
+  face(101, -0.5f);  // back, 0.01 apart
+  for (int i = 0; i < 41; ++i)
+    for (int k = 1; k < 40; ++k) {  // the four sides
+      const float a = -0.5f + i / 40.0f, z = -0.5f + k / 40.0f;
+      box.emplace_back(a, -0.5f, z);
+      box.emplace_back(a, 0.5f, z);
+      box.emplace_back(-0.5f, a, z);
+      box.emplace_back(0.5f, a, z);
+    }
+  std::mt19937 rng(9);
+  std::shuffle(box.begin(), box.end(), rng);  // random order, as scans come
+  hgd::writeShape(dir.file("box.ply"), hgd::shapes::cloudShape(box, {}));
+  const ViewerWindow v(x, hgdtest::quote(dir.file("box.ply")) + " --size 800x600", dir.file("log.txt"));
+  ASSERT_TRUE(v.ok()) << v.log();
+  const OpeningView view = openingView(dir.file("box.ply"));
+  for (int k = 0; k < 5; ++k) {
+    // Midway between front points (0.025 apart): about 4 pixels from the nearest ones.
+    const Eigen::Vector2d at =
+        view.at({-0.2 + 0.1 * k + 0.0125, 0.1 - 0.05 * k + 0.0125, 0.5}, v.width(), v.height());
+    v.move(at.x(), at.y());
+    v.xdo("keydown shift click 1 keyup shift");
+    ASSERT_TRUE(v.waitFor("points around point", static_cast<std::size_t>(k + 1))) << v.log();
+    const std::string said = v.named("points around point ", static_cast<std::size_t>(k + 1));
+    const long index = std::atol(said.c_str());
+    ASSERT_GE(index, 0);
+    ASSERT_LT(static_cast<std::size_t>(index), box.size()) << said;
+    EXPECT_EQ(box[static_cast<std::size_t>(index)].z(), 0.5f)
+        << "click " << k << " picked point " << index << " at "
+        << box[static_cast<std::size_t>(index)].transpose() << "\n"
+        << v.log();
+  }
 }
 
 // Issue 49, defect 6: a press on the handle and a release without motion moves nothing. The

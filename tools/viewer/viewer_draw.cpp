@@ -23,6 +23,7 @@
 #include <cstdio>
 #include <map>
 #include <sstream>
+#include <vector>
 
 #include "hgdeform/io/colormap.h"
 #include "hgdeform/io/fields.h"
@@ -557,22 +558,48 @@ void Viewer::cameraAxes(Eigen::Vector3d& up, Eigen::Vector3d& right, Eigen::Vect
 }
 
 // The point nearest to the cursor on screen (within `pixels`), front-most on ties.
+// The point under the cursor is the front-most one: of the points within `pixels` of it on
+// screen, those within a band (3% of the diagonal) of the nearest one's depth, and of these the
+// nearest on screen. Screen distance alone picked through the surface: a denser far side has a
+// point nearer the cursor than the near side's (three of five clicks on the bunny's near flank
+// selected its far flank).
 int Viewer::nearestOnScreen(int x, int y, double pixels, bool manipulated_only) {
-  int best = -1;
-  double best_d = pixels * pixels, best_z = INFINITY;
+  vtkCamera* cam = renderer()->GetActiveCamera();
+  double pos[3], dir[3];
+  cam->GetPosition(pos);
+  cam->GetDirectionOfProjection(dir);
+  const Eigen::Vector3d eye(pos[0], pos[1], pos[2]), view(dir[0], dir[1], dir[2]);
+  struct Candidate {
+    int index;
+    double screen2, depth;
+  };
+  std::vector<Candidate> near;
+  double front = INFINITY;
   auto consider = [&](std::size_t i) {
-    const Eigen::Vector3d d = toDisplay(deformed(i));
+    const Eigen::Vector3d w = deformed(i);
+    const Eigen::Vector3d d = toDisplay(w);
     const double dd = (d.x() - x) * (d.x() - x) + (d.y() - y) * (d.y() - y);
-    if (dd < best_d - 1e-9 || (std::abs(dd - best_d) <= 1e-9 && d.z() < best_z)) {
-      best_d = dd;
-      best_z = d.z();
-      best = static_cast<int>(i);
-    }
+    if (dd > pixels * pixels) return;
+    const double depth = (w - eye).dot(view);
+    if (depth <= 0) return;  // behind the eye
+    near.push_back({static_cast<int>(i), dd, depth});
+    front = std::min(front, depth);
   };
   if (manipulated_only) {
     for (int i : handles_.manipulated) consider(static_cast<std::size_t>(i));
   } else {
     for (std::size_t i = 0; i < run_.geometry().size(); ++i) consider(i);
+  }
+  const double band = 0.03 * diagonal_;
+  int best = -1;
+  double best_d = INFINITY, best_z = INFINITY;
+  for (const Candidate& c : near) {
+    if (c.depth > front + band) continue;
+    if (c.screen2 < best_d - 1e-9 || (std::abs(c.screen2 - best_d) <= 1e-9 && c.depth < best_z)) {
+      best_d = c.screen2;
+      best_z = c.depth;
+      best = c.index;
+    }
   }
   return best;
 }

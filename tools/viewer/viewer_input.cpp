@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cctype>
 #include <chrono>
+#include <cstdio>
 
 #include "viewer.h"
 
@@ -147,8 +148,10 @@ void Viewer::pickAt(int x, int y) {
       selected_[i] = 1;
       ++count;
     }
+  char at[96];
+  std::snprintf(at, sizeof at, " at (%.6g, %.6g, %.6g)", p.x(), p.y(), p.z());
   message("selected " + std::to_string(count) + " points around point " +
-          std::to_string(run_.geometry().raw_index[static_cast<std::size_t>(hit)]));
+          std::to_string(run_.geometry().raw_index[static_cast<std::size_t>(hit)]) + at);
   refresh();
 }
 
