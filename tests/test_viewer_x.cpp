@@ -414,6 +414,14 @@ TEST(ViewerX, ShiftAndCapsLockGiveTheCapitalKeys) {
   ASSERT_TRUE(v.waitFor("saved ", 2)) << v.log();
   EXPECT_TRUE(hgdtest::contains(v.named("saved ", 2), "scenario")) << v.log();
   EXPECT_FALSE(hgdtest::exists(dir.file("bar-deformed.ply")));
+  // C clears every handle and move, which undo cannot bring back: it asks first (issue 49,
+  // defect 4), and any other key in between cancels.
+  // With Caps Lock on, c is C: it asks, and says why.
+  v.key("Caps_Lock c Caps_Lock");
+  EXPECT_TRUE(v.waitFor("Caps Lock is on: c clears the selection", 1, 5)) << v.log();
+  v.key("v shift+c");
+  EXPECT_TRUE(v.waitFor("press C again to clear every handle", 2, 5)) << v.log();
+  EXPECT_FALSE(hgdtest::contains(v.log(), "handles cleared")) << v.log();
   v.key("shift+c");
   EXPECT_TRUE(v.waitFor("handles cleared", 1, 5)) << v.log();
   v.key("s");  // Caps Lock is off again: the shape

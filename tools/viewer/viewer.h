@@ -110,6 +110,8 @@ class Viewer {
 
   // --- events (viewer_input.cpp) ----------------------------------------------------------
   bool key(const std::string& sym, char code);
+  /// Caps Lock as the keyboard has it (shown beside the mode; named when it made a key capital).
+  void setCapsLock(bool on);
   /// The current mode: "pick", "area", "drag" or "frame".
   const char* mode() const;
   /// Places the help and the status line for the window's size (before every render).
@@ -146,6 +148,7 @@ class Viewer {
   void syncRegions();
   void clearSelection(bool redraw = true);
   void clearHandles();
+  void askAgain(char k, const std::string& what);
   void updateAlerts(bool live = false);
   void commit(const hgd::Move& m);
   void frameMove(const Eigen::Vector3d& translate, const Eigen::Vector3d& axis, double degrees);
@@ -235,6 +238,8 @@ class Viewer {
   bool timing_frame_ = false;   // a frame-mode key's render counts in --stats
   bool unsaved_ = false;        // moves or handles since the last save
   bool quit_asked_ = false;     // q/e pressed once with unsaved changes
+  char confirm_ = 0;            // C or n pressed once with something to lose: pressed again, it acts
+  bool caps_lock_ = false;
   vtkSmartPointer<vtkTextActor> help_, status_, mode_label_;
   Eigen::Vector3d drag_from_, drag_last_;
   Eigen::Vector3d drag_press_;  // the pressed pixel at the picked point's depth: motions count from it

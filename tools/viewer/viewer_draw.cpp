@@ -493,6 +493,7 @@ void Viewer::updateStatus() {
   std::string label = mode();
   const Eigen::Vector3d c = kModeColour.at(label);
   for (char& ch : label) ch = static_cast<char>(std::toupper(static_cast<unsigned char>(ch)));
+  if (caps_lock_) label += "\nCAPS";
   mode_label_->SetInput(label.c_str());
   mode_label_->GetTextProperty()->SetColor(c.x(), c.y(), c.z());
 }

@@ -35,6 +35,19 @@ void Viewer::setMode(const std::string& m) {
   if (m == "pick") message("pick mode: the mouse turns the view, shift+click selects");
 }
 
+// C and n throw away what undo cannot bring back: they act when pressed twice in a row.
+void Viewer::askAgain(char k, const std::string& what) {
+  confirm_ = k;
+  message(std::string("press ") + k + " again to " + what + " (undo cannot bring them back)" +
+          (caps_lock_ && k == 'C' ? "; Caps Lock is on: c clears the selection" : ""));
+}
+
+void Viewer::setCapsLock(bool on) {
+  if (on == caps_lock_) return;
+  caps_lock_ = on;
+  if (style_) message(on ? "Caps Lock is on" : "Caps Lock is off");
+}
+
 // q and e quit; with unsaved changes only when pressed twice in a row.
 void Viewer::requestQuit(char k) {
   if (unsaved_ && !quit_asked_) {
@@ -54,6 +67,8 @@ bool Viewer::key(const std::string& sym, char code) {
                  sym == "Caps_Lock"))
     return false;
   if (k != 'q' && k != 'e') quit_asked_ = false;
+  const char confirming = confirm_;  // C and n act when pressed twice in a row
+  confirm_ = 0;
   const KeyBinding* binding = findKey(k);  // the table of keys.cpp: what acts when
   if (dragging_ && (!binding || (binding->waits & kWaitsForDrag))) {
     message("release the mouse button first");
@@ -84,7 +99,12 @@ bool Viewer::key(const std::string& sym, char code) {
     case KeyAction::Manipulated: markSelection(2); return true;
     case KeyAction::Joint: markSelection(3); return true;
     case KeyAction::ClearSelection: clearSelection(); return true;
-    case KeyAction::ClearHandles: clearHandles(); return true;
+    case KeyAction::ClearHandles: {
+      const bool any = !handles_.fixed.empty() || !handles_.manipulated.empty() || !handles_.joints.empty();
+      if (any && confirming != 'C') return askAgain('C', "clear every handle and move"), true;
+      clearHandles();
+      return true;
+    }
     case KeyAction::AreaMode: setMode(std::string(mode()) == "area" ? "pick" : "area"); return true;
     case KeyAction::DragMode: setMode(drag_mode_ ? "pick" : "drag"); return true;
     case KeyAction::FrameMode: setMode(frame_mode_ ? "pick" : "frame"); return true;
@@ -104,7 +124,11 @@ bool Viewer::key(const std::string& sym, char code) {
     case KeyAction::OpeningView: openingView(); return true;
     case KeyAction::Undo: undo(); return true;
     case KeyAction::Redo: redo(); return true;
-    case KeyAction::RestShape: resetShape(); return true;
+    case KeyAction::RestShape:
+      if (ready() && !run_.moves().empty() && confirming != 'n')
+        return askAgain('n', "go back to the rest shape, dropping every move"), true;
+      resetShape();
+      return true;
     case KeyAction::SaveShape: saveShape(freshPath("-deformed", extensionOf(input_))); return true;
     case KeyAction::SaveScenario: saveScenario(freshPath("-scenario", ".json")); return true;
     case KeyAction::Screenshot: screenshot(freshPath("-screenshot", ".png")); return true;
@@ -257,9 +281,11 @@ void Style::OnKeyDown() {
   if (sym == "Caps_Lock") {
     caps_lock = caps_lock < 0 ? askCapsLock() : 1 - caps_lock;
     caps_time = now;
+    if (viewer && !replaying) viewer->setCapsLock(caps_lock == 1);
     return;
   }
   if (caps_lock < 0 || !burst) caps_lock = askCapsLock();
+  if (viewer && !replaying) viewer->setCapsLock(caps_lock == 1);
   char code = keyChar(Interactor->GetKeyCode(), Interactor->GetShiftKey() != 0, !replaying && caps_lock == 1);
   // Shift on anything but a letter: the character the layout gives (Shift+comma is < on a US
   // keyboard), as a replay's {"key": "<"} names it. VTK says "comma", ',' and the shift flag:
