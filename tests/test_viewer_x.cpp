@@ -127,7 +127,8 @@ class ViewerWindow {
       ::_exit(127);
     }
     std::string out;
-    if (xdo("search --sync --onlyvisible --name '^hgdeform-view$'", out, 30) == 0 && !out.empty())
+    // The title names the file: "bar.ply - hgdeform-view".
+    if (xdo("search --sync --onlyvisible --name ' - hgdeform-view$'", out, 30) == 0 && !out.empty())
       window_ = out.substr(0, out.find('\n'));
     if (window_.empty()) return;
     xdo("getwindowgeometry --shell " + window_, out);
@@ -146,6 +147,11 @@ class ViewerWindow {
   ViewerWindow& operator=(const ViewerWindow&) = delete;
 
   bool ok() const { return !window_.empty() && width_ > 0 && height_ > 0; }
+  std::string title() const {
+    std::string out;
+    xdo("getwindowname " + window_, out);
+    return out.substr(0, out.find('\n'));
+  }
   /// The window's size now (asked each time: the viewer sets its size again after opening).
   int width() const { return geometry("WIDTH="); }
   int height() const { return geometry("HEIGHT="); }
@@ -668,10 +674,12 @@ TEST(ViewerX, QuitAsksWithUnsavedChangesAndPclKeysAreOff) {
     ASSERT_FALSE(a.rgb.empty());
     // Above the status line, nothing changed.
     EXPECT_EQ(countDifferent(a, b, 0, a.height - 40), 0);
-    v.key("t Right");  // a frame move: an unsaved change
+    EXPECT_EQ(v.title(), "bar.ply - hgdeform-view");  // issue 49, defect 11: the title names the file
+    v.key("t Right");                                 // a frame move: an unsaved change
     ASSERT_TRUE(v.waitFor("frame mode")) << v.log();
     v.key("e");
     ASSERT_TRUE(v.waitFor("press e again")) << v.log();
+    EXPECT_TRUE(hgdtest::contains(v.log(), "(s saves the shape, S the session)")) << v.log();
     EXPECT_TRUE(v.alive(1.0));
     v.key("c q");  // another key in between: asks again
     ASSERT_TRUE(v.waitFor("press q again")) << v.log();
@@ -685,6 +693,16 @@ TEST(ViewerX, QuitAsksWithUnsavedChangesAndPclKeysAreOff) {
     v.key("t Right s q");  // saved: quits at once
     EXPECT_FALSE(v.alive(10)) << v.log();
     EXPECT_FALSE(hgdtest::contains(v.log(), "press q again")) << v.log();
+  }
+  {
+    // Only the handles unsaved (the scenario's handles cleared: no move): S is what saves them.
+    const ViewerWindow v(x, args, dir.file("log3.txt"));
+    ASSERT_TRUE(v.ok()) << v.log();
+    v.key("shift+c shift+c");
+    ASSERT_TRUE(v.waitFor("handles cleared")) << v.log();
+    v.key("q");
+    ASSERT_TRUE(v.waitFor("press q again")) << v.log();
+    EXPECT_TRUE(hgdtest::contains(v.log(), "(S saves the handles as a scenario)")) << v.log();
   }
 }
 

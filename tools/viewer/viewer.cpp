@@ -100,7 +100,7 @@ void Viewer::markSelection(int role) {
   h.joints.erase(std::remove_if(h.joints.begin(), h.joints.end(), [](const auto& v) { return v.empty(); }),
                  h.joints.end());
   handles_ = h;
-  markUnsaved();
+  markUnsaved(/*shape_moved=*/false);
   syncRegions();
   clearSelection(false);
   refreshRoles();
@@ -214,7 +214,7 @@ void Viewer::clearSelection(bool redraw) {
 
 void Viewer::clearHandles() {
   handles_ = hgd::Handles{};
-  markUnsaved();
+  markUnsaved(/*shape_moved=*/false);
   fixed_regions_.clear();
   joint_regions_.clear();
   run_.setHandles(handles_);
@@ -304,7 +304,7 @@ void Viewer::shapeChanged(const std::string& what) {
 
 void Viewer::saveShape(const std::string& path) {
   run_.write(path, {}, inputs_);
-  unsaved_ = false;
+  unsaved_ = shape_unsaved_ = false;
   message("saved " + path);
 }
 
@@ -313,7 +313,7 @@ void Viewer::saveScenario(const std::string& path) {
   if (handles_.fixed.empty() || handles_.manipulated.empty())
     return message("a scenario needs a fixed and a manipulated handle");
   hgd::writeFileAtomically(path, hgd::scenarioToJson(run_.scenario()));
-  unsaved_ = false;  // the session replays from it
+  unsaved_ = shape_unsaved_ = false;  // the session replays from it
   message("saved " + path);
 }
 

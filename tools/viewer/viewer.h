@@ -141,8 +141,9 @@ class Viewer {
   /// The deformer is there and not being built.
   bool ready() const { return !building_ && run_.ready(); }
   /// A change to save: a quit asked about before it must ask again.
-  void markUnsaved() {
+  void markUnsaved(bool shape_moved = true) {
     unsaved_ = true;
+    shape_unsaved_ = shape_unsaved_ || shape_moved;
     quit_asked_ = false;
   }
   void syncRegions();
@@ -237,6 +238,7 @@ class Viewer {
   bool opened_at_lod_ = false;  // the opening frame drew the level of detail (spin() draws it whole)
   bool timing_frame_ = false;   // a frame-mode key's render counts in --stats
   bool unsaved_ = false;        // moves or handles since the last save
+  bool shape_unsaved_ = false;  // of which moves (the shape changed)
   bool quit_asked_ = false;     // q/e pressed once with unsaved changes
   char confirm_ = 0;            // C or n pressed once with something to lose: pressed again, it acts
   bool caps_lock_ = false;

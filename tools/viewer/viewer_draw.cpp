@@ -45,6 +45,11 @@ void Viewer::open() {
   vis_ =
       std::make_unique<pcl::visualization::PCLVisualizer>(argc, nullptr, "hgdeform-view", style_.Get(), true);
   vis_->setSize(width_, height_);
+  // The window's title names the file, as every desktop viewer's does.
+  const std::string& path = run_.shape().path;
+  const std::size_t slash = path.find_last_of('/');
+  if (!path.empty())
+    vis_->setWindowName(path.substr(slash == std::string::npos ? 0 : slash + 1) + " - hgdeform-view");
   vis_->setBackgroundColor(1, 1, 1);
   vtkMapper::SetResolveCoincidentTopologyToPolygonOffset();  // the handles' marks lie over the shape
   fillDisplay();

@@ -52,7 +52,9 @@ void Viewer::setCapsLock(bool on) {
 void Viewer::requestQuit(char k) {
   if (unsaved_ && !quit_asked_) {
     quit_asked_ = true;
-    return message(std::string("unsaved changes: press ") + k + " again to quit without saving (s saves)");
+    return message(
+        std::string("unsaved changes: press ") + k + " again to quit without saving " +
+        (shape_unsaved_ ? "(s saves the shape, S the session)" : "(S saves the handles as a scenario)"));
   }
   quit_ = true;  // spin() ends
 }
