@@ -42,47 +42,24 @@ namespace py = pybind11;
 // Arguments taken as any Python object and checked by the function that takes them (arrays,
 // sequences, regions, paths). They bind as py::object does, but signatures and help() name
 // what is expected instead of pybind11's "handle" (`center: numpy.typing.ArrayLike | None`).
-namespace hgd_py {
-#define HGD_PY_ARG(Name)                                                      \
+#define HGD_PY_ARG(Name, Shown)                                               \
+  namespace hgd_py {                                                          \
   class Name : public py::object {                                            \
    public:                                                                    \
     PYBIND11_OBJECT_DEFAULT(Name, py::object, [](PyObject*) { return true; }) \
+  };                                                                          \
+  }                                                                           \
+  template <>                                                                 \
+  struct pybind11::detail::handle_type_name<hgd_py::Name> {                   \
+    static constexpr auto name = const_name(Shown);                           \
   };
-HGD_PY_ARG(ArrayLike)
-HGD_PY_ARG(OptionalArrayLike)
-HGD_PY_ARG(RegionLike)
-HGD_PY_ARG(PathLike)
-HGD_PY_ARG(ScenarioLike)
-HGD_PY_ARG(FieldsLike)
+HGD_PY_ARG(ArrayLike, "numpy.typing.ArrayLike")
+HGD_PY_ARG(OptionalArrayLike, "numpy.typing.ArrayLike | None")
+HGD_PY_ARG(RegionLike, "Region | numpy.typing.ArrayLike")
+HGD_PY_ARG(PathLike, "str | os.PathLike")
+HGD_PY_ARG(ScenarioLike, "Scenario | dict | str | os.PathLike")
+HGD_PY_ARG(FieldsLike, "dict[str, numpy.typing.ArrayLike] | None")
 #undef HGD_PY_ARG
-}  // namespace hgd_py
-
-namespace pybind11::detail {
-template <>
-struct handle_type_name<hgd_py::ArrayLike> {
-  static constexpr auto name = const_name("numpy.typing.ArrayLike");
-};
-template <>
-struct handle_type_name<hgd_py::OptionalArrayLike> {
-  static constexpr auto name = const_name("numpy.typing.ArrayLike | None");
-};
-template <>
-struct handle_type_name<hgd_py::RegionLike> {
-  static constexpr auto name = const_name("Region | numpy.typing.ArrayLike");
-};
-template <>
-struct handle_type_name<hgd_py::PathLike> {
-  static constexpr auto name = const_name("str | os.PathLike");
-};
-template <>
-struct handle_type_name<hgd_py::ScenarioLike> {
-  static constexpr auto name = const_name("Scenario | dict | str | os.PathLike");
-};
-template <>
-struct handle_type_name<hgd_py::FieldsLike> {
-  static constexpr auto name = const_name("dict[str, numpy.typing.ArrayLike] | None");
-};
-}  // namespace pybind11::detail
 
 namespace {
 

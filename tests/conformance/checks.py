@@ -388,3 +388,31 @@ def check_move(session, case):
         pytest.fail("%s moved: %s%s\n  hgdeform stderr: %s" % (case.id, "\n  ".join(problems), ctx,
                                                               stderr.strip().replace("\n", "\n    ") or "(none)"),
                     pytrace=False)
+
+
+# ----------------------------------------------------------------------------------------------
+# The four tests of a writer's module
+
+
+def writer_tests(case_list, move_names):
+    """The test functions of one writer's module (test_writer_<writer>.py): every source read by
+    hgdeform.read, written back in every format, moved by zero, and (`move_names`) dragged."""
+    moves = [c for c in case_list if c.name in move_names]
+
+    @pytest.mark.parametrize("case", case_list, ids=lambda c: c.id)
+    def test_python_reads(session, case):
+        check_python_reads(session, case)
+
+    @pytest.mark.parametrize("case,label,ext,ascii,tool", roundtrip_params(case_list))
+    def test_roundtrip(session, case, label, ext, ascii, tool):
+        check_roundtrip(session, case, label, ext, ascii, tool)
+
+    @pytest.mark.parametrize("case", case_list, ids=lambda c: c.id)
+    def test_identity_move(session, case):
+        check_identity(session, case)
+
+    @pytest.mark.parametrize("case", moves, ids=lambda c: c.id)
+    def test_move(session, case):
+        check_move(session, case)
+
+    return test_python_reads, test_roundtrip, test_identity_move, test_move
