@@ -220,6 +220,23 @@ class Reading:
                          for k, v in self.fields.items())
 
 
+def add_columns(rd, col, names, xyz, normal, rgb, alpha):
+    """Adds a table's columns (`col[name]`, names in order) to a Reading: the positions, normals,
+    colours and alpha under the names this writer gives them, every other column by its name."""
+    rd.add("xyz", np.stack([col[n] for n in xyz], axis=1), " ".join(xyz))
+    used = set(xyz)
+    for key, triple in (("normal", normal), ("rgb", rgb)):
+        if set(triple) <= set(names):
+            rd.add(key, np.stack([col[n] for n in triple], axis=1), " ".join(triple))
+            used |= set(triple)
+    if alpha in names:
+        rd.add("alpha", col[alpha], alpha)
+        used.add(alpha)
+    for n in names:
+        if n not in used:
+            rd.add(canonical(n), col[n], n)
+
+
 def canonical(name):
     n = name.strip().lower()
     if n.startswith("scalar_") and len(n) > 7:
@@ -319,21 +336,7 @@ def reading_from_ply(tool, path, ply_path):
     v = el.get("vertex")
     if v is None:
         v = np.empty(0, dtype=[("x", "f4"), ("y", "f4"), ("z", "f4")])
-    names = list(v.dtype.names)
-    r.add("xyz", np.stack([v["x"], v["y"], v["z"]], axis=1), "x y z")
-    used = {"x", "y", "z"}
-    if {"nx", "ny", "nz"} <= set(names):
-        r.add("normal", np.stack([v["nx"], v["ny"], v["nz"]], axis=1), "nx ny nz")
-        used |= {"nx", "ny", "nz"}
-    if {"red", "green", "blue"} <= set(names):
-        r.add("rgb", np.stack([v["red"], v["green"], v["blue"]], axis=1), "red green blue")
-        used |= {"red", "green", "blue"}
-    if "alpha" in names:
-        r.add("alpha", v["alpha"], "alpha")
-        used.add("alpha")
-    for n in names:
-        if n not in used:
-            r.add(canonical(n), v[n], n)
+    add_columns(r, v, list(v.dtype.names), ("x", "y", "z"), ("nx", "ny", "nz"), ("red", "green", "blue"), "alpha")
     faces = el.get("face")
     if faces is not None:
         key = None
@@ -605,20 +608,7 @@ def parse_cc_ascii(tool_path, asc_path):
     table = np.array([[float(v) for v in row] for row in rows], dtype=np.float64).reshape(len(rows), len(names))
     rd = Reading("cloudcompare", tool_path)
     col = {n: table[:, i] for i, n in enumerate(names)}
-    rd.add("xyz", np.stack([col["X"], col["Y"], col["Z"]], axis=1), "X Y Z")
-    used = {"X", "Y", "Z"}
-    if {"Nx", "Ny", "Nz"} <= set(col):
-        rd.add("normal", np.stack([col["Nx"], col["Ny"], col["Nz"]], axis=1), "Nx Ny Nz")
-        used |= {"Nx", "Ny", "Nz"}
-    if {"R", "G", "B"} <= set(col):
-        rd.add("rgb", np.stack([col["R"], col["G"], col["B"]], axis=1), "R G B")
-        used |= {"R", "G", "B"}
-    if "A" in col:
-        rd.add("alpha", col["A"], "A")
-        used.add("A")
-    for n in names:
-        if n not in used:
-            rd.add(canonical(n), col[n], n)
+    add_columns(rd, col, names, ("X", "Y", "Z"), ("Nx", "Ny", "Nz"), ("R", "G", "B"), "A")
     return rd
 
 
