@@ -835,7 +835,9 @@ TEST(ViewerX, DeformerBuildsWhileTheWindowResponds) {
   for (int k = 1; k <= 3; ++k) v.move(320 + 50 * k, 240 + 20 * k);
   v.release();
   ASSERT_TRUE(v.shot(dir.file("during.png")));
+  v.key("s");  // issue 49, defect 7: waits for the build, then runs (it was dropped)
   ASSERT_TRUE(v.waitFor("handles: 1 fixed", 1, 300)) << v.log();
+  ASSERT_TRUE(v.waitFor("saved ", 1, 60)) << v.log();
   const std::string log = v.log();
   std::printf("%s", log.c_str());
   const std::size_t building = log.find("building the deformer"),
@@ -845,6 +847,9 @@ TEST(ViewerX, DeformerBuildsWhileTheWindowResponds) {
   EXPECT_LT(shot, built) << "the screenshot waited for the build";
   EXPECT_NE(building, std::string::npos) << "the status line did not say that the deformer builds";
   EXPECT_LT(building, shot);
+  const std::size_t waits = log.find("s runs when it is done"), saved = log.find("saved ");
+  EXPECT_LT(waits, built) << "s did not wait for the build";
+  EXPECT_LT(built, saved) << "s did not run after the build";
   const Image before = readPng(dir.file("before.png")), during = readPng(dir.file("during.png"));
   ASSERT_FALSE(before.rgb.empty());
   EXPECT_GT(countDifferent(before, during, 90, before.height - 60), 2000) << "the view did not turn";

@@ -160,13 +160,22 @@ void Viewer::pollBuild() {
     handles_ = hgd::Handles{};
     run_.setHandles(handles_);
     refreshRoles();
-    message("cannot build the deformer: " + build_error_);
+    message("cannot build the deformer: " + build_error_ +
+            (waiting_keys_.empty()
+                 ? std::string()
+                 : "; the " + std::to_string(waiting_keys_.size()) + " keys pressed meanwhile were dropped"));
+    waiting_keys_.clear();
     refresh();
     return;
   }
   if (verbose_)
     std::fprintf(stderr, "hgdeform-view: deformer built in %.2f s\n", msSince(build_start_) / 1000.0);
   finishHandles();
+  // The keys pressed while it was built, in order (one that starts another build makes the
+  // rest wait again).
+  const std::vector<std::pair<std::string, char>> keys = std::move(waiting_keys_);
+  waiting_keys_.clear();
+  for (const auto& [sym, code] : keys) key(sym, code);
 }
 
 void Viewer::waitForBuild() {

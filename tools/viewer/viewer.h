@@ -240,7 +240,10 @@ class Viewer {
   bool unsaved_ = false;        // moves or handles since the last save
   bool shape_unsaved_ = false;  // of which moves (the shape changed)
   bool quit_asked_ = false;     // q/e pressed once with unsaved changes
-  char confirm_ = 0;            // C or n pressed once with something to lose: pressed again, it acts
+  char confirm_ = 0;
+  std::vector<std::pair<std::string, char>>
+      waiting_keys_;  // pressed during a build: run after it            // C or n pressed once with something
+                      // to lose: pressed again, it acts
   bool caps_lock_ = false;
   vtkSmartPointer<vtkTextActor> help_, status_, mode_label_;
   Eigen::Vector3d drag_from_, drag_last_;

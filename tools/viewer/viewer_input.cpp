@@ -78,7 +78,9 @@ bool Viewer::key(const std::string& sym, char code) {
   }
   // Named keys wait too (the arrows move the handle).
   if (building_ && (!binding || (binding->waits & kWaitsForBuild))) {
-    message("the deformer is still being built: this key waits for it");
+    waiting_keys_.emplace_back(sym, code);  // pressed again, in order, when the build ends
+    message("the deformer is still being built: " + (sym.empty() ? std::string(1, k) : sym) +
+            " runs when it is done (" + std::to_string(waiting_keys_.size()) + " waiting)");
     return true;
   }
   if (frame_mode_) {
