@@ -944,6 +944,26 @@ TEST(Viewer, StatsWithoutFramesSayThereWereNone) {
   EXPECT_FALSE(hgdtest::contains(r.out, "frames/s")) << r.out;
 }
 
+// Issue 49, defect 9: a key that does nothing says so. v with no handles said "view field" and
+// showed grey; an unbound key, an arrow outside frame mode and a frame turn key said nothing.
+TEST(Viewer, KeysThatDoNothingSaySo) {
+  if (!haveXvfb()) GTEST_SKIP() << "xvfb-run not installed";
+  hgdtest::TempDir dir;
+  hgd::writeShape(dir.file("bar.pcd"), hgd::shapes::bar(1.0f, 0.1f, 0.02f));
+  hgdtest::writeText(dir.file("events.json"),
+                     R"({"events": [{"key": "v"}, {"key": "w"}, {"key": "Left"}, {"key": "["}]})");
+  const hgdtest::CommandResult r =
+      hgdtest::shell(viewer(dir.file("bar.pcd") + " --replay " + dir.file("events.json")));
+  ASSERT_EQ(r.code, 0) << r.err;
+  const std::string all = r.out + r.err;
+  EXPECT_TRUE(hgdtest::contains(all, "the field and the clusters need a fixed and a manipulated handle"))
+      << all;
+  EXPECT_FALSE(hgdtest::contains(all, "view field")) << all;
+  EXPECT_TRUE(hgdtest::contains(all, "'w' does nothing here (h lists the keys)")) << all;
+  EXPECT_TRUE(hgdtest::contains(all, "the arrow keys move the manipulated handle in frame mode (t)")) << all;
+  EXPECT_TRUE(hgdtest::contains(all, "[ ] , . turn the manipulated handle in frame mode (t)")) << all;
+}
+
 // Issue 49, defect 1: a z-up shape (a statue: tall along z, thin along y) opened as an empty
 // window: the eye sat on the z axis, along the up vector. It opens upright in three-quarter
 // view as hgdeform-render draws it: its top (red) at the top, its +x side (green) on the right.

@@ -97,7 +97,12 @@ bool Viewer::key(const std::string& sym, char code) {
     if (k == ',') return frameMove(none, up, turn), true;
     if (k == '.') return frameMove(none, up, -turn), true;
   }
-  if (!binding) return false;
+  if (!binding) {  // said, not silent (a key that does nothing looked like a key that failed)
+    const bool arrow = sym == "Left" || sym == "Right" || sym == "Up" || sym == "Down";
+    message(arrow ? "the arrow keys move the manipulated handle in frame mode (t)"
+                  : "'" + (k != 0 ? std::string(1, k) : sym) + "' does nothing here (h lists the keys)");
+    return false;
+  }
   switch (binding->action) {
     case KeyAction::Fixed: markSelection(1); return true;
     case KeyAction::Manipulated: markSelection(2); return true;
@@ -118,6 +123,13 @@ bool Viewer::key(const std::string& sym, char code) {
                                 : "drags turn the handle as the shape pulls it (the paper's drag)");
       return true;
     case KeyAction::View:
+      if (!ready()) {  // the field and the clusters are the deformer's: none to show yet
+        view_ = 0;
+        message(building_ ? "the field and the clusters show once the deformer is built"
+                          : "the field and the clusters need a fixed and a manipulated handle (f, m)");
+        refresh();
+        return true;
+      }
       view_ = (view_ + 1) % 3;
       refresh();
       return true;
@@ -160,6 +172,8 @@ bool Viewer::key(const std::string& sym, char code) {
     }
     case KeyAction::Quit: requestQuit(k); return true;
     case KeyAction::FrameTurn:  // frame mode's keys, above; nothing in the other modes
+      message("[ ] , . turn the manipulated handle in frame mode (t)");
+      return false;
     case KeyAction::None: return false;
   }
   return false;
