@@ -78,13 +78,30 @@ const KeyBinding* findKey(char k) {
   return nullptr;
 }
 
-std::string helpOverlay() {
+std::string helpOverlay(std::size_t columns) {
   std::string text;
   for (const HelpLine& line : kLines) {
-    std::string items;
+    std::vector<std::string> parts;
+    if (line.start[0] != '\0') parts.emplace_back(line.start);
     for (const KeyBinding& b : line.keys)
-      if (b.shown != nullptr) items += std::string(items.empty() ? "" : "   ") + b.shown + "  " + b.what;
-    text += std::string(text.empty() ? "" : "\n") + line.start + items + line.end;
+      if (b.shown != nullptr) parts.push_back(std::string(b.shown) + "  " + b.what);
+    if (line.end[0] != '\0') parts.back() += line.end;
+    std::string out;
+    std::size_t width = 0;  // of the output's last line
+    for (std::size_t k = 0; k < parts.size(); ++k) {
+      const bool joined = k > 0 && (k != 1 || line.start[0] == '\0');  // "modes: " runs into its first item
+      const std::string sep = k == 0 ? "" : (joined ? "   " : "");
+      if (columns > 0 && width > 0 && width + sep.size() + parts[k].size() > columns) {
+        out += "\n    ";
+        width = 4;
+      } else {
+        out += sep;
+        width += sep.size();
+      }
+      out += parts[k];
+      width += parts[k].size();
+    }
+    text += std::string(text.empty() ? "" : "\n") + out;
   }
   return text;
 }

@@ -58,8 +58,9 @@ struct KeyBinding {
 const KeyBinding* findKey(char k);
 
 /// The help overlay: one line per help line of the table, items "x  area select" apart by three
-/// spaces.
-std::string helpOverlay();
+/// spaces; a line longer than `columns` characters (0: no limit) goes on between items on the
+/// next, indented.
+std::string helpOverlay(std::size_t columns = 0);
 
 /// The keys for `--help`: one item per line, indented.
 std::string keysHelp();

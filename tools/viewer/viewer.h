@@ -241,6 +241,7 @@ class Viewer {
   bool shape_unsaved_ = false;  // of which moves (the shape changed)
   bool quit_asked_ = false;     // q/e pressed once with unsaved changes
   char confirm_ = 0;
+  std::size_t help_columns_ = 0;  // the width the help overlay is wrapped to
   std::vector<std::pair<std::string, char>>
       waiting_keys_;  // pressed during a build: run after it            // C or n pressed once with something
                       // to lose: pressed again, it acts

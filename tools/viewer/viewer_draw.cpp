@@ -78,6 +78,8 @@ void Viewer::open() {
     return a;
   };
   help_ = text(true, false);
+  // Monospaced: in the proportional font [ ] read as ( ).
+  help_->GetTextProperty()->SetFontFamilyToCourier();
   help_->SetInput(helpOverlay().c_str());
   status_ = text(false, false);
   mode_label_ = text(false, true);
@@ -156,6 +158,13 @@ void Viewer::openingView() {
 void Viewer::placeOverlays() {
   if (!help_) return;
   const int* size = vis_->getRenderWindow()->GetSize();
+  // The help wraps to the window's width (8 pixels a Courier character at 13 points), as the
+  // status line does: it was cut off in a window narrower than its longest line.
+  const auto columns = static_cast<std::size_t>(std::max(20, (size[0] - 40) / 8));
+  if (columns != help_columns_) {
+    help_columns_ = columns;
+    help_->SetInput(helpOverlay(columns).c_str());
+  }
   help_->SetPosition(10, size[1] - 10);
   help_->SetVisibility(help_visible_);
   mode_label_->SetPosition(10, 10);
