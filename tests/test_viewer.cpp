@@ -894,22 +894,32 @@ TEST(Viewer, CameraFrameScanOpensTheRightWayUp) {
   flat.cloud.height = 1;
   flat.cloud.row_step = flat.cloud.point_step * flat.cloud.width;
   hgd::writeShape(dir.file("flat.pcd"), flat);
-  for (const std::string name : {"scan", "flat"}) {
-    SCOPED_TRACE(name);
+  // Issue 49, defect 5: the unorganized scan opens +y up (upside down for a camera's frame);
+  // --up -y, as hgdeform-render takes it, turns it upright.
+  struct Case {
+    std::string name, options;
+    bool red_on_top;
+  };
+  for (const Case& c : {Case{"scan", "", true}, Case{"flat", "", false}, Case{"flat", "--up -y", true}}) {
+    SCOPED_TRACE(c.name + " " + c.options);
     std::string out;
-    ASSERT_EQ(hgdtest::run(viewer(dir.file(name + ".pcd") + " --screenshot " + dir.file(name + ".png") +
-                                  " --size 600x500 --quiet"),
+    const std::string png = dir.file(c.name + std::to_string(c.options.size()) + ".png");
+    ASSERT_EQ(hgdtest::run(viewer(dir.file(c.name + ".pcd") + " --screenshot " + png +
+                                  " --size 600x500 --quiet " + c.options),
                            out),
               0)
         << out;
-    const Image img = readPng(dir.file(name + ".png"));
+    const Image img = readPng(png);
     ASSERT_EQ(img.height, 500);
     const Blob red = blob(img, 255, 0, 0), green = blob(img, 0, 255, 0);
     ASSERT_GT(red.count, 200);
     ASSERT_GT(green.count, 200);
-    EXPECT_EQ(red.y < 250, name == "scan") << "red rows at " << red.y;
+    EXPECT_EQ(red.y < 250, c.red_on_top) << "red rows at " << red.y;
     EXPECT_GT(green.x, 300) << "the picture is mirrored";
   }
+  std::string out;
+  EXPECT_EQ(hgdtest::run(viewer(dir.file("scan.pcd") + " --up w --screenshot " + dir.file("w.png")), out), 2);
+  EXPECT_TRUE(hgdtest::contains(out, "the up axis must be x, y, z, -x, -y, -z or auto, not 'w'")) << out;
 }
 
 // Item 12: --stats counts the render time of frame-mode keys (it said "render 0.00 ms").

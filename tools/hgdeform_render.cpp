@@ -26,6 +26,7 @@
 #include "hgdeform/io/geometry.h"
 #include "hgdeform/io/io.h"
 #include "hgdeform/render/render.h"
+#include "render_options.h"
 
 int main(int argc, char** argv) {
   hgd::removeTemporaryFilesOnSignals();  // no partial picture left by an interrupted run
@@ -46,39 +47,18 @@ int main(int argc, char** argv) {
       ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
   app.add_option("-o,--output", output, "the PNG to write; never an input")->required()->type_name("OUT.png");
   app.add_option("--field", opt.field, "colour by this per-point scalar (e.g. harmonic)")->type_name("NAME");
-  std::string view;
   hgdcli::addSizeOption(app, "picture size, 16x16 to 16384x16384 (default 1200x600)", 16,
                         hgd::kMaxPictureSide, opt.width, opt.height);
-  app.add_option("--view", view,
-                 "direction from the target to the eye (default: 1,0.6,1.4 turned with --up; with --up auto "
-                 "across the shape's broad side; with --displacement the side where the motion shows best)")
-      ->check(CLI::Validator(
-          [&opt](std::string& s) -> std::string {
-            Eigen::Vector3f v;
-            int used = 0;
-            if (std::sscanf(s.c_str(), "%f,%f,%f%n", &v.x(), &v.y(), &v.z(), &used) != 3 ||
-                static_cast<std::size_t>(used) != s.size() || !v.allFinite() || v.norm() == 0)
-              return "must be three finite numbers x,y,z, not all 0 (got '" + s + "')";
-            opt.view = v;
-            return {};
-          },
-          "", "direction"))
-      ->type_name("x,y,z");
-  app.add_option("--up", opt.up,
-                 "the axis that points up in the picture: x|y|z|-x|-y|-z|auto (default auto: -y when the "
-                 "first input is a camera-frame scan, i.e. organized (height > 1) or a PCD with a sensor "
-                 "pose; z when its points spread clearly least along y (a z-up model); else y)")
-      ->check(CLI::Validator(
-          [](std::string& s) -> std::string {
-            try {
-              hgd::upAxis(s, {});
-            } catch (const std::exception& e) {
-              return e.what();
-            }
-            return {};
-          },
-          "", "axis"))
-      ->type_name("AXIS");
+  hgdcli::addViewOption(
+      app, opt.view,
+      "direction from the target to the eye (default: 1,0.6,1.4 turned with --up; with --up "
+      "auto across the shape's broad side; with --displacement the side where the motion "
+      "shows best)");
+  hgdcli::addUpOption(
+      app, opt.up,
+      "the axis that points up in the picture: x|y|z|-x|-y|-z|auto (default auto: -y when the "
+      "first input is a camera-frame scan, i.e. organized (height > 1) or a PCD with a sensor "
+      "pose; z when its points spread clearly least along y (a z-up model); else y)");
   std::string rest_path, scenario_path;
   app.add_option("--displacement", rest_path,
                  "colour each input by its points' distance from the same points (file order) of REST, "

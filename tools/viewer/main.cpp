@@ -29,6 +29,7 @@
 #include "hgdeform/io/io.h"
 #include "hgdeform/render/render.h"
 #include "keys.h"
+#include "render_options.h"
 #include "replay.h"
 #include "viewer.h"
 
@@ -48,6 +49,8 @@ struct ViewArgs {
   int width = 1100, height = 800;
   bool stats = false, quiet = false, full_field = false;
   int lod = 100000;
+  std::string up = "auto";
+  std::optional<Eigen::Vector3f> view;
 };
 
 /// Parses the command line into `a`; returns -1 to go on, else the exit status.
@@ -72,6 +75,13 @@ int parseArgs(int argc, char** argv, ViewArgs& a) {
   app.add_flag("--full-field", a.full_field,
                "the field, pieces and clusters over every point, however many (as hgdeform deform "
                "--full-field; default: above 131,072 points on a coarse level)");
+  hgdcli::addUpOption(
+      app, a.up,
+      "the axis that points up in the opening view, as hgdeform-render's: x|y|z|-x|-y|-z|auto "
+      "(default auto: -y for a camera-frame scan, z for a shape clearly thinnest along y, else y)");
+  hgdcli::addViewOption(app, a.view,
+                        "direction from the shape to the eye in the opening view (default: along z for y up, "
+                        "else hgdeform-render's three-quarter view)");
   app.add_flag("-q,--quiet", a.quiet, "print nothing but errors");
   app.footer(hgdview::keysHelp() + "\n" + app.get_footer());
   return hgdcli::parse(app, argc, argv);
@@ -109,6 +119,8 @@ int main(int argc, char** argv) {
     viewer.verbose_ = !quiet;
     viewer.inputs_ = inputs;
     viewer.lod_points_ = args.lod;
+    viewer.up_option_ = args.up;
+    if (args.view) viewer.view_option_ = args.view->cast<double>();
     if (!scenario.empty()) viewer.loadScenario(scenario);
     const auto opening = hgdview::Clock::now();
     viewer.open();

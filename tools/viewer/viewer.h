@@ -21,6 +21,7 @@
 #include <atomic>
 #include <chrono>
 #include <memory>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -206,7 +207,9 @@ class Viewer {
 
  public:
   bool verbose_ = true;
-  std::vector<std::string> inputs_;  // files no output may replace
+  std::vector<std::string> inputs_;             // files no output may replace
+  std::string up_option_ = "auto";              // --up: the opening view's up axis
+  std::optional<Eigen::Vector3d> view_option_;  // --view: the opening view's eye direction
   bool drag_mode_ = false;
   bool keep_orientation_ = false;  // `l`: drags translate the handle without turning it
   int lod_points_ = 100000;        // --lod: points drawn during a drag of a larger cloud (0: all)

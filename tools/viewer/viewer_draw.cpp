@@ -136,9 +136,16 @@ void Viewer::addShapeCloud() {
 // its broad side; anything else +y up, seen from +z). Never along the up axis: a camera looking
 // along its up vector is degenerate (a z-up statue opened as an empty window).
 void Viewer::openingView() {
-  const Eigen::Vector3d up = hgd::upAxis("auto", {&run_.shape()}).cast<double>();
-  const Eigen::Vector3d eye = std::abs(up.z()) > 0.5 ? hgd::defaultView(run_.shape(), "auto").normalized()
-                                                     : Eigen::Vector3d(0, 0, up.y() < 0 ? -1.0 : 1.0);
+  const Eigen::Vector3d up = hgd::upAxis(up_option_, {&run_.shape()}).cast<double>();
+  Eigen::Vector3d eye = std::abs(up.y()) > 0.5 ? Eigen::Vector3d(0, 0, up.y() < 0 ? -1.0 : 1.0)
+                                               : hgd::defaultView(run_.shape(), up_option_).normalized();
+  if (view_option_) {
+    const Eigen::Vector3d v = view_option_->normalized();
+    if (std::abs(v.dot(up)) < 0.999)
+      eye = v;
+    else if (opening_)
+      message("--view lies along the up axis (no picture can be upright so): the default view instead");
+  }
   const Eigen::Vector3d c = centre(), at = c + 2.2 * diagonal_ * eye;
   if (opening_) {
     // PCL's own call once, at opening (nothing large is drawn yet, so its render is cheap):
