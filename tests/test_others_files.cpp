@@ -218,18 +218,17 @@ TEST_F(OthersFiles, ZerosAfterTheLastPointArePaddingOtherBytesAreRefused) {
   }
 }
 
-// An organized scan (a depth camera's 40x30 grid) with NaN points where nothing returned, as
-// PCL writes it in each encoding: the grid and every NaN stay in place through hgdeform.
-TEST_F(OthersFiles, AnOrganizedScanWithNanPointsKeepsItsGrid) {
+/// A depth camera's 40x30 organized scan: a tilted patch 0.6 units off, NaN points at one pixel
+/// in five (random, `seed`; counted into `nans`), colours by row and column.
+pcl::PointCloud<pcl::PointXYZRGB> depthCameraScan(unsigned seed, std::size_t* nans) {
   pcl::PointCloud<pcl::PointXYZRGB> scan(40, 30);
-  std::mt19937 rng(11);
-  std::size_t nans = 0;
+  std::mt19937 rng(seed);
   for (std::uint32_t r = 0; r < 30; ++r)
     for (std::uint32_t c = 0; c < 40; ++c) {
       auto& p = scan.at(c, r);
       if (rng() % 5 == 0) {
         p.x = p.y = p.z = std::numeric_limits<float>::quiet_NaN();
-        ++nans;
+        ++*nans;
       } else {
         p.x = 0.01f * static_cast<float>(c) - 0.2f;
         p.y = 0.01f * static_cast<float>(r) - 0.15f;
@@ -240,6 +239,14 @@ TEST_F(OthersFiles, AnOrganizedScanWithNanPointsKeepsItsGrid) {
       p.b = 9;
     }
   scan.is_dense = false;
+  return scan;
+}
+
+// An organized scan (a depth camera's 40x30 grid) with NaN points where nothing returned, as
+// PCL writes it in each encoding: the grid and every NaN stay in place through hgdeform.
+TEST_F(OthersFiles, AnOrganizedScanWithNanPointsKeepsItsGrid) {
+  std::size_t nans = 0;
+  const pcl::PointCloud<pcl::PointXYZRGB> scan = depthCameraScan(11, &nans);
   ASSERT_GT(nans, 100u);
   for (int enc = 0; enc < 4; ++enc) {
     const std::string in = path("organized" + std::to_string(enc) + ".pcd");
@@ -269,25 +276,11 @@ TEST_F(OthersFiles, AnOrganizedScanWithNanPointsKeepsItsGrid) {
 
 // PCL's PLYWriter of an organized scan without a camera element (as `pcl_pcd2ply -use_camera 0`
 // writes one): the valid points, then an element range_grid of one list per pixel, empty where
-// nothing returned. hgdeform reads the grid PCL's PLYReader reads (it read the 960 valid points
-// as an unorganized cloud); written back as PLY or PCD, PCL reads the same grid again.
+// nothing returned. hgdeform reads the grid PCL's PLYReader reads (it read the valid points
+// alone, as an unorganized cloud); written back as PLY or PCD, PCL reads the same grid again.
 TEST_F(OthersFiles, PclsOrganizedPlyIsReadAsItsGrid) {
-  pcl::PointCloud<pcl::PointXYZRGB> scan(40, 30);
-  std::mt19937 rng(12);
   std::size_t nans = 0;
-  for (std::uint32_t r = 0; r < 30; ++r)
-    for (std::uint32_t c = 0; c < 40; ++c) {
-      auto& p = scan.at(c, r);
-      const bool none = rng() % 5 == 0;
-      nans += none;
-      p.x = none ? std::numeric_limits<float>::quiet_NaN() : 0.01f * static_cast<float>(c) - 0.2f;
-      p.y = none ? std::numeric_limits<float>::quiet_NaN() : 0.01f * static_cast<float>(r) - 0.15f;
-      p.z = none ? std::numeric_limits<float>::quiet_NaN() : 0.6f + 0.001f * static_cast<float>(rng() % 100);
-      p.r = static_cast<std::uint8_t>(c * 6);
-      p.g = static_cast<std::uint8_t>(r * 8);
-      p.b = 9;
-    }
-  scan.is_dense = false;
+  const pcl::PointCloud<pcl::PointXYZRGB> scan = depthCameraScan(12, &nans);
   ASSERT_GT(nans, 100u);
   pcl::PCLPointCloud2 blob;
   pcl::toPCLPointCloud2(scan, blob);
