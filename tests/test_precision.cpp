@@ -478,6 +478,13 @@ TEST(Precision, AFarStrayStaysWhereItIsAtAnyDistance) {
     // The grid's own points as without the stray: measured 0 (the stray never enters the build).
     EXPECT_LE(worst, 1e-12) << worst;
   }
+  // Five points together as far off (a small second object, a part that reaches out) are not
+  // strays: they are deformed with the shape (a first version set any few far points apart).
+  std::vector<Eigen::Vector3d> group;
+  for (int k = 0; k < 5; ++k) group.emplace_back(1.5 + 0.05 * k, 100.0, 0.02 * k);
+  writePly(dir.file("group.ply"), grid(group), true);
+  const hgd::ScenarioRunner r = hgd::ScenarioRunner::read(dir.file("group.ply"));
+  EXPECT_EQ(r.geometry().far_points, 0u);
 }
 
 // 50 runs with points at 1e22 among a 3-unit grid (a corrupt block's values): set apart, said,

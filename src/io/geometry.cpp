@@ -1,10 +1,12 @@
 #include "hgdeform/io/geometry.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
+#include <map>
 #include <type_traits>
 
 #include "hgdeform/io/fields.h"
@@ -182,27 +184,54 @@ Geometry extractGeometry(const Shape& shape) {
     throw IoError(shape.path + buf);
   }
   double far = frame.extent > 0 ? std::min(kFarFactor * frame.extent, kMaxOffset) : kMaxOffset;
-  // Strays: points more than 16 times the shape's size from its centre are no part of it when
-  // they are few (at most 1% of the points; more are a part of the scene, a second object, and
-  // are deformed with it). Deformed, such a point turns with its nearest cluster about a pivot
-  // many sizes away: one at 100 sizes was flung 66 units by a unit drag, one at 1e5 sizes 6.5e5,
-  // and it pulled the clustering (the other points shifted by up to 0.8% of the move). Set apart
-  // like the absurdly far: left where they are, untouched, with the same warning.
+  // Strays: points more than 16 times the shape's size from its centre, each alone there (no
+  // other such point within one shape size: a part that reaches out, a rod, a second object,
+  // has its points together), are no part of the shape when they are few (at most 1% of the
+  // points). Deformed, such a point turns with its nearest cluster about a pivot many sizes
+  // away: one at 100 sizes was flung 66 units by a unit drag, one at 1e5 sizes 6.5e5, and it
+  // pulled the clustering (the other points shifted by up to 0.8% of the move). Set apart like
+  // the absurdly far: left where they are, untouched, with the same warning.
+  const double stray = frame.extent > 0 ? std::min(kStrayFactor * frame.extent, far) : far;
+  std::vector<std::size_t> strays;  // positions in `world`, ascending
   if (frame.extent > 0) {
-    const double stray = kStrayFactor * frame.extent;
     const std::size_t m = world.size();
     const int mb = blockCount(static_cast<long long>(m));
-    std::vector<std::size_t> beyond_in(static_cast<std::size_t>(mb), 0);
+    std::vector<std::vector<std::size_t>> beyond_in(static_cast<std::size_t>(mb));
     forBlocks(static_cast<long long>(m), mb, [&](int begin, int end, int b) {
-      std::size_t k = 0;
-      for (auto j = static_cast<std::size_t>(begin); j < static_cast<std::size_t>(end); ++j)
-        k += (world[j] - frame.centre).cwiseAbs().maxCoeff() > stray;
-      beyond_in[static_cast<std::size_t>(b)] = k;
+      for (auto j = static_cast<std::size_t>(begin); j < static_cast<std::size_t>(end); ++j) {
+        const double d = (world[j] - frame.centre).cwiseAbs().maxCoeff();
+        if (d > stray && d <= far) beyond_in[static_cast<std::size_t>(b)].push_back(j);
+      }
     });
-    std::size_t beyond = 0;
-    for (const std::size_t k : beyond_in) beyond += k;
-    if (beyond > 0 && static_cast<double>(beyond) <= kStrayShare * static_cast<double>(m))
-      far = std::min(far, stray);
+    std::vector<std::size_t> beyond;
+    for (const auto& v : beyond_in) beyond.insert(beyond.end(), v.begin(), v.end());
+    if (!beyond.empty() && static_cast<double>(beyond.size()) <= kStrayShare * static_cast<double>(m)) {
+      // Alone: no other candidate within one size (cells of that size; the body is 12 sizes away).
+      const double r = frame.extent;
+      const auto cellOf = [&](const Eigen::Vector3d& w) {
+        const Eigen::Vector3d q = ((w - frame.centre) / r).array().floor();
+        return std::array<long long, 3>{static_cast<long long>(q.x()), static_cast<long long>(q.y()),
+                                        static_cast<long long>(q.z())};
+      };
+      std::map<std::array<long long, 3>, std::vector<std::size_t>> cells;
+      for (const std::size_t j : beyond) cells[cellOf(world[j])].push_back(j);
+      for (const std::size_t j : beyond) {
+        const std::array<long long, 3> home = cellOf(world[j]);
+        bool alone = true;
+        for (long long dx = -1; dx <= 1 && alone; ++dx)
+          for (long long dy = -1; dy <= 1 && alone; ++dy)
+            for (long long dz = -1; dz <= 1 && alone; ++dz) {
+              const auto it = cells.find({home[0] + dx, home[1] + dy, home[2] + dz});
+              if (it == cells.end()) continue;
+              for (const std::size_t o : it->second)
+                if (o != j && (world[o] - world[j]).norm() <= r) {
+                  alone = false;
+                  break;
+                }
+            }
+        if (alone) strays.push_back(j);
+      }
+    }
   }
   // The frame's origin: the centre of the bounding box of the shape's body, the points within
   // four times its size of the median (every point of a shape without strays), rounded.
@@ -226,7 +255,7 @@ Geometry extractGeometry(const Shape& shape) {
       for (auto j = static_cast<std::size_t>(begin); j < static_cast<std::size_t>(end); ++j) {
         const Eigen::Vector3d w = world[j];
         const double d = (w - frame.centre).cwiseAbs().maxCoeff();
-        if (d > far) {
+        if (d > far || (d > stray && std::binary_search(strays.begin(), strays.end(), j))) {
           ++far_here;
           farthest_here = std::max(farthest_here, d);
           g.finite_index[static_cast<std::size_t>(g.raw_index[j])] = -1;
@@ -261,7 +290,8 @@ Geometry extractGeometry(const Shape& shape) {
       std::snprintf(buf, sizeof buf,
                     "%zu %s more than %.3g units from the shape (whose size is %.3g; the farthest "
                     "%.3g away): left where they are, untouched",
-                    far_count, far_count == 1 ? "point lies" : "points lie", far, frame.extent, farthest);
+                    far_count, far_count == 1 ? "point lies" : "points lie", strays.empty() ? far : stray,
+                    frame.extent, farthest);
       g.warnings.push_back((shape.path.empty() ? std::string() : shape.path + ": ") + buf);
     }
   }
