@@ -141,21 +141,38 @@ int fixedDecimals(std::string_view token);
 struct DecimalsSeen {
   std::vector<int> least;
   std::vector<char> exponents;
+  std::vector<std::vector<std::int8_t>> each;  // per column, every value's (-1: an exponent)
   void see(std::size_t column, std::string_view token) {
     if (column >= least.size()) {
       least.resize(column + 1, std::numeric_limits<int>::max());
       exponents.resize(column + 1, 0);
+      each.resize(column + 1);
     }
-    if (least[column] <= 0) return;
     const int d = fixedDecimals(token);
+    each[column].push_back(static_cast<std::int8_t>(std::min(d, 127)));
     if (d < 0)
       exponents[column] = 1;
     else
       least[column] = std::min(least[column], d);
   }
-  /// Stores column k's spelling under `names[k]` (columns that always had decimals only).
+  /// Stores column k's spelling under `names[k]`: columns that always had decimals, and columns
+  /// whose rows were spelt differently (with each row's).
   void store(FileExtras& extras, const std::vector<std::string>& names) const;
 };
+
+/// How value `row` of column `d` is spelt: its row's decimals when the column kept them for
+/// `rows` rows, else the column's.
+inline void rowSpelling(const FileExtras::TextColumn& d, std::size_t row, std::size_t rows, int* decimals,
+                        bool* exponents) {
+  if (d.rows.size() == rows && row < rows) {
+    const int r = d.rows[row];
+    *decimals = r < 0 ? 0 : r;
+    *exponents = r < 0;
+  } else {
+    *decimals = d.decimals;
+    *exponents = d.exponents;
+  }
+}
 
 /// How each of `fields` is to be spelt when written as text (decimals 0: shortest).
 std::vector<FileExtras::TextColumn> decimalsOf(const FileExtras& extras,

@@ -189,13 +189,17 @@ Shape readObj(const std::string& path) {
 namespace {
 
 /// " x y z" of the point at `pt`, each at its declared type (an OBJ vertex's coordinates).
-void appendXyz(std::string& buf, const pcl::PCLPointCloud2& c, const std::uint8_t* pt, const XyzFields& xyz,
+void appendXyz(std::string& buf, const pcl::PCLPointCloud2& c, std::size_t i, const XyzFields& xyz,
                const std::vector<FileExtras::TextColumn>& decimals) {
+  const std::uint8_t* pt = c.data.data() + i * c.point_step;
+  const std::size_t n = static_cast<std::size_t>(c.width) * c.height;
   const int idx[3] = {xyz.x, xyz.y, xyz.z};
   for (int a = 0; a < 3; ++a) {
     buf += ' ';
-    appendValue(buf, pt + c.fields[idx[a]].offset, c.fields[idx[a]].datatype, decimals[a].decimals,
-                decimals[a].exponents);
+    int dec = 0;
+    bool exp = false;
+    rowSpelling(decimals[static_cast<std::size_t>(a)], i, n, &dec, &exp);
+    appendValue(buf, pt + c.fields[idx[a]].offset, c.fields[idx[a]].datatype, dec, exp);
   }
 }
 
@@ -233,7 +237,7 @@ bool writeObjLines(const std::string& path, const Shape& shape, const XyzFields&
     const std::vector<std::string_view> words = splitWords(line);
     if (!words.empty() && words[0] == "v") {
       buf += 'v';
-      appendXyz(buf, c, c.data.data() + i++ * c.point_step, xyz, decimals);
+      appendXyz(buf, c, i++, xyz, decimals);
       for (std::size_t k = 4; k < words.size(); ++k) {
         buf += ' ';
         buf += words[k];
@@ -278,7 +282,7 @@ void writeObj(const std::string& path, const Shape& shape) {
   for (std::size_t i = 0; i < n; ++i) {
     const std::uint8_t* pt = c.data.data() + i * c.point_step;
     buf += 'v';
-    appendXyz(buf, c, pt, xyz, decimals);
+    appendXyz(buf, c, i, xyz, decimals);
     if (colour) {
       for (const int idx : {r, g, b}) {
         const Field& f = c.fields[idx];

@@ -128,13 +128,11 @@ void writeOff(const std::string& path, const Shape& shape) {
   std::vector<int> colour = {findField(c, "red"), findField(c, "green"), findField(c, "blue")};
   const bool has_colour = std::all_of(colour.begin(), colour.end(), [](int i) { return i >= 0; });
   if (!has_colour) colour.clear();
-  // Colours without alpha get an opaque one: Open3D's and CloudCompare's OFF readers take four
-  // colour values (r g b a) and misread three.
+  // Colours without alpha get an opaque one, 255: Open3D's and CloudCompare's OFF readers take
+  // four colour values (r g b a) and misread three, and read every value as 0..255 (MeshLab an
+  // alpha of 1 as 1/255).
   const bool opaque = has_colour && findField(c, "alpha") < 0;
-  const char* alpha = opaque && c.fields[static_cast<std::size_t>(colour[0])].datatype != Field::FLOAT32 &&
-                              c.fields[static_cast<std::size_t>(colour[0])].datatype != Field::FLOAT64
-                          ? " 255"
-                          : " 1";
+  const char* alpha = " 255";
   if (has_colour && !opaque) colour.push_back(findField(c, "alpha"));
   std::vector<int> cols = {xyz.x, xyz.y, xyz.z};
   if (xyz.hasNormals()) cols.insert(cols.end(), {xyz.nx, xyz.ny, xyz.nz});
@@ -151,7 +149,10 @@ void writeOff(const std::string& path, const Shape& shape) {
     for (std::size_t k = 0; k < cols.size(); ++k) {
       if (k) buf += ' ';
       const Field& f = c.fields[static_cast<std::size_t>(cols[k])];
-      appendValue(buf, pt + f.offset, f.datatype, decimals[k].decimals, decimals[k].exponents);
+      int dec = 0;
+      bool exp = false;
+      rowSpelling(decimals[k], i, n, &dec, &exp);
+      appendValue(buf, pt + f.offset, f.datatype, dec, exp);
     }
     if (opaque) buf += alpha;
     buf += '\n';

@@ -62,6 +62,9 @@ void organizeRangeGrid(Shape& shape) {
   if (cols == 0 || rows == 0 || cols > grid->count || cols * rows != grid->count ||
       cols > std::numeric_limits<std::uint32_t>::max() || rows > std::numeric_limits<std::uint32_t>::max())
     return;
+  // A grid with a point at every pixel: PCL's reader keeps the vertices' order (it rebuilds the
+  // grid only to place NaN points), and so does this one.
+  if (grid->count == shape.size()) return;
   const std::vector<std::size_t> pixel = rangeGridPixels(x, shape.size());
   if (pixel.empty()) return;
   pcl::PCLPointCloud2& c = shape.cloud;

@@ -175,7 +175,11 @@ void writePlyWithExtras(const std::string& path, const Shape& shape, bool ascii,
           for (std::size_t k = 0; k < fieldCount(*so.field); ++k) {
             sep();
             if (t) {
-              appendValue(*t, pt + k * sz, so.field->datatype, so.text.decimals, so.text.exponents);
+              int dec = 0;
+              bool exp = false;
+              rowSpelling(so.text, static_cast<std::size_t>(r), n, &dec,
+                          &exp);  // (file rows: vertex records)
+              appendValue(*t, pt + k * sz, so.field->datatype, dec, exp);
             } else {
               b->insert(b->end(), pt + k * sz, pt + (k + 1) * sz);
               swapLast(*b, sz, swap);

@@ -80,6 +80,9 @@ struct FileExtras {
     std::string field;
     int decimals = 0;
     bool exponents = false;
+    /// When the column's values were spelt with differing decimals ("1.5" beside "1.50"): each
+    /// row's, in file order (-1: written with an exponent), so that every row comes back as spelt.
+    std::vector<std::int8_t> rows;
   };
   std::vector<TextColumn> text_decimals;
   bool empty() const {
