@@ -432,6 +432,21 @@ TEST(Off, ColoursAreWrittenWithAlphaAndAsBytes) {
   EXPECT_EQ(hgdtest::slurp(out2), "COFF\n1 0 0\n1 2 3 4 5 6 255\n");
 }
 
+// An alpha of 0..1 without red, green and blue is no colour to convert: kept as it is. The
+// conversion looked up the red field's flag at index -1, a read before its buffer that only
+// AddressSanitizer sees (scripts/sanitize.sh runs this test so).
+TEST(Off, AlphaWithoutColoursIsKept) {
+  TempDir dir;
+  const std::string xyz = dir.file("a.xyz");
+  hgdtest::writeText(xyz, "//X Y Z alpha\n0 0 0 0.5\n1 0 0 0.25\n0 1 0 1\n");
+  const std::string ply = dir.file("a.ply");
+  hgd::writeShape(ply, hgd::readShape(xyz));
+  const Shape b = hgd::readShape(ply);
+  ASSERT_EQ(names(b), (std::vector<std::string>{"x", "y", "z", "alpha"}));
+  EXPECT_EQ(value(b, 0, "alpha"), 0.5);
+  EXPECT_EQ(value(b, 1, "alpha"), 0.25);
+}
+
 // An OBJ whose every vertex has one normal (each corner v//vn naming the same one) gives them
 // as nx ny nz; corners that give a vertex two normals keep them with the lines only. A shape
 // with normals is written to OBJ with one 'vn' per 'v' and faces naming them (issue 48).

@@ -201,7 +201,7 @@ bool conventionalCloud(const Shape& shape, FileFormat target, pcl::PCLPointCloud
     if (r >= 0 && gr >= 0 && b >= 0 && unitColours(c, {r, gr, b}))
       for (const long k : {r, gr, b}) unit_colour[static_cast<std::size_t>(k)] = 1;
     const long al = exact.count("alpha") ? static_cast<long>(exact["alpha"]) : -1;
-    if (al >= 0 && unit_colour[static_cast<std::size_t>(r)] && unitColours(c, {al}))
+    if (al >= 0 && r >= 0 && unit_colour[static_cast<std::size_t>(r)] && unitColours(c, {al}))
       unit_colour[static_cast<std::size_t>(al)] = 1;  // an RGBA of 0..1 floats: its alpha too
   }
   if (target == FileFormat::Pts) {
