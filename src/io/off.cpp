@@ -132,7 +132,6 @@ void writeOff(const std::string& path, const Shape& shape) {
   // four colour values (r g b a) and misread three, and read every value as 0..255 (MeshLab an
   // alpha of 1 as 1/255).
   const bool opaque = has_colour && findField(c, "alpha") < 0;
-  const char* alpha = " 255";
   if (has_colour && !opaque) colour.push_back(findField(c, "alpha"));
   std::vector<int> cols = {xyz.x, xyz.y, xyz.z};
   if (xyz.hasNormals()) cols.insert(cols.end(), {xyz.nx, xyz.ny, xyz.nz});
@@ -154,7 +153,7 @@ void writeOff(const std::string& path, const Shape& shape) {
       rowSpelling(decimals[k], i, n, &dec, &exp);
       appendValue(buf, pt + f.offset, f.datatype, dec, exp);
     }
-    if (opaque) buf += alpha;
+    if (opaque) buf += " 255";
     buf += '\n';
     flushIfFull(w, buf);
   }

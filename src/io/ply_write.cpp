@@ -42,15 +42,16 @@ std::vector<std::size_t> gridOrder(const Shape& shape) {
   return rangeGridPixels(shape.extras, vertex->count);
 }
 
-/// Whether a shape's kept PLY elements still fit it (the same vertex and face counts).
-bool plyExtrasFit(const Shape& shape) {
+/// Whether a shape's kept PLY elements still fit it (the same vertex and face counts; for PCL's
+/// organized PLY, `order` from gridOrder).
+bool plyExtrasFit(const Shape& shape, const std::vector<std::size_t>& order) {
   const auto& els = shape.extras.ply_elements;
   if (els.empty()) return false;
   bool vertex = false;
   for (const auto& el : els) {
     if (el.name == "vertex") {
       vertex = true;
-      if (el.count != shape.size() && gridOrder(shape).empty()) return false;
+      if (el.count != shape.size() && order.empty()) return false;
     }
     const bool indices = std::any_of(el.kept.begin(), el.kept.end(), [](char k) { return !k; });
     if (el.name == "face" && indices && el.count != shape.polygons.size()) return false;
@@ -62,10 +63,9 @@ bool plyExtrasFit(const Shape& shape) {
 /// their order: the vertex element's scalars from the cloud (fields added since go last), the
 /// faces' vertex lists from the polygons, the rest from FileExtras.
 void writePlyWithExtras(const std::string& path, const Shape& shape, bool ascii,
-                        const std::vector<const Field*>& fields) {
+                        const std::vector<const Field*>& fields, const std::vector<std::size_t>& order) {
   const pcl::PCLPointCloud2& c = shape.cloud;
-  // An organized PLY of PCL's: the valid points, each from its pixel (gridOrder).
-  const std::vector<std::size_t> order = gridOrder(shape);
+  // An organized PLY of PCL's: the valid points, each from its pixel (`order`, gridOrder).
   const std::size_t n = order.empty() ? shape.size() : order.size();
   std::string h = "ply\nformat ";
   h += ascii ? "ascii" : binaryFormat(shape);
@@ -229,7 +229,8 @@ void writePlyWithExtras(const std::string& path, const Shape& shape, bool ascii,
 
 void writePly(const std::string& path, const Shape& shape, bool ascii) {
   const auto fields = checkShape(path, shape, false);
-  if (plyExtrasFit(shape)) return writePlyWithExtras(path, shape, ascii, fields);
+  if (const std::vector<std::size_t> order = gridOrder(shape); plyExtrasFit(shape, order))
+    return writePlyWithExtras(path, shape, ascii, fields, order);
   const pcl::PCLPointCloud2& c = shape.cloud;
   const std::size_t n = shape.size();
   if (n > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max()) && !shape.polygons.empty())
