@@ -57,8 +57,9 @@ int main(int argc, char** argv) {
   hgdcli::addUpOption(
       app, opt.up,
       "the axis that points up in the picture: x|y|z|-x|-y|-z|auto (default auto: -y when the "
-      "first input is a camera-frame scan, i.e. organized (height > 1) or a PCD with a sensor "
-      "pose; z when its points spread clearly least along y (a z-up model); else y)");
+      "first input is a camera-frame scan, i.e. organized (height > 1), a PCD with a sensor "
+      "pose, or every point ahead of the origin within 60 degrees of +z; z when its points spread clearly "
+      "least along y (a z-up model); else y)");
   std::string rest_path, scenario_path;
   app.add_option("--displacement", rest_path,
                  "colour each input by its points' distance from the same points (file order) of REST, "

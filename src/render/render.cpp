@@ -313,14 +313,35 @@ Eigen::Vector3d defaultView(const Shape& shape, const std::string& up) {
                     Eigen::Vector3d::Zero(), 1.0);
 }
 
+bool inSensorCone(const Shape& shape) {
+  // Every point ahead of the sensor, inside a cone wider than any depth camera's field of view
+  // (tan 60 degrees): a depth image's valid pixels, a stereo cloud. A model centred on the
+  // origin, or standing on z = 0, is not.
+  const Xyz f = xyzFields(shape);
+  const std::size_t n = shape.size(), stride = std::max<std::size_t>(1, n / 200000);
+  constexpr double kTan60 = 1.7320508;
+  std::size_t finite = 0;
+  for (std::size_t i = 0; i < n; i += stride) {
+    const Eigen::Vector3d p = pointOf(shape, f, i);
+    if (!p.allFinite()) continue;
+    if (!(p.z() > 0) || std::abs(p.x()) > kTan60 * p.z() || std::abs(p.y()) > kTan60 * p.z()) return false;
+    ++finite;
+  }
+  return finite > 0;
+}
+
+bool isCameraFrame(const Shape& shape) {
+  const bool posed =
+      shape.format == FileFormat::Pcd && (!shape.sensor_origin.head<3>().isZero() ||
+                                          !shape.sensor_orientation.isApprox(Eigen::Quaternionf::Identity()));
+  return shape.isOrganized() || posed || inSensorCone(shape);
+}
+
 Eigen::Vector3f upAxis(const std::string& up, const std::vector<const Shape*>& shapes) {
   if (up == "auto") {
     const Shape* s = shapes.empty() ? nullptr : shapes.front();
     if (!s) return Eigen::Vector3f::UnitY();
-    const bool posed =
-        s->format == FileFormat::Pcd && (!s->sensor_origin.head<3>().isZero() ||
-                                         !s->sensor_orientation.isApprox(Eigen::Quaternionf::Identity()));
-    if (s->isOrganized() || posed) return -Eigen::Vector3f::UnitY();
+    if (isCameraFrame(*s)) return -Eigen::Vector3f::UnitY();
     // A z-up model (a horse, a statue, a car: the convention of scanners and CAD) is thinnest
     // along y, the axis a y-up picture would look down: take z up when y is clearly the thinnest
     // (a margin, so that near-equal spreads keep +y and similar files do not flip).

@@ -86,24 +86,30 @@ class BlendedOverlayPass : public vtkOverlayPass {
 };
 vtkStandardNewMacro(BlendedOverlayPass);
 
-/// VTK's eye-dome lighting (vtkEDLShading: the same depth passes), composed more softly and
-/// within its viewport. VTK's own composition multiplies the colour by the shade as is, which on
-/// a sparse cloud (the background showing between its points is "far") turns most of it near
-/// black, and clears the whole window, erasing the other viewports. Here the shade darkens by
-/// kStrength of its own amount and the clear is kept to the renderer's viewport.
+/// Eye-dome lighting (Boucheny's, as CloudCompare draws it), on vtkEDLShading's framebuffers:
+/// the scene is drawn into its projection buffer, then one pass shades each drawn pixel by how
+/// far it lies behind its neighbours (the log of the eye distance, 8 neighbours at 1 and at 2
+/// pixels). Neighbours that are background take no part, and the background is never shaded:
+/// VTK's own shading darkened a drawn pixel beside the background, which put a dark ring round
+/// every lone point (a stray looked like a handle's mark; issue 49). Only depth steps within the
+/// drawn surface shade: its folds and the edges of its near parts over its far ones. The shade
+/// darkens by kStrength of its own amount, and the clear is kept to the renderer's viewport (a
+/// window of several viewports is drawn one at a time).
 class SoftEyeDome : public vtkEDLShading {
  public:
   static SoftEyeDome* New();
   vtkTypeMacro(SoftEyeDome, vtkEDLShading)
 
       static constexpr float kStrength = 0.6f;
+  /// exp(-kResponse * sum): a pixel 1% of its distance behind three of its 8 neighbours at one
+  /// pixel darkens by about a quarter of kStrength.
+  static constexpr float kResponse = 60.0f;
 
   void Render(const vtkRenderState* s) override {
     this->NumberOfRenderedProps = 0;
     vtkRenderer* r = s->GetRenderer();
     auto* window = vtkOpenGLRenderWindow::SafeDownCast(r->GetRenderWindow());
     if (!this->DelegatePass || !window) return;
-    // What vtkEDLShading::Render does, up to its composition.
     this->ReadWindowSize(s);
     this->ExtraPixels = 0;
     this->W = this->Width;
@@ -111,10 +117,9 @@ class SoftEyeDome : public vtkEDLShading {
     vtkRenderState s2(r);
     s2.SetPropArrayAndCount(s->GetPropArray(), s->GetPropArrayCount());
     this->EDLInitializeFramebuffers(s2);
-    this->EDLInitializeShaders(window);
     if (!this->Compose.Program)
       this->Compose.Program = window->GetShaderCache()->ReadyShaderProgram(kQuadVS, kComposeFS, "");
-    if (!this->EDLShadeProgram.Program || !this->BilateralProgram.Program || !this->Compose.Program) return;
+    if (!this->Compose.Program) return;
     double znear = 0, zfar = 1;
     r->GetActiveCamera()->GetClippingRange(znear, zfar);
     this->Zn = static_cast<float>(znear);
@@ -124,9 +129,6 @@ class SoftEyeDome : public vtkEDLShading {
     this->RenderDelegate(s, this->Width, this->Height, this->W, this->H, this->ProjectionFBO,
                          this->ProjectionColorTexture, this->ProjectionDepthTexture);
     this->ProjectionFBO->UnBind();
-    if (!this->EDLShadeHigh(s2, window)) this->ProjectionFBO->RestorePreviousBindingsAndBuffers();
-    if (!this->EDLShadeLow(s2, window)) this->ProjectionFBO->RestorePreviousBindingsAndBuffers();
-    if (this->EDLIsFiltered) this->EDLBlurLow(s2, window);
     if (s->GetFrameBuffer()) vtkOpenGLFramebufferObject::SafeDownCast(s->GetFrameBuffer())->Bind();
     this->ProjectionFBO->RestorePreviousBindingsAndBuffers();
     compose(window);
@@ -147,31 +149,51 @@ class SoftEyeDome : public vtkEDLShading {
   static constexpr const char* kComposeFS =
       "//VTK::System::Dec\n"
       "//VTK::Output::Dec\n"
-      "in vec2 tcoordVC;\n"
-      "uniform sampler2D s2_S1;\n"
-      "uniform sampler2D s2_S2;\n"
       "uniform sampler2D s2_C;\n"
+      "uniform sampler2D s2_D;\n"
+      "in vec2 tcoordVC;\n"
+      "const vec2 kDirections[8] = vec2[8](vec2(1, 0), vec2(1, 1), vec2(0, 1), vec2(-1, 1), vec2(-1, 0),\n"
+      "                                    vec2(-1, -1), vec2(0, -1), vec2(1, -1));\n"
+      "uniform float zn;\n"
+      "uniform float zf;\n"
       "uniform float strength;\n"
+      "uniform float response;\n"
+      "float logDistance(float d) {\n"
+      "  float ndc = 2.0 * d - 1.0;\n"
+      "  return log2(2.0 * zn * zf / (zf + zn - ndc * (zf - zn)));\n"
+      "}\n"
       "void main() {\n"
-      "  vec4 shade1 = texture2D(s2_S1, tcoordVC.st);\n"
-      "  vec4 shade2 = texture2D(s2_S2, tcoordVC.st);\n"
-      "  vec4 color = texture2D(s2_C, tcoordVC.st);\n"
-      "  float lum = 1.0 - strength * (1.0 - mix(shade1.r, shade2.r, 0.3));\n"
+      "  ivec2 last = textureSize(s2_D, 0) - ivec2(1);\n"
+      "  ivec2 at = clamp(ivec2(tcoordVC.st * vec2(last + ivec2(1))), ivec2(0), last);\n"
+      "  vec4 color = texelFetch(s2_C, at, 0);\n"
+      "  float d = texelFetch(s2_D, at, 0).r;\n"
+      "  float lum = 1.0;\n"
+      "  if (d < 1.0) {\n"
+      "    float own = logDistance(d);\n"
+      "    float sum = 0.0;\n"
+      "    for (int k = 0; k < 16; ++k) {\n"
+      "      int radius = k < 8 ? 1 : 2;\n"
+      "      ivec2 step = ivec2(kDirections[k % 8]) * radius;\n"
+      "      float dn = texelFetch(s2_D, clamp(at + step, ivec2(0), last), 0).r;\n"
+      "      if (dn < 1.0) sum += max(0.0, own - logDistance(dn)) / float(radius);\n"
+      "    }\n"
+      "    lum = 1.0 - strength * (1.0 - exp(-response * sum));\n"
+      "  }\n"
       "  gl_FragData[0] = vec4(color.rgb * lum, color.a);\n"
-      "  gl_FragDepth = shade1.a;\n"
+      "  gl_FragDepth = d;\n"
       "}\n";
 
   void compose(vtkOpenGLRenderWindow* window) {
     window->GetShaderCache()->ReadyShaderProgram(this->Compose.Program);
     vtkShaderProgram* prog = this->Compose.Program;
-    vtkTextureObject* low = this->EDLIsFiltered ? this->EDLLowBlurTexture : this->EDLLowShadeTexture;
-    this->EDLHighShadeTexture->Activate();
-    prog->SetUniformi("s2_S1", this->EDLHighShadeTexture->GetTextureUnit());
-    low->Activate();
-    prog->SetUniformi("s2_S2", low->GetTextureUnit());
     this->ProjectionColorTexture->Activate();
     prog->SetUniformi("s2_C", this->ProjectionColorTexture->GetTextureUnit());
+    this->ProjectionDepthTexture->Activate();
+    prog->SetUniformi("s2_D", this->ProjectionDepthTexture->GetTextureUnit());
+    prog->SetUniformf("zn", this->Zn);
+    prog->SetUniformf("zf", this->Zf);
     prog->SetUniformf("strength", kStrength);
+    prog->SetUniformf("response", kResponse);
     vtkOpenGLState* state = window->GetState();
     state->vtkglEnable(GL_SCISSOR_TEST);
     state->vtkglScissor(this->Origin[0], this->Origin[1], this->W, this->H);
@@ -180,11 +202,10 @@ class SoftEyeDome : public vtkEDLShading {
     state->vtkglClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
     state->vtkglDisable(GL_BLEND);
     state->vtkglEnable(GL_DEPTH_TEST);
-    this->EDLHighShadeTexture->CopyToFrameBuffer(0, 0, this->W - 1, this->H - 1, this->Origin[0],
-                                                 this->Origin[1], this->Origin[0] + this->W - 1,
-                                                 this->Origin[1] + this->H - 1, prog, this->Compose.VAO);
-    low->Deactivate();
-    this->EDLHighShadeTexture->Deactivate();
+    this->ProjectionColorTexture->CopyToFrameBuffer(0, 0, this->W - 1, this->H - 1, this->Origin[0],
+                                                    this->Origin[1], this->Origin[0] + this->W - 1,
+                                                    this->Origin[1] + this->H - 1, prog, this->Compose.VAO);
+    this->ProjectionDepthTexture->Deactivate();
     this->ProjectionColorTexture->Deactivate();
     // The overlay (drawn next) goes into the renderer's viewport, whatever the passes left set.
     state->vtkglViewport(this->Origin[0], this->Origin[1], this->W, this->H);

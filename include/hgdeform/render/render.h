@@ -31,7 +31,8 @@ struct RenderOptions {
   std::optional<Eigen::Vector3f> view;
   /// Which axis points up in the picture: "x", "y", "z", "-x", "-y", "-z", or "auto" (upAxis):
   /// -y for a shape in a camera's frame (PCL's convention: +z forward, +y down), i.e. organized
-  /// (height > 1) or a PCD with a sensor pose; +z for a shape whose y extent is clearly its
+  /// (height > 1), a PCD with a sensor pose or an unorganized scan in its sensor's frame
+  /// (isCameraFrame); +z for a shape whose y extent is clearly its
   /// thinnest (a z-up model: a horse, a statue, a car); else +y.
   std::string up = "auto";
   std::string field;                ///< scalar field to colour by ("" = file colours or grey)
@@ -105,6 +106,16 @@ std::string pictureSizeProblem(int width, int height);
 /// shape: its organization and sensor pose, then the spread of its points along x, y and z).
 /// Throws std::invalid_argument naming the accepted values for anything else.
 Eigen::Vector3f upAxis(const std::string& up, const std::vector<const Shape*>& shapes);
+
+/// Whether `shape` is in a depth camera's frame (+z forward, +y down): organized, or a PCD with
+/// a sensor pose, or every finite point in front of the origin (z > 0) within 60 degrees of +z,
+/// as a scan written in its sensor's frame is. upAxis("auto") takes -y up for it.
+bool isCameraFrame(const Shape& shape);
+
+/// Whether every finite point of `shape` is ahead of the origin (z > 0) within 60 degrees of +z:
+/// where a sensor at the origin looking along +z sees them. The viewer opens such a shape seen
+/// from the sensor's side.
+bool inSensorCone(const Shape& shape);
 
 /// The direction from the target to the eye the renderer takes for `shape` when no view is given
 /// and nothing is coloured by displacement, with the up axis `up` names (see upAxis): a
