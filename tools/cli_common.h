@@ -73,6 +73,8 @@ inline int parse(CLI::App& app, int argc, const char* const* argv, bool print = 
   } catch (const CLI::CallForVersion& e) {
     if (print) std::printf("%s\n", e.what());
     return 0;
+  } catch (const CLI::Success&) {  // a flag that printed what it was asked for (--keys-markdown)
+    return 0;
   } catch (const CLI::ParseError& e) {
     return print ? usageError(app.get_name(), e.what()) : 2;
   }

@@ -24,6 +24,7 @@ const std::vector<HelpLine> kLines = {
     {"modes: ",
      {
          {"x", A::AreaMode, "x", "area select", kDrag},
+         {"p", A::LassoMode, "p", "lasso select", kDrag},
          {"d", A::DragMode, "d", "drag the manipulated handle", kDrag | kBuild},
          {"t", A::FrameMode, "t", "frame (arrows, [ ], , .)", kDrag | kBuild},
          {"[],.", A::FrameTurn, nullptr, nullptr, kDrag | kBuild},
@@ -32,6 +33,7 @@ const std::vector<HelpLine> kLines = {
     {"",
      {
          {"", A::None, "shift+click", "select around a point (any mode)", kWaitsNever},
+         {"", A::None, "ctrl", "with a click, area or lasso: deselect", kWaitsNever},
          {"+=", A::RadiusUp, "+/-", "radius", kDrag},
          {"-", A::RadiusDown, nullptr, nullptr, kDrag},
          {"c", A::ClearSelection, "c", "clear selection", kDrag},
@@ -42,7 +44,7 @@ const std::vector<HelpLine> kLines = {
          {"f", A::Fixed, "f", "fixed handle", kDrag | kBuild},
          {"m", A::Manipulated, "m", "manipulated handle", kDrag | kBuild},
          {"j", A::Joint, "j", "joint", kDrag | kBuild},
-         {"C", A::ClearHandles, "C", "clear all handles (twice)", kDrag | kBuild},
+         {"C", A::ClearHandles, "C", "clear all handles (z: back)", kDrag | kBuild},
          {"l", A::KeepOrientation, "l", "drags keep orientation", kDrag | kBuild},
      },
      ""},
@@ -50,11 +52,24 @@ const std::vector<HelpLine> kLines = {
      {
          {"v", A::View, "v", "view: colours / field / clusters", kDrag | kBuild},
          {"o", A::Overlay, "o", "rest overlay", kDrag | kBuild},
-         {"<>", A::PointSize, "< >", "point size", kDrag},
-         {"r", A::OpeningView, "r", "opening view", kDrag},
+         {"<>", A::PointSize, "< >", "point size (or ctrl+wheel)", kDrag},
+         {"i", A::Shading, "i", "shading on/off", kDrag},
+         {"a", A::Axes, "a", "axes", kWaitsNever},
+     },
+     ""},
+    {"",
+     {
+         {"r", A::OpeningView, "r", "fit the shape", kDrag},
+         {"123456", A::StandardView, "1-6", "front back left right top bottom", kDrag},
+         {"u", A::UpAxis, "u", "up axis", kDrag},
+         {"", A::None, "mouse", "left turns, right/middle pans, wheel zooms", kWaitsNever},
+     },
+     ""},
+    {"",
+     {
          {"z", A::Undo, "z/y", "undo/redo", kDrag | kBuild},
          {"y", A::Redo, nullptr, nullptr, kDrag | kBuild},
-         {"n", A::RestShape, "n", "rest shape (twice)", kDrag | kBuild},
+         {"n", A::RestShape, "n", "rest shape (z: back)", kDrag | kBuild},
      },
      ""},
     {"",
@@ -103,6 +118,36 @@ std::string helpOverlay(std::size_t columns) {
     }
     text += std::string(text.empty() ? "" : "\n") + out;
   }
+  return text;
+}
+
+std::string keysMarkdown() {
+  std::string text = "| key | does |\n| --- | --- |\n";
+  for (const HelpLine& line : kLines)
+    for (const KeyBinding& b : line.keys) {
+      if (b.shown == nullptr) continue;
+      std::string key = b.shown, cell;
+      // Each key in code spans: "z/y" is `z`/`y`, "1-6" is `1`-`6`; words (shift+click, mouse)
+      // as they are.
+      const bool words = key.find("click") != std::string::npos || key == "mouse" || key == "ctrl";
+      if (words) {
+        cell = key;
+      } else {
+        std::string part;
+        for (char c : key + ' ') {
+          const bool apart = c == ' ' || ((c == '/' || c == '-') && !part.empty());
+          if (!apart) {
+            part += c;
+            continue;
+          }
+          cell += "`" + part + "`" +
+                  (c == ' ' ? std::string(cell.empty() && part.empty() ? "" : " ") : std::string(1, c));
+          part.clear();
+        }
+        while (!cell.empty() && cell.back() == ' ') cell.pop_back();
+      }
+      text += "| " + cell + " | " + b.what + " |\n";
+    }
   return text;
 }
 

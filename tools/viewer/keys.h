@@ -1,7 +1,7 @@
 // The viewer's keys, written once: what each key does (Viewer::key in viewer_input.cpp acts by
 // this table), whether it acts during a drag or while the deformer builds, and how the help
 // overlay ('h') and `hgdeform-view --help` name it. PCL's and VTK's own keys are off; the mouse
-// turns, pans and zooms the view as in PCL. README.md's viewer section shows the same keys.
+// turns, pans and zooms the view as in PCL. README.md's viewer section shows the same keys (keysMarkdown).
 #pragma once
 
 #include <string>
@@ -11,6 +11,7 @@ namespace hgdview {
 enum class KeyAction {
   None,  // a gesture the help names (shift+click), no key
   AreaMode,
+  LassoMode,
   DragMode,
   FrameMode,
   FrameTurn,  // [ ] , . in frame mode (the arrows, named keys, move the handle)
@@ -26,6 +27,10 @@ enum class KeyAction {
   Overlay,
   PointSize,
   OpeningView,
+  UpAxis,
+  StandardView,  // 1-6: front, back, left, right, top, bottom
+  Axes,
+  Shading,
   Undo,
   Redo,
   RestShape,
@@ -61,6 +66,10 @@ const KeyBinding* findKey(char k);
 /// spaces; a line longer than `columns` characters (0: no limit) goes on between items on the
 /// next, indented.
 std::string helpOverlay(std::size_t columns = 0);
+
+/// The keys as README.md's Markdown table (`hgdeform-view --keys-markdown`; a test checks that
+/// README.md holds it as written here).
+std::string keysMarkdown();
 
 /// The keys for `--help`: one item per line, indented.
 std::string keysHelp();

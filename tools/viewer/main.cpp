@@ -79,10 +79,18 @@ int parseArgs(int argc, char** argv, ViewArgs& a) {
       app, a.up,
       "the axis that points up in the opening view, as hgdeform-render's: x|y|z|-x|-y|-z|auto "
       "(default auto: -y for a camera-frame scan, z for a shape clearly thinnest along y, else y)");
-  hgdcli::addViewOption(app, a.view,
-                        "direction from the shape to the eye in the opening view (default: along z for y up, "
-                        "else hgdeform-render's three-quarter view)");
+  hgdcli::addViewOption(
+      app, a.view,
+      "direction from the shape to the eye in the opening view (default: a camera-frame "
+      "scan from its sensor's side, anything else in hgdeform-render's three-quarter view)");
   app.add_flag("-q,--quiet", a.quiet, "print nothing but errors");
+  app.add_flag_callback(
+      "--keys-markdown",
+      [] {
+        std::fputs(hgdview::keysMarkdown().c_str(), stdout);
+        throw CLI::Success();
+      },
+      "print the keys as README.md's Markdown table and exit");
   app.footer(hgdview::keysHelp() + "\n" + app.get_footer());
   return hgdcli::parse(app, argc, argv);
 }

@@ -222,16 +222,44 @@ void Viewer::clearSelection(bool redraw) {
 }
 
 void Viewer::clearHandles() {
+  const bool any = !handles_.fixed.empty() || !handles_.manipulated.empty() || !handles_.joints.empty();
+  if (!any) return message("no handles to clear");
+  keepForUndo("handles and moves");
   handles_ = hgd::Handles{};
-  markUnsaved(/*shape_moved=*/false);
+  markUnsaved(/*shape_moved=*/!run_.moves().empty());
   fixed_regions_.clear();
   joint_regions_.clear();
   run_.setHandles(handles_);
   run_.setRegions(fixed_regions_, manipulated_region_, joint_regions_);
   updateAlerts();
   refreshRoles();
-  message("handles cleared");
+  message(std::string("handles cleared (z brings them back)") +
+          (caps_lock_ ? "; Caps Lock is on: c clears the selection" : ""));
   refresh();
+}
+
+// C and n throw away handles or moves the runner's undo does not hold: kept here for one undo.
+void Viewer::keepForUndo(const std::string& what) {
+  cleared_ = Cleared{handles_, fixed_regions_, manipulated_region_, joint_regions_, run_.moves(), what};
+}
+
+// Undo after C or n: the handles as they were, the deformer built for them, every move applied
+// again in order (each solved as it was the first time: the same shape, point for point).
+void Viewer::restoreCleared() {
+  Cleared c = std::move(*cleared_);
+  cleared_.reset();
+  const bool same = ready() && c.handles.fixed == handles_.fixed &&
+                    c.handles.manipulated == handles_.manipulated && c.handles.joints == handles_.joints;
+  handles_ = c.handles;
+  fixed_regions_ = c.fixed;
+  manipulated_region_ = c.manipulated;
+  joint_regions_ = c.joints;
+  if (!same) run_.setHandles(handles_);
+  run_.setRegions(fixed_regions_, manipulated_region_, joint_regions_);
+  if (run_.ready())
+    for (const hgd::Move& m : c.moves) run_.apply(m);
+  refreshRoles();
+  shapeChanged(c.what + " back (undone)");
 }
 
 // What the deformation cannot do for this shape, on the status line and stderr: pieces that
@@ -281,6 +309,11 @@ void Viewer::frameMove(const Eigen::Vector3d& translate, const Eigen::Vector3d& 
   const auto t0 = Clock::now();
   commit(m);
   stats_.solve.push_back(msSince(t0));
+  // Said on the status line of the frame drawn next (message() would draw one more).
+  message_ = degrees != 0 ? "turned the handle " + num(degrees) + " degrees"
+                          : "moved the handle by (" + num(translate.x()) + ", " + num(translate.y()) + ", " +
+                                num(translate.z()) + ")";
+  if (verbose_) std::fprintf(stderr, "hgdeform-view: %s\n", message_.c_str());
   stats_.interpolate.push_back(run_.deformer().lastInterpolationMs());
   timing_frame_ = true;  // the frame's render counts (--stats)
   refresh();
@@ -288,8 +321,9 @@ void Viewer::frameMove(const Eigen::Vector3d& translate, const Eigen::Vector3d& 
 }
 
 void Viewer::undo() {
-  if (!ready() || !run_.undo()) return message("nothing to undo");
-  shapeChanged("undone");
+  if (ready() && run_.undo()) return shapeChanged("undone");
+  if (cleared_) return restoreCleared();
+  message("nothing to undo");
 }
 
 void Viewer::redo() {
@@ -298,9 +332,10 @@ void Viewer::redo() {
 }
 
 void Viewer::resetShape() {
-  if (!ready()) return;
+  if (!ready() || run_.moves().empty()) return message("the shape is at rest already");
+  keepForUndo("moves");
   run_.reset();
-  shapeChanged("rest shape");
+  shapeChanged("rest shape (z brings the moves back)");
 }
 
 // After undo, redo or a reset: the shape moved without a gesture.

@@ -12,6 +12,8 @@
 
 #include <pcl/visualization/interactor_style.h>
 #include <pcl/visualization/pcl_visualizer.h>
+#include <vtkActor2D.h>
+#include <vtkOrientationMarkerWidget.h>
 #include <vtkRenderWindowInteractor.h>
 #include <vtkScalarBarActor.h>
 #include <vtkSmartPointer.h>
@@ -67,12 +69,17 @@ class Style : public pcl::visualization::PCLVisualizerInteractorStyle {
   void OnLeftButtonDown() override;
   void OnLeftButtonUp() override;
   void OnMouseMove() override;
+  void OnRightButtonDown() override;
+  void OnRightButtonUp() override;
+  void OnMouseWheelForward() override;
+  void OnMouseWheelBackward() override;
   // vtkInteractorStyleRubberBandPick's modes: 0 orient (camera), 1 select (rubber band).
   bool selecting() const { return CurrentMode == 1; }
   /// Area mode on or off, with the picker PCL's area pick needs (as PCL's own `x` does).
   void setSelecting(bool on);
   bool band = false;                                // a rubber band was started by this press
   bool picked = false;                              // this press was a shift+click pick
+  bool lasso = false;                               // this press draws a lasso
   vtkSmartPointer<vtkAbstractPicker> point_picker;  // kept while the area picker is in use
   bool replaying = false;  // keys come from a replay: as written, whatever Caps Lock says
   int caps_lock = -1;      // Caps Lock as the last Caps_Lock presses left it (-1: ask X)
@@ -113,12 +120,18 @@ class Viewer {
   bool key(const std::string& sym, char code);
   /// Caps Lock as the keyboard has it (shown beside the mode; named when it made a key capital).
   void setCapsLock(bool on);
-  /// The current mode: "pick", "area", "drag" or "frame".
+  /// The current mode: "pick", "area", "lasso", "drag" or "frame".
   const char* mode() const;
   /// Places the help and the status line for the window's size (before every render).
   void placeOverlays();
-  void pickAt(int x, int y);
-  void selectArea(int x0, int y0, int x1, int y1);
+  void pickAt(int x, int y, bool remove = false);
+  void selectArea(int x0, int y0, int x1, int y1, bool remove = false);
+  bool lassoing() const { return lasso_mode_; }
+  void lassoBegin(int x, int y);
+  void lassoMove(int x, int y);
+  void lassoEnd(int x, int y, bool remove);
+  /// < and >, ctrl+wheel: the points' size by `step` pixels (1 to 16).
+  void changePointSize(int step);
   bool dragBegin(int x, int y);
   bool dragMove(int x, int y);
   bool dragging() const { return dragging_; }
@@ -150,7 +163,8 @@ class Viewer {
   void syncRegions();
   void clearSelection(bool redraw = true);
   void clearHandles();
-  void askAgain(char k, const std::string& what);
+  void keepForUndo(const std::string& what);
+  void restoreCleared();
   void updateAlerts(bool live = false);
   void commit(const hgd::Move& m);
   void frameMove(const Eigen::Vector3d& translate, const Eigen::Vector3d& axis, double degrees);
@@ -174,7 +188,20 @@ class Viewer {
 
   // --- drawing (viewer_draw.cpp) ----------------------------------------------------------
   void fileColours();
+  /// The lasso as drawn so far (none when lasso_ is empty).
+  void drawLasso();
+  /// The axes trihedron in the window's lower right corner.
+  void showAxes(bool on);
+  /// Shading (light from the normals, or eye-dome lighting) on or off: the colours as they are.
+  void setShading(bool on);
   void openingView();
+  /// The up axis of up_option_ for this shape.
+  Eigen::Vector3d upVector() const;
+  /// 0 front, 1 back, 2 left, 3 right, 4 top, 5 bottom.
+  void standardView(int which);
+  /// The next up axis (u): +y, +z, +x, -y, -z, -x.
+  void cycleUp();
+  void setView(const Eigen::Vector3d& eye_direction, const Eigen::Vector3d& up);
   void refreshRoles();
   void refresh();
   void fillDisplay();
@@ -230,6 +257,10 @@ class Viewer {
   vtkSmartPointer<vtkScalarBarActor> scale_bar_;
   int view_ = 0;
   bool overlay_ = false, overlay_shown_ = false, help_visible_ = false;
+  bool lasso_mode_ = false, axes_shown_ = false, shading_ = true;
+  std::vector<Eigen::Vector2d> lasso_;  // display pixels
+  vtkSmartPointer<vtkActor2D> lasso_actor_;
+  vtkSmartPointer<vtkOrientationMarkerWidget> axes_;
   bool frame_mode_ = false, dragging_ = false, live_shown_ = false, quit_ = false;
   bool async_builds_ = false;  // the interactive window builds the deformer off the GUI thread
   bool building_ = false;
@@ -243,11 +274,18 @@ class Viewer {
   bool unsaved_ = false;        // moves or handles since the last save
   bool shape_unsaved_ = false;  // of which moves (the shape changed)
   bool quit_asked_ = false;     // q/e pressed once with unsaved changes
-  char confirm_ = 0;
-  std::size_t help_columns_ = 0;  // the width the help overlay is wrapped to
-  std::vector<std::pair<std::string, char>>
-      waiting_keys_;  // pressed during a build: run after it            // C or n pressed once with something
-                      // to lose: pressed again, it acts
+  /// What the last C or n threw away, for undo (the runner's history starts again after them).
+  struct Cleared {
+    hgd::Handles handles;
+    std::vector<hgd::Region> fixed;
+    hgd::Region manipulated;
+    std::vector<hgd::Region> joints;
+    std::vector<hgd::Move> moves;
+    std::string what;
+  };
+  std::optional<Cleared> cleared_;
+  std::size_t help_columns_ = 0;                            // the width the help overlay is wrapped to
+  std::vector<std::pair<std::string, char>> waiting_keys_;  // pressed during a build: run after it
   bool caps_lock_ = false;
   vtkSmartPointer<vtkTextActor> help_, status_, mode_label_;
   Eigen::Vector3d drag_from_, drag_last_;

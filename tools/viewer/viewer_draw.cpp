@@ -3,15 +3,20 @@
 // conversions between the shape's space and the screen.
 #include <pcl/conversions.h>
 #include <vtkActor.h>
+#include <vtkAxesActor.h>
 #include <vtkCallbackCommand.h>
 #include <vtkCamera.h>
+#include <vtkCaptionActor2D.h>
+#include <vtkCellArray.h>
 #include <vtkFloatArray.h>
 #include <vtkLODActor.h>
 #include <vtkLookupTable.h>
 #include <vtkMapper.h>
 #include <vtkPoints.h>
 #include <vtkPolyData.h>
+#include <vtkPolyDataMapper2D.h>
 #include <vtkProperty.h>
+#include <vtkProperty2D.h>
 #include <vtkRenderWindow.h>
 #include <vtkRenderer.h>
 #include <vtkRendererCollection.h>
@@ -84,6 +89,7 @@ void Viewer::open() {
   status_ = text(false, false);
   mode_label_ = text(false, true);
   help_visible_ = true;
+  showAxes(true);
   auto place = vtkSmartPointer<vtkCallbackCommand>::New();
   place->SetClientData(this);
   place->SetCallback(
@@ -126,19 +132,22 @@ void Viewer::addShapeCloud() {
   vis_->setPointCloudRenderingProperties(pcl::visualization::PCL_VISUALIZER_POINT_SIZE, shapePointSize(),
                                          "shape");
   // Lit by its normals, else eye-dome lighting; file colours as they are.
-  hgd::shadeCloud(*vis_, "shape", run_.geometry(), hgd::findColourFields(run_.shape().cloud).any());
+  if (shading_)
+    hgd::shadeCloud(*vis_, "shape", run_.geometry(), hgd::findColourFields(run_.shape().cloud).any());
 }
 
-// The opening view, and `r`'s: the whole shape, upright by hgdeform-render's rule
-// (hgd::upAxis "auto": a camera-frame scan, organized or a PCD with a sensor pose, has -y up and
-// is seen from the sensor's side, +x to the right; a shape clearly thinnest along y (a z-up
-// statue, a horse) has +z up and is seen as the renderer sees it, in three-quarter view across
-// its broad side; anything else +y up, seen from +z). Never along the up axis: a camera looking
-// along its up vector is degenerate (a z-up statue opened as an empty window).
+// The opening view, and `r`'s: the whole shape as it is now (deformed: `r` finds a shape dragged
+// off the window), upright by hgdeform-render's rule (hgd::upAxis "auto": a camera-frame scan,
+// organized, a PCD with a sensor pose or every point ahead of the origin, has -y up and is seen
+// from the sensor's side, +x to the right; a shape clearly thinnest along y (a z-up statue, a
+// horse) has +z up; anything else +y up), in the renderer's three-quarter view across the
+// shape's broad side (a plane seen straight down was a flat square). Never along the up axis: a
+// camera looking along its up vector is degenerate (a z-up statue opened as an empty window).
 void Viewer::openingView() {
-  const Eigen::Vector3d up = hgd::upAxis(up_option_, {&run_.shape()}).cast<double>();
-  Eigen::Vector3d eye = std::abs(up.y()) > 0.5 ? Eigen::Vector3d(0, 0, up.y() < 0 ? -1.0 : 1.0)
-                                               : hgd::defaultView(run_.shape(), up_option_).normalized();
+  const Eigen::Vector3d up = upVector();
+  const bool sensor = up.y() < -0.5 && hgd::inSensorCone(run_.shape());
+  Eigen::Vector3d eye =
+      sensor ? Eigen::Vector3d(0, 0, -1) : hgd::defaultView(run_.shape(), up_option_).normalized();
   if (view_option_) {
     const Eigen::Vector3d v = view_option_->normalized();
     if (std::abs(v.dot(up)) < 0.999)
@@ -146,7 +155,63 @@ void Viewer::openingView() {
     else if (opening_)
       message("--view lies along the up axis (no picture can be upright so): the default view instead");
   }
-  const Eigen::Vector3d c = centre(), at = c + 2.2 * diagonal_ * eye;
+  setView(eye, up);
+}
+
+Eigen::Vector3d Viewer::upVector() const {
+  return hgd::upAxis(up_option_, {&run_.shape()}).cast<double>();
+}
+
+// The front of the shape for the standard views: the opening view's eye direction across the up
+// axis, on the nearest axis of the shape's frame.
+void Viewer::standardView(int which) {
+  const Eigen::Vector3d up = upVector();
+  const bool sensor = up.y() < -0.5 && hgd::inSensorCone(run_.shape());
+  Eigen::Vector3d f = sensor ? Eigen::Vector3d(0, 0, -1) : hgd::defaultView(run_.shape(), up_option_);
+  f -= f.dot(up) * up;
+  Eigen::Index axis = 0;
+  f.cwiseAbs().maxCoeff(&axis);
+  const double sign = f[axis] < 0 ? -1.0 : 1.0;
+  f = Eigen::Vector3d::Unit(axis) * sign;
+  const Eigen::Vector3d right = up.cross(f);  // the shape's right seen from its front
+  static const char* const kNames[6] = {"front", "back", "left", "right", "top", "bottom"};
+  switch (which) {
+    case 0: setView(f, up); break;
+    case 1: setView(-f, up); break;
+    case 2: setView(-right, up); break;
+    case 3: setView(right, up); break;
+    case 4: setView(up, -f); break;  // from above, the front at the bottom of the window
+    default: setView(-up, f); break;
+  }
+  message(std::string(kNames[std::clamp(which, 0, 5)]) + " view");
+}
+
+void Viewer::cycleUp() {
+  static const char* const kAxes[6] = {"y", "z", "x", "-y", "-z", "-x"};
+  const Eigen::Vector3d up = upVector();
+  int now = 0;
+  for (int k = 0; k < 6; ++k)
+    if (hgd::upAxis(kAxes[k], {}).cast<double>().isApprox(up)) now = k;
+  up_option_ = kAxes[(now + 1) % 6];
+  view_option_.reset();
+  openingView();
+  message(std::string("up axis ") + (up_option_[0] == '-' ? "" : "+") + up_option_ + " (u: the next)");
+}
+
+// Looks along -eye at the shape as it is now, `up` up, the whole of it in the window (its
+// bounding sphere in the 30-degree view angle).
+void Viewer::setView(const Eigen::Vector3d& eye_direction, const Eigen::Vector3d& up) {
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(INFINITY), hi = -lo;
+  for (std::size_t i = 0; i < run_.geometry().size(); ++i) {
+    const Eigen::Vector3d p = deformed(i);
+    if (!p.allFinite()) continue;
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  const bool any = lo.allFinite() && hi.allFinite();
+  const Eigen::Vector3d c = any ? Eigen::Vector3d(0.5 * (lo + hi)) : centre();
+  const double diagonal = any && (hi - lo).norm() > 0 ? (hi - lo).norm() : diagonal_;
+  const Eigen::Vector3d at = c + 2.2 * diagonal * eye_direction.normalized();
   if (opening_) {
     // PCL's own call once, at opening (nothing large is drawn yet, so its render is cheap):
     // without it PCL frames the view anew when the whole cloud is added later.
@@ -158,8 +223,84 @@ void Viewer::openingView() {
   cam->SetFocalPoint(c.x(), c.y(), c.z());
   cam->SetViewUp(up.x(), up.y(), up.z());
   cam->SetViewAngle(30);  // VTK's default (PCL's camera calls may leave another)
-  cam->SetClippingRange(0.01 * diagonal_, 10 * diagonal_);
+  cam->SetClippingRange(0.01 * diagonal, 10 * diagonal);
   if (style_ && !opening_) render();  // (open() renders once, at its end)
+}
+
+void Viewer::drawLasso() {
+  if (!lasso_actor_) {
+    lasso_actor_ = vtkSmartPointer<vtkActor2D>::New();
+    auto mapper = vtkSmartPointer<vtkPolyDataMapper2D>::New();
+    mapper->SetInputData(vtkSmartPointer<vtkPolyData>::New());
+    lasso_actor_->SetMapper(mapper);
+    lasso_actor_->GetProperty()->SetColor(0.0, 0.5, 0.55);
+    lasso_actor_->GetProperty()->SetLineWidth(2);
+    renderer()->AddActor2D(lasso_actor_);
+  }
+  auto points = vtkSmartPointer<vtkPoints>::New();
+  auto lines = vtkSmartPointer<vtkCellArray>::New();
+  if (lasso_.size() >= 2) {
+    lines->InsertNextCell(static_cast<vtkIdType>(lasso_.size() + 1));
+    for (std::size_t k = 0; k <= lasso_.size(); ++k) {  // closed: back to the first vertex
+      const Eigen::Vector2d& p = lasso_[k % lasso_.size()];
+      lines->InsertCellPoint(points->InsertNextPoint(p.x(), p.y(), 0));
+    }
+  }
+  auto poly = vtkSmartPointer<vtkPolyData>::New();
+  poly->SetPoints(points);
+  poly->SetLines(lines);
+  vtkPolyDataMapper2D::SafeDownCast(lasso_actor_->GetMapper())->SetInputData(poly);
+  render();
+}
+
+// The axes trihedron, as CloudCompare and MeshLab show one: x red, y green, z blue, turning with
+// the view, in the lower right corner (the mode and the status line are at the lower left).
+void Viewer::showAxes(bool on) {
+  vtkRenderWindowInteractor* iren = vis_->getRenderWindow()->GetInteractor();
+  if (on && !axes_ && iren) {
+    auto axes = vtkSmartPointer<vtkAxesActor>::New();
+    for (vtkCaptionActor2D* c :
+         {axes->GetXAxisCaptionActor2D(), axes->GetYAxisCaptionActor2D(), axes->GetZAxisCaptionActor2D()}) {
+      c->GetCaptionTextProperty()->SetColor(0.1, 0.1, 0.1);
+      c->GetCaptionTextProperty()->ShadowOff();
+      c->GetCaptionTextProperty()->ItalicOff();
+    }
+    axes_ = vtkSmartPointer<vtkOrientationMarkerWidget>::New();
+    axes_->SetOrientationMarker(axes);
+    axes_->SetInteractor(iren);
+    axes_->SetViewport(0.86, 0.05, 1.0, 0.23);
+  }
+  axes_shown_ = on && axes_;
+  if (axes_) {
+    axes_->SetEnabled(axes_shown_ ? 1 : 0);
+    if (axes_shown_) axes_->InteractiveOff();  // (VTK warns when asked while disabled)
+  }
+  if (!opening_) message(axes_shown_ ? "axes shown" : "axes hidden");
+}
+
+void Viewer::setShading(bool on) {
+  shading_ = on;
+  vtkActor* actor = nullptr;
+  if (run_.geometry().faces.empty()) {
+    auto it = vis_->getCloudActorMap()->find("shape");
+    if (it != vis_->getCloudActorMap()->end()) actor = it->second.actor;
+  } else {
+    auto it = vis_->getShapeActorMap()->find("shape");
+    if (it != vis_->getShapeActorMap()->end()) actor = vtkActor::SafeDownCast(it->second);
+  }
+  const bool file_colours = hgd::findColourFields(run_.shape().cloud).any();
+  if (!on) {
+    renderer()->SetPass(nullptr);  // no eye-dome pass
+    if (actor) actor->GetProperty()->LightingOff();
+  } else if (run_.geometry().faces.empty()) {
+    if (!file_colours) hgd::shadeCloud(*vis_, "shape", run_.geometry(), false);
+  } else if (actor) {
+    actor->GetProperty()->LightingOn();
+  }
+  message(on ? (file_colours && run_.geometry().faces.empty()
+                    ? "shading on (file colours are drawn as they are)"
+                    : "shading on")
+             : "shading off: the colours as they are");
 }
 
 void Viewer::placeOverlays() {
@@ -509,6 +650,7 @@ void Viewer::updateStatus() {
   status_->SetInput(text.c_str());
   static const std::map<std::string, Eigen::Vector3d> kModeColour = {{"pick", {0.1, 0.1, 0.1}},
                                                                      {"area", {0.85, 0.45, 0.0}},
+                                                                     {"lasso", {0.0, 0.5, 0.55}},
                                                                      {"drag", {0.8, 0.1, 0.1}},
                                                                      {"frame", {0.45, 0.1, 0.75}}};
   std::string label = mode();

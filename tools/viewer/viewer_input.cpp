@@ -2,6 +2,7 @@
 // behaviour for the rest), the keys, shift+click picks, the area selection and the drag gesture.
 #include <vtkAbstractPicker.h>
 #include <vtkAreaPicker.h>
+#include <vtkCallbackCommand.h>
 #include <vtkObjectFactory.h>
 #include <vtkRenderWindow.h>
 
@@ -19,6 +20,7 @@ vtkStandardNewMacro(Style);
 const char* Viewer::mode() const {
   if (drag_mode_) return "drag";
   if (frame_mode_) return "frame";
+  if (lasso_mode_) return "lasso";
   if (style_ && style_->selecting()) return "area";
   return "pick";
 }
@@ -28,18 +30,15 @@ const char* Viewer::mode() const {
 void Viewer::setMode(const std::string& m) {
   drag_mode_ = m == "drag";
   frame_mode_ = m == "frame";
+  lasso_mode_ = m == "lasso";
   if (style_) style_->setSelecting(m == "area");
-  if (m == "area") message("area mode: drag a rectangle to select (x again: pick mode)");
+  if (m == "area")
+    message("area mode: drag a rectangle to select, with ctrl to deselect (x again: pick mode)");
+  if (m == "lasso")
+    message("lasso mode: draw round the points to select, with ctrl to deselect (p again: pick mode)");
   if (m == "drag") message("drag mode: left-drag the manipulated handle (d again: pick mode)");
   if (m == "frame") message("frame mode: arrows move, [ ] and , . turn the handle (t again: pick mode)");
   if (m == "pick") message("pick mode: the mouse turns the view, shift+click selects");
-}
-
-// C and n throw away what undo cannot bring back: they act when pressed twice in a row.
-void Viewer::askAgain(char k, const std::string& what) {
-  confirm_ = k;
-  message(std::string("press ") + k + " again to " + what + " (undo cannot bring them back)" +
-          (caps_lock_ && k == 'C' ? "; Caps Lock is on: c clears the selection" : ""));
 }
 
 void Viewer::setCapsLock(bool on) {
@@ -69,8 +68,6 @@ bool Viewer::key(const std::string& sym, char code) {
                  sym == "Caps_Lock"))
     return false;
   if (k != 'q' && k != 'e') quit_asked_ = false;
-  const char confirming = confirm_;  // C and n act when pressed twice in a row
-  confirm_ = 0;
   const KeyBinding* binding = findKey(k);  // the table of keys.cpp: what acts when
   if (dragging_ && (!binding || (binding->waits & kWaitsForDrag))) {
     message("release the mouse button first");
@@ -107,14 +104,18 @@ bool Viewer::key(const std::string& sym, char code) {
     case KeyAction::Fixed: markSelection(1); return true;
     case KeyAction::Manipulated: markSelection(2); return true;
     case KeyAction::Joint: markSelection(3); return true;
-    case KeyAction::ClearSelection: clearSelection(); return true;
-    case KeyAction::ClearHandles: {
-      const bool any = !handles_.fixed.empty() || !handles_.manipulated.empty() || !handles_.joints.empty();
-      if (any && confirming != 'C') return askAgain('C', "clear every handle and move"), true;
-      clearHandles();
+    case KeyAction::ClearSelection:
+      clearSelection(false);
+      message("selection cleared");
+      refresh();
       return true;
-    }
+    case KeyAction::ClearHandles: clearHandles(); return true;
     case KeyAction::AreaMode: setMode(std::string(mode()) == "area" ? "pick" : "area"); return true;
+    case KeyAction::LassoMode: setMode(lasso_mode_ ? "pick" : "lasso"); return true;
+    case KeyAction::UpAxis: cycleUp(); return true;
+    case KeyAction::StandardView: standardView(k - '1'); return true;
+    case KeyAction::Axes: showAxes(!axes_shown_); return true;
+    case KeyAction::Shading: setShading(!shading_); return true;
     case KeyAction::DragMode: setMode(drag_mode_ ? "pick" : "drag"); return true;
     case KeyAction::FrameMode: setMode(frame_mode_ ? "pick" : "frame"); return true;
     case KeyAction::KeepOrientation:
@@ -131,27 +132,28 @@ bool Viewer::key(const std::string& sym, char code) {
         return true;
       }
       view_ = (view_ + 1) % 3;
+      message(view_ == 0 ? "view: colours" : view_ == 1 ? "view: the harmonic field" : "view: the clusters");
       refresh();
       return true;
     case KeyAction::Overlay:
       overlay_ = !overlay_;
+      message(overlay_ ? "rest overlay on" : "rest overlay off");
       refresh();
       return true;
-    case KeyAction::OpeningView: openingView(); return true;
+    case KeyAction::OpeningView:
+      openingView();
+      message("the whole shape in view");
+      return true;
     case KeyAction::Undo: undo(); return true;
     case KeyAction::Redo: redo(); return true;
-    case KeyAction::RestShape:
-      if (ready() && !run_.moves().empty() && confirming != 'n')
-        return askAgain('n', "go back to the rest shape, dropping every move"), true;
-      resetShape();
-      return true;
+    case KeyAction::RestShape: resetShape(); return true;
     case KeyAction::SaveShape: saveShape(freshPath("-deformed", extensionOf(input_))); return true;
     case KeyAction::SaveScenario: saveScenario(freshPath("-scenario", ".json")); return true;
     case KeyAction::Screenshot: screenshot(freshPath("-screenshot", ".png")); return true;
     case KeyAction::Help:
       help_visible_ = !help_visible_;
       if (help_) help_->SetVisibility(help_visible_);
-      render();
+      message(help_visible_ ? "help shown" : "help hidden (h shows it)");
       return true;
     case KeyAction::RadiusUp:
       radius_ *= 1.25;
@@ -161,15 +163,7 @@ bool Viewer::key(const std::string& sym, char code) {
       radius_ /= 1.25;
       message("selection radius " + num(radius_));
       return true;
-    case KeyAction::PointSize: {  // < and > (+/- are the selection radius)
-      if (!run_.geometry().faces.empty()) return message("point size: a mesh is drawn as a surface"), true;
-      double size = 1;
-      vis_->getPointCloudRenderingProperties(pcl::visualization::PCL_VISUALIZER_POINT_SIZE, size, "shape");
-      size = std::clamp(size + (k == '>' ? 1.0 : -1.0), 1.0, 16.0);
-      vis_->setPointCloudRenderingProperties(pcl::visualization::PCL_VISUALIZER_POINT_SIZE, size, "shape");
-      message("point size " + num(size));
-      return true;
-    }
+    case KeyAction::PointSize: changePointSize(k == '>' ? 1 : -1); return true;
     case KeyAction::Quit: requestQuit(k); return true;
     case KeyAction::FrameTurn:  // frame mode's keys, above; nothing in the other modes
       message("[ ] , . turn the manipulated handle in frame mode (t)");
@@ -179,37 +173,99 @@ bool Viewer::key(const std::string& sym, char code) {
   return false;
 }
 
-// A click with shift: select the points within the radius of the point under the cursor.
-void Viewer::pickAt(int x, int y) {
+void Viewer::changePointSize(int step) {
+  if (!run_.geometry().faces.empty()) return message("point size: a mesh is drawn as a surface");
+  double size = 1;
+  vis_->getPointCloudRenderingProperties(pcl::visualization::PCL_VISUALIZER_POINT_SIZE, size, "shape");
+  size = std::clamp(size + step, 1.0, 16.0);
+  vis_->setPointCloudRenderingProperties(pcl::visualization::PCL_VISUALIZER_POINT_SIZE, size, "shape");
+  message("point size " + num(size));
+}
+
+/// "selected 12 points" or "deselected 12 points".
+static std::string selectedMessage(std::size_t count, bool remove) {
+  return std::string(remove ? "deselected " : "selected ") + std::to_string(count) + " points";
+}
+
+// A click with shift: select (with ctrl, deselect) the points within the radius of the point
+// under the cursor.
+void Viewer::pickAt(int x, int y, bool remove) {
   const int hit = nearestOnScreen(x, y, 12.0);
   if (hit < 0) return message("nothing under the cursor");
   const Eigen::Vector3d p = deformed(static_cast<std::size_t>(hit));
   std::size_t count = 0;
   for (std::size_t i = 0; i < run_.geometry().size(); ++i)
     if ((deformed(i) - p).norm() <= radius_) {
-      selected_[i] = 1;
-      ++count;
+      count += selected_[i] != (remove ? 0 : 1);
+      selected_[i] = remove ? 0 : 1;
     }
   char at[96];
   std::snprintf(at, sizeof at, " at (%.6g, %.6g, %.6g)", p.x(), p.y(), p.z());
-  message("selected " + std::to_string(count) + " points around point " +
+  message(selectedMessage(count, remove) + " around point " +
           std::to_string(run_.geometry().raw_index[static_cast<std::size_t>(hit)]) + at);
   refresh();
 }
 
-// The points whose projections fall inside a screen rectangle.
-void Viewer::selectArea(int x0, int y0, int x1, int y1) {
+// The points whose projections fall inside a screen rectangle (every one, near side and far,
+// as PCL's area pick and CloudCompare's segmentation take them); with ctrl, taken out.
+void Viewer::selectArea(int x0, int y0, int x1, int y1, bool remove) {
   if (x0 > x1) std::swap(x0, x1);
   if (y0 > y1) std::swap(y0, y1);
   std::size_t count = 0;
   for (std::size_t i = 0; i < run_.geometry().size(); ++i) {
     const Eigen::Vector3d d = toDisplay(deformed(i));
     if (d.x() >= x0 && d.x() <= x1 && d.y() >= y0 && d.y() <= y1) {
-      selected_[i] = 1;
-      ++count;
+      count += selected_[i] != (remove ? 0 : 1);
+      selected_[i] = remove ? 0 : 1;
     }
   }
-  message("selected " + std::to_string(count) + " points");
+  message(selectedMessage(count, remove));
+  refresh();
+}
+
+// The lasso: a loop drawn with the button held, closed at the release; the points whose
+// projections fall inside it (even-odd rule) are selected, with ctrl deselected.
+void Viewer::lassoBegin(int x, int y) {
+  lasso_.assign(1, Eigen::Vector2d(x, y));
+  drawLasso();
+}
+
+void Viewer::lassoMove(int x, int y) {
+  if (lasso_.empty()) return;
+  const Eigen::Vector2d p(x, y);
+  if ((p - lasso_.back()).norm() < 3) return;  // a vertex every few pixels
+  lasso_.push_back(p);
+  drawLasso();
+}
+
+void Viewer::lassoEnd(int x, int y, bool remove) {
+  if (lasso_.empty()) return;
+  lassoMove(x, y);
+  const std::vector<Eigen::Vector2d> loop = std::move(lasso_);
+  lasso_.clear();
+  drawLasso();
+  if (loop.size() < 3) return message("draw round the points with the button held (a click selects nothing)");
+  Eigen::Vector2d lo = loop[0], hi = loop[0];
+  for (const Eigen::Vector2d& v : loop) {
+    lo = lo.cwiseMin(v);
+    hi = hi.cwiseMax(v);
+  }
+  std::size_t count = 0;
+  for (std::size_t i = 0; i < run_.geometry().size(); ++i) {
+    const Eigen::Vector3d d = toDisplay(deformed(i));
+    if (d.x() < lo.x() || d.x() > hi.x() || d.y() < lo.y() || d.y() > hi.y()) continue;
+    bool inside = false;
+    for (std::size_t a = 0, b = loop.size() - 1; a < loop.size(); b = a++) {
+      const Eigen::Vector2d &p = loop[a], &q = loop[b];
+      if ((p.y() > d.y()) != (q.y() > d.y()) &&
+          d.x() < (q.x() - p.x()) * (d.y() - p.y()) / (q.y() - p.y()) + p.x())
+        inside = !inside;
+    }
+    if (!inside) continue;
+    count += selected_[i] != (remove ? 0 : 1);
+    selected_[i] = remove ? 0 : 1;
+  }
+  message(selectedMessage(count, remove));
   refresh();
 }
 
@@ -353,7 +409,12 @@ void Style::OnLeftButtonDown() {
   band = picked = false;
   if (Interactor->GetShiftKey() && viewer) {  // a pick, in any mode
     picked = true;
-    viewer->pickAt(p[0], p[1]);
+    viewer->pickAt(p[0], p[1], Interactor->GetControlKey() != 0);
+    return;
+  }
+  if (viewer && viewer->lassoing()) {
+    lasso = true;
+    viewer->lassoBegin(p[0], p[1]);
     return;
   }
   if (!selecting() && viewer && viewer->dragBegin(p[0], p[1])) return;
@@ -371,6 +432,7 @@ void Style::OnMouseMove() {
   // itself; a hint taken so was never answered with a query, and no motion came again until the
   // release: the shape stood still under a moving pointer, then jumped when the button came up.)
   if (viewer && viewer->dragMove(p[0], p[1])) return;
+  if (lasso && viewer) return viewer->lassoMove(p[0], p[1]);
   Superclass::OnMouseMove();
 }
 
@@ -380,16 +442,49 @@ void Style::OnLeftButtonUp() {
     picked = false;
     return;
   }
+  if (lasso && viewer) {
+    lasso = false;
+    return viewer->lassoEnd(p[0], p[1], Interactor->GetControlKey() != 0);
+  }
   if (viewer && viewer->dragEnd(p[0], p[1])) return;
   if (band && selecting() && viewer) {
     band = false;
     Superclass::OnLeftButtonUp();
     int x0, y0, x1, y1;
     rubberBand(x0, y0, x1, y1);
-    viewer->selectArea(x0, y0, x1, y1);
+    viewer->selectArea(x0, y0, x1, y1, Interactor->GetControlKey() != 0);
     return;
   }
   Superclass::OnLeftButtonUp();
+}
+
+// The right button pans, as in CloudCompare (the middle button still does, as in PCL; VTK's
+// right-button zoom is the wheel's).
+void Style::OnRightButtonDown() {
+  if (viewer && viewer->dragging()) return;
+  const int* p = Interactor->GetEventPosition();
+  FindPokedRenderer(p[0], p[1]);
+  if (!CurrentRenderer) return;
+  GrabFocus(EventCallbackCommand);
+  StartPan();
+}
+
+void Style::OnRightButtonUp() {
+  if (State == VTKIS_PAN) {
+    EndPan();
+    if (Interactor) ReleaseFocus();
+  }
+}
+
+// Ctrl+wheel: the point size, as in CloudCompare; the wheel alone zooms.
+void Style::OnMouseWheelForward() {
+  if (Interactor->GetControlKey() && viewer) return viewer->changePointSize(1);
+  Superclass::OnMouseWheelForward();
+}
+
+void Style::OnMouseWheelBackward() {
+  if (Interactor->GetControlKey() && viewer) return viewer->changePointSize(-1);
+  Superclass::OnMouseWheelBackward();
 }
 
 }  // namespace hgdview
