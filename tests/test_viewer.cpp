@@ -904,8 +904,9 @@ TEST(Viewer, CameraFrameScanOpensTheRightWayUp) {
     SCOPED_TRACE(c.name + " " + c.options);
     std::string out;
     const std::string png = dir.file(c.name + std::to_string(c.options.size()) + ".png");
-    ASSERT_EQ(hgdtest::run(viewer(dir.file(c.name + ".pcd") + " --screenshot " + png +
-                                  " --size 600x500 --quiet " + c.options),
+    hgdtest::writeText(dir.file("axes_off.json"), R"({"events": [{"key": "a"}]})");  // (their red and green)
+    ASSERT_EQ(hgdtest::run(viewer(dir.file(c.name + ".pcd") + " --replay " + dir.file("axes_off.json") +
+                                  " --screenshot " + png + " --size 600x500 --quiet " + c.options),
                            out),
               0)
         << out;
@@ -1074,7 +1075,7 @@ TEST(Viewer, HandlesStandOutOnFileColours) {
   hgd::writeShape(dir.file("red.ply"), bar);
   hgdtest::writeText(dir.file("events.json"), R"({"events": [{"key": "h"},
     {"pick": {"world": [1, 0, 0.05], "radius": 0.06}}, {"key": "m"},
-    {"pick": {"world": [0, 0, 0.05], "radius": 0.06}}, {"key": "f"}]})");
+    {"pick": {"world": [0, 0, 0.05], "radius": 0.06}}, {"key": "f"}, {"key": "a"}]})");
   std::string out;
   ASSERT_EQ(
       hgdtest::run(viewer(dir.file("red.ply") + " --replay " + dir.file("events.json") +

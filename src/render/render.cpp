@@ -317,6 +317,9 @@ bool inSensorCone(const Shape& shape) {
   // Every point ahead of the sensor, inside a cone wider than any depth camera's field of view
   // (tan 60 degrees): a depth image's valid pixels, a stereo cloud. A model centred on the
   // origin, or standing on z = 0, is not.
+  // A mesh is a model, not a sensor's points. At most about 200,000 points are looked at, evenly
+  // spaced in the file.
+  if (!shape.polygons.empty()) return false;
   const Xyz f = xyzFields(shape);
   const std::size_t n = shape.size(), stride = std::max<std::size_t>(1, n / 200000);
   constexpr double kTan60 = 1.7320508;
@@ -324,7 +327,7 @@ bool inSensorCone(const Shape& shape) {
   for (std::size_t i = 0; i < n; i += stride) {
     const Eigen::Vector3d p = pointOf(shape, f, i);
     if (!p.allFinite()) continue;
-    if (!(p.z() > 0) || std::abs(p.x()) > kTan60 * p.z() || std::abs(p.y()) > kTan60 * p.z()) return false;
+    if (!(p.z() > 0) || std::hypot(p.x(), p.y()) > kTan60 * p.z()) return false;
     ++finite;
   }
   return finite > 0;

@@ -101,8 +101,8 @@ class SoftEyeDome : public vtkEDLShading {
   vtkTypeMacro(SoftEyeDome, vtkEDLShading)
 
       static constexpr float kStrength = 0.6f;
-  /// exp(-kResponse * sum): a pixel 1% of its distance behind three of its 8 neighbours at one
-  /// pixel darkens by about a quarter of kStrength.
+  /// The shade is 1 - exp(-kResponse * sum): a pixel 0.1% of its distance behind three of its 8
+  /// neighbours at one pixel darkens by about a fifth of kStrength, 1% behind by nine tenths.
   static constexpr float kResponse = 60.0f;
 
   void Render(const vtkRenderState* s) override {

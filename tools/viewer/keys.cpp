@@ -33,7 +33,7 @@ const std::vector<HelpLine> kLines = {
     {"",
      {
          {"", A::None, "shift+click", "select around a point (any mode)", kWaitsNever},
-         {"", A::None, "ctrl", "with a click, area or lasso: deselect", kWaitsNever},
+         {"", A::None, "ctrl", "with shift+click, area or lasso: deselect", kWaitsNever},
          {"+=", A::RadiusUp, "+/-", "radius", kDrag},
          {"-", A::RadiusDown, nullptr, nullptr, kDrag},
          {"c", A::ClearSelection, "c", "clear selection", kDrag},

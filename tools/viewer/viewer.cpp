@@ -38,6 +38,7 @@ Viewer::Viewer(const std::string& input, int width, int height, const hgd::RunOp
 
 void Viewer::loadScenario(const std::string& path) {
   const hgd::Scenario scenario = hgd::readScenario(path);
+  cleared_.reset();
   run_.setScenario(scenario);
   fixed_regions_ = scenario.fixed;
   manipulated_region_ = scenario.manipulated;
@@ -71,6 +72,7 @@ void Viewer::markSelection(int role) {
   for (std::size_t i = 0; i < selected_.size(); ++i)
     if (selected_[i]) idx.push_back(static_cast<int>(i));
   if (idx.empty()) return message("nothing selected (x: area, shift+click: point)");
+  cleared_.reset();  // new handles: what C or n threw away is no longer one undo away
   std::vector<long long> raw;
   for (int i : idx) raw.push_back(run_.geometry().raw_index[static_cast<std::size_t>(i)]);
   hgd::Region region = hgd::Region::fromIndices(raw);
@@ -157,6 +159,8 @@ void Viewer::pollBuild() {
   building_ = false;
   showLod(false);
   if (!build_error_.empty()) {
+    restoring_.clear();  // an undo of C whose build failed: nothing to apply
+    restored_what_.clear();
     handles_ = hgd::Handles{};
     run_.setHandles(handles_);
     refreshRoles();
@@ -188,6 +192,7 @@ Viewer::~Viewer() {
 }
 
 void Viewer::finishHandles() {
+  if (!restored_what_.empty()) return applyRestored();  // an undo of C: its moves again
   updateAlerts();
   if (run_.ready()) {
     message("handles: " + std::to_string(handles_.fixed.size()) + " fixed, manipulated " +
@@ -243,8 +248,9 @@ void Viewer::keepForUndo(const std::string& what) {
   cleared_ = Cleared{handles_, fixed_regions_, manipulated_region_, joint_regions_, run_.moves(), what};
 }
 
-// Undo after C or n: the handles as they were, the deformer built for them, every move applied
-// again in order (each solved as it was the first time: the same shape, point for point).
+// Undo after C or n: the handles as they were, the deformer built for them as any handles are
+// (off the window's thread in the window), then every move applied again in order, each solved
+// as it was the first time: the same shape, point for point.
 void Viewer::restoreCleared() {
   Cleared c = std::move(*cleared_);
   cleared_.reset();
@@ -254,12 +260,24 @@ void Viewer::restoreCleared() {
   fixed_regions_ = c.fixed;
   manipulated_region_ = c.manipulated;
   joint_regions_ = c.joints;
-  if (!same) run_.setHandles(handles_);
   run_.setRegions(fixed_regions_, manipulated_region_, joint_regions_);
-  if (run_.ready())
-    for (const hgd::Move& m : c.moves) run_.apply(m);
   refreshRoles();
-  shapeChanged(c.what + " back (undone)");
+  restoring_ = std::move(c.moves);
+  restored_what_ = c.what + " back (undone)";
+  if (same)
+    applyRestored();
+  else
+    buildDeformer();  // finishHandles applies them
+}
+
+void Viewer::applyRestored() {
+  if (restored_what_.empty()) return;
+  if (run_.ready())
+    for (const hgd::Move& m : restoring_) run_.apply(m);
+  restoring_.clear();
+  const std::string what = std::move(restored_what_);
+  restored_what_.clear();
+  shapeChanged(what);
 }
 
 // What the deformation cannot do for this shape, on the status line and stderr: pieces that

@@ -165,6 +165,7 @@ class Viewer {
   void clearHandles();
   void keepForUndo(const std::string& what);
   void restoreCleared();
+  void applyRestored();
   void updateAlerts(bool live = false);
   void commit(const hgd::Move& m);
   void frameMove(const Eigen::Vector3d& translate, const Eigen::Vector3d& axis, double degrees);
@@ -194,6 +195,8 @@ class Viewer {
   void showAxes(bool on);
   /// Shading (light from the normals, or eye-dome lighting) on or off: the colours as they are.
   void setShading(bool on);
+  void shade(const std::string& id, const std::vector<Eigen::Vector3f>* normals);
+  void setMeshLighting(bool on);
   void openingView();
   /// The up axis of up_option_ for this shape.
   Eigen::Vector3d upVector() const;
@@ -284,7 +287,9 @@ class Viewer {
     std::string what;
   };
   std::optional<Cleared> cleared_;
-  std::size_t help_columns_ = 0;                            // the width the help overlay is wrapped to
+  std::vector<hgd::Move> restoring_;  // an undo of C: applied once the deformer is built again
+  std::string restored_what_;         // ... and then said
+  std::size_t help_columns_ = 0;      // the width the help overlay is wrapped to
   std::vector<std::pair<std::string, char>> waiting_keys_;  // pressed during a build: run after it
   bool caps_lock_ = false;
   vtkSmartPointer<vtkTextActor> help_, status_, mode_label_;

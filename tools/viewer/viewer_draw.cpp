@@ -132,8 +132,7 @@ void Viewer::addShapeCloud() {
   vis_->setPointCloudRenderingProperties(pcl::visualization::PCL_VISUALIZER_POINT_SIZE, shapePointSize(),
                                          "shape");
   // Lit by its normals, else eye-dome lighting; file colours as they are.
-  if (shading_)
-    hgd::shadeCloud(*vis_, "shape", run_.geometry(), hgd::findColourFields(run_.shape().cloud).any());
+  shade("shape", nullptr);
 }
 
 // The opening view, and `r`'s: the whole shape as it is now (deformed: `r` finds a shape dragged
@@ -280,27 +279,42 @@ void Viewer::showAxes(bool on) {
 
 void Viewer::setShading(bool on) {
   shading_ = on;
-  vtkActor* actor = nullptr;
-  if (run_.geometry().faces.empty()) {
-    auto it = vis_->getCloudActorMap()->find("shape");
-    if (it != vis_->getCloudActorMap()->end()) actor = it->second.actor;
-  } else {
-    auto it = vis_->getShapeActorMap()->find("shape");
-    if (it != vis_->getShapeActorMap()->end()) actor = vtkActor::SafeDownCast(it->second);
-  }
   const bool file_colours = hgd::findColourFields(run_.shape().cloud).any();
-  if (!on) {
-    renderer()->SetPass(nullptr);  // no eye-dome pass
-    if (actor) actor->GetProperty()->LightingOff();
-  } else if (run_.geometry().faces.empty()) {
-    if (!file_colours) hgd::shadeCloud(*vis_, "shape", run_.geometry(), false);
-  } else if (actor) {
-    actor->GetProperty()->LightingOn();
+  if (!run_.geometry().faces.empty()) {
+    setMeshLighting(on);
+  } else {
+    const bool normals = ready() && run_.geometry().hasFileNormals();
+    shade("shape", normals ? &run_.deformer().deformedNormals() : nullptr);
   }
   message(on ? (file_colours && run_.geometry().faces.empty()
                     ? "shading on (file colours are drawn as they are)"
                     : "shading on")
              : "shading off: the colours as they are");
+}
+
+// Every cloud the viewer shades goes through here: lit by `normals` (or the file's), or with
+// eye-dome lighting; with shading off (`i`), neither, whatever redraws it.
+void Viewer::shade(const std::string& id, const std::vector<Eigen::Vector3f>* normals) {
+  if (shading_) {
+    hgd::shadeCloud(*vis_, id, run_.geometry(), hgd::findColourFields(run_.shape().cloud).any(), normals);
+    return;
+  }
+  renderer()->SetPass(nullptr);  // no eye-dome pass
+  auto it = vis_->getCloudActorMap()->find(id);
+  // Unlit by the light's own terms (all ambient), not LightingOff: without lighting VTK's shader
+  // has no normal, and shadeCloud's two-sided normal code would not compile (a crash).
+  if (it != vis_->getCloudActorMap()->end() && it->second.actor) {
+    vtkProperty* p = it->second.actor->GetProperty();
+    p->SetAmbient(1.0);
+    p->SetDiffuse(0.0);
+    p->SetSpecular(0.0);
+  }
+}
+
+void Viewer::setMeshLighting(bool on) {
+  auto it = vis_->getShapeActorMap()->find("shape");
+  vtkActor* actor = it != vis_->getShapeActorMap()->end() ? vtkActor::SafeDownCast(it->second) : nullptr;
+  if (actor) actor->GetProperty()->SetLighting(on);
 }
 
 void Viewer::placeOverlays() {
@@ -392,8 +406,7 @@ void Viewer::refresh() {
     const pcl::visualization::PointCloudColorHandlerRGBField<pcl::PointXYZRGB> rgb(display_);
     vis_->updatePointCloud<pcl::PointXYZRGB>(display_, rgb, "shape");
     if (ready() && run_.geometry().hasFileNormals())  // lit by the deformed normals
-      hgd::shadeCloud(*vis_, "shape", run_.geometry(), hgd::findColourFields(run_.shape().cloud).any(),
-                      &run_.deformer().deformedNormals());
+      shade("shape", &run_.deformer().deformedNormals());
   } else {
     // PCL's updatePolygonMesh drops the colours (the mesh turns black): add it afresh.
     pcl::PolygonMesh mesh;
@@ -401,6 +414,7 @@ void Viewer::refresh() {
     mesh.polygons = run_.geometry().faces;
     vis_->removePolygonMesh("shape");
     vis_->addPolygonMesh(mesh, "shape");
+    if (!shading_) setMeshLighting(false);
   }
   // The rest shape: a mesh as a grey wireframe (its points alone were faint dots), a cloud as
   // translucent grey points.
@@ -525,7 +539,7 @@ void Viewer::showLod(bool on) {
     std::vector<Eigen::Vector3f> normals;
     normals.reserve(lod_.size());
     for (const int i : lod_) normals.push_back(deformed[static_cast<std::size_t>(i)]);
-    hgd::shadeCloud(*vis_, "lod", run_.geometry(), hgd::findColourFields(run_.shape().cloud).any(), &normals);
+    shade("lod", &normals);
   }
   // As many pixels as the whole cloud fills: each drawn point stands for `stride`.
   vis_->setPointCloudRenderingProperties(pcl::visualization::PCL_VISUALIZER_POINT_SIZE, 2, "lod");
@@ -565,14 +579,13 @@ void Viewer::updatePositions() {
   // Lit by the deformed normals, as the frame kept on release is (what you see is what you get).
   if (run_.geometry().faces.empty() && ready() && run_.geometry().hasFileNormals()) {
     const std::vector<Eigen::Vector3f>& deformed_normals = run_.deformer().deformedNormals();
-    const bool file_colours = hgd::findColourFields(run_.shape().cloud).any();
     if (lod) {
       std::vector<Eigen::Vector3f> normals;
       normals.reserve(lod_.size());
       for (const int i : lod_) normals.push_back(deformed_normals[static_cast<std::size_t>(i)]);
-      hgd::shadeCloud(*vis_, "lod", run_.geometry(), file_colours, &normals);
+      shade("lod", &normals);
     } else {
-      hgd::shadeCloud(*vis_, "shape", run_.geometry(), file_colours, &deformed_normals);
+      shade("shape", &deformed_normals);
     }
   }
   // The handles' marks and halos follow their points.

@@ -69,7 +69,7 @@ bool Viewer::key(const std::string& sym, char code) {
     return false;
   if (k != 'q' && k != 'e') quit_asked_ = false;
   const KeyBinding* binding = findKey(k);  // the table of keys.cpp: what acts when
-  if (dragging_ && (!binding || (binding->waits & kWaitsForDrag))) {
+  if ((dragging_ || !lasso_.empty()) && (!binding || (binding->waits & kWaitsForDrag))) {
     message("release the mouse button first");
     return true;
   }
@@ -433,6 +433,9 @@ void Style::OnMouseMove() {
   // release: the shape stood still under a moving pointer, then jumped when the button came up.)
   if (viewer && viewer->dragMove(p[0], p[1])) return;
   if (lasso && viewer) return viewer->lassoMove(p[0], p[1]);
+  // The right button's pan in area mode too: the rubber band's style answers motions only for
+  // its band there.
+  if (State == VTKIS_PAN) return vtkInteractorStyleTrackballCamera::OnMouseMove();
   Superclass::OnMouseMove();
 }
 
@@ -478,11 +481,13 @@ void Style::OnRightButtonUp() {
 
 // Ctrl+wheel: the point size, as in CloudCompare; the wheel alone zooms.
 void Style::OnMouseWheelForward() {
+  if (viewer && viewer->dragging()) return;
   if (Interactor->GetControlKey() && viewer) return viewer->changePointSize(1);
   Superclass::OnMouseWheelForward();
 }
 
 void Style::OnMouseWheelBackward() {
+  if (viewer && viewer->dragging()) return;
   if (Interactor->GetControlKey() && viewer) return viewer->changePointSize(-1);
   Superclass::OnMouseWheelBackward();
 }
