@@ -990,38 +990,21 @@ hgd::Shape turned(hgd::Shape s, const Eigen::Matrix3f& r) {
 /// A depth camera's scan in PCL's frame (+z forward, +y down): a bumpy wall 2 m ahead, 64 x 48
 /// pixels, its corners missing (NaN) as a real sensor's are; organized or not.
 hgd::Shape cameraScan(bool organized) {
-  pcl::PCLPointCloud2 c;
-  const char* names[3] = {"x", "y", "z"};
-  for (int f = 0; f < 3; ++f) {
-    pcl::PCLPointField pf;
-    pf.name = names[f];
-    pf.offset = static_cast<std::uint32_t>(4 * f);
-    pf.datatype = pcl::PCLPointField::FLOAT32;
-    pf.count = 1;
-    c.fields.push_back(pf);
-  }
-  c.point_step = 12;
-  c.width = 64;
-  c.height = 48;
-  c.is_dense = false;
-  c.row_step = c.point_step * c.width;
-  c.data.resize(c.row_step * c.height);
+  std::vector<Eigen::Vector3f> points;
   for (int v = 0; v < 48; ++v)
     for (int u = 0; u < 64; ++u) {
       const float z = 2.0f + 0.08f * std::sin(0.2f * u) * std::cos(0.25f * v);
-      float xyz[3] = {(u - 31.5f) / 60.0f * z, (v - 23.5f) / 60.0f * z, z};
       const bool corner = (u < 6 || u > 57) && (v < 6 || v > 41);
-      if (corner) xyz[0] = xyz[1] = xyz[2] = NAN;
-      std::memcpy(c.data.data() + (static_cast<std::size_t>(v) * 64 + static_cast<std::size_t>(u)) * 12, xyz,
-                  12);
+      points.push_back(corner ? Eigen::Vector3f::Constant(NAN)
+                              : Eigen::Vector3f((u - 31.5f) / 60.0f * z, (v - 23.5f) / 60.0f * z, z));
     }
-  if (!organized) {
-    c.width *= c.height;
-    c.height = 1;
-    c.row_step = c.point_step * c.width;
+  hgd::Shape s = hgd::shapes::cloudShape(points, {});
+  s.cloud.is_dense = false;
+  if (organized) {
+    s.cloud.width = 64;
+    s.cloud.height = 48;
+    s.cloud.row_step = s.cloud.point_step * s.cloud.width;
   }
-  hgd::Shape s;
-  s.cloud = c;
   s.format = hgd::FileFormat::Pcd;
   return s;
 }
