@@ -1,6 +1,6 @@
 // The whole public API in one include (the stages' headers, in pipeline order, are also usable
 // alone: hgdeform/io/, graph/, field/, cluster/, multires/, solve/, interp/, deformer/, app/).
-// The typed PCL entry, hgdeform/app/pcl.h, is left to those who want its templates.
+// The typed PCL entry, hgdeform/pcl.h, is left to those who want its templates.
 #pragma once
 
 #include "hgdeform/app/cleanup.h"

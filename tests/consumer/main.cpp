@@ -1,7 +1,8 @@
 // A downstream program built against the installed hgdeform: a PCL cloud deformed through
-// <hgdeform/app/pcl.h>, once with a scenario built in code and once with the interactive stage.
-#include <hgdeform/app/pcl.h>
+// <hgdeform/pcl.h> (the documented name), once with a scenario built in code and once with the
+// interactive stage.
 #include <hgdeform/hgdeform.h>  // the whole API, as installed
+#include <hgdeform/pcl.h>
 
 #include <cmath>
 #include <cstdio>

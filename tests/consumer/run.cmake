@@ -66,6 +66,20 @@ endif()
 if(EXISTS "${prefix}/include/hgdeform/render.h")
   message(FATAL_ERROR "install_consumer: render.h is installed without its library")
 endif()
+# The installed headers stand alone: none includes nlohmann/json (a build dependency only), and
+# the documented entries are there by the names the README gives.
+file(GLOB_RECURSE installed_headers "${prefix}/include/hgdeform/*.h" "${prefix}/include/hgdeform/*.hpp")
+foreach(h IN LISTS installed_headers)
+  file(STRINGS "${h}" json_lines REGEX "#include[ \t]*[<\"]nlohmann/")
+  if(json_lines)
+    message(FATAL_ERROR "install_consumer: ${h} includes nlohmann/json: ${json_lines}")
+  endif()
+endforeach()
+foreach(entry hgdeform.h pcl.h)
+  if(NOT EXISTS "${prefix}/include/hgdeform/${entry}")
+    message(FATAL_ERROR "install_consumer: <hgdeform/${entry}> is not installed")
+  endif()
+endforeach()
 
 if(DEFINED TOOLS_DATA)
   # An installed program runs from the prefix alone: no LD_LIBRARY_PATH, and the build tree's

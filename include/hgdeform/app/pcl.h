@@ -1,6 +1,6 @@
 // The typed PCL entry: deform a pcl::PointCloud<PointT> by handles.
 //
-//   #include <hgdeform/app/pcl.h>
+//   #include <hgdeform/pcl.h>     (this file, by its stable name)
 //   pcl::PointCloud<pcl::PointXYZRGB> cloud, deformed;
 //   hgd::Scenario s;
 //   s.fix(hgd::Region::box(lo, hi)).manipulate(hgd::Region::sphere(c, r)).drag(from, to);
