@@ -133,18 +133,21 @@ std::string keysMarkdown() {
       if (words) {
         cell = key;
       } else {
-        std::string part;
-        for (char c : key + ' ') {
-          const bool apart = c == ' ' || ((c == '/' || c == '-') && !part.empty());
-          if (!apart) {
-            part += c;
-            continue;
-          }
-          cell += "`" + part + "`" +
-                  (c == ' ' ? std::string(cell.empty() && part.empty() ? "" : " ") : std::string(1, c));
+        std::string part;  // one key, closed by a space, or by / or - after a key ("+/-")
+        const auto close = [&](const char* then) {
+          if (!part.empty()) cell += "`" + part + "`";
           part.clear();
+          cell += then;
+        };
+        for (const char c : key) {
+          if (c == ' ')
+            close(" ");
+          else if ((c == '/' || c == '-') && !part.empty())
+            close(c == '/' ? "/" : "-");
+          else
+            part += c;
         }
-        while (!cell.empty() && cell.back() == ' ') cell.pop_back();
+        close("");
       }
       text += "| " + cell + " | " + b.what + " |\n";
     }

@@ -159,8 +159,7 @@ void Viewer::pollBuild() {
   building_ = false;
   showLod(false);
   if (!build_error_.empty()) {
-    restoring_.clear();  // an undo of C whose build failed: nothing to apply
-    restored_what_.clear();
+    restoring_.reset();  // an undo of C whose build failed: nothing to apply
     handles_ = hgd::Handles{};
     run_.setHandles(handles_);
     refreshRoles();
@@ -192,7 +191,7 @@ Viewer::~Viewer() {
 }
 
 void Viewer::finishHandles() {
-  if (!restored_what_.empty()) return applyRestored();  // an undo of C: its moves again
+  if (restoring_) return applyRestored();  // an undo of C: its moves again
   updateAlerts();
   if (run_.ready()) {
     message("handles: " + std::to_string(handles_.fixed.size()) + " fixed, manipulated " +
@@ -262,8 +261,7 @@ void Viewer::restoreCleared() {
   joint_regions_ = c.joints;
   run_.setRegions(fixed_regions_, manipulated_region_, joint_regions_);
   refreshRoles();
-  restoring_ = std::move(c.moves);
-  restored_what_ = c.what + " back (undone)";
+  restoring_ = std::move(c);
   if (same)
     applyRestored();
   else
@@ -271,13 +269,12 @@ void Viewer::restoreCleared() {
 }
 
 void Viewer::applyRestored() {
-  if (restored_what_.empty()) return;
+  if (!restoring_) return;
+  const Cleared c = std::move(*restoring_);
+  restoring_.reset();
   if (run_.ready())
-    for (const hgd::Move& m : restoring_) run_.apply(m);
-  restoring_.clear();
-  const std::string what = std::move(restored_what_);
-  restored_what_.clear();
-  shapeChanged(what);
+    for (const hgd::Move& m : c.moves) run_.apply(m);
+  shapeChanged(c.what + " back (undone)");
 }
 
 // What the deformation cannot do for this shape, on the status line and stderr: pieces that
@@ -327,11 +324,11 @@ void Viewer::frameMove(const Eigen::Vector3d& translate, const Eigen::Vector3d& 
   const auto t0 = Clock::now();
   commit(m);
   stats_.solve.push_back(msSince(t0));
-  // Said on the status line of the frame drawn next (message() would draw one more).
-  message_ = degrees != 0 ? "turned the handle " + num(degrees) + " degrees"
-                          : "moved the handle by (" + num(translate.x()) + ", " + num(translate.y()) + ", " +
-                                num(translate.z()) + ")";
-  if (verbose_) std::fprintf(stderr, "hgdeform-view: %s\n", message_.c_str());
+  // Said on the status line of the frame drawn next (refresh, below).
+  message(degrees != 0 ? "turned the handle " + num(degrees) + " degrees"
+                       : "moved the handle by (" + num(translate.x()) + ", " + num(translate.y()) + ", " +
+                             num(translate.z()) + ")",
+          /*draw=*/false);
   stats_.interpolate.push_back(run_.deformer().lastInterpolationMs());
   timing_frame_ = true;  // the frame's render counts (--stats)
   refresh();

@@ -205,6 +205,9 @@ class Viewer {
   /// The next up axis (u): +y, +z, +x, -y, -z, -x.
   void cycleUp();
   void setView(const Eigen::Vector3d& eye_direction, const Eigen::Vector3d& up);
+  /// The opening view's eye direction for up axis `up` (unit): from the sensor's side for a scan
+  /// in its sensor's frame, else the renderer's three-quarter view.
+  Eigen::Vector3d defaultEye(const Eigen::Vector3d& up) const;
   void refreshRoles();
   void refresh();
   void fillDisplay();
@@ -217,7 +220,9 @@ class Viewer {
   vtkPolyData* cloudPolyData(const std::string& id);
   void render();
   void updateStatus();
-  void message(const std::string& m);
+  /// `m` on the status line (and stderr unless quiet); drawn at once unless `draw` is false (the
+  /// caller draws the frame it belongs to).
+  void message(const std::string& m, bool draw = true);
   static Eigen::Vector3f clusterColour(int id);
 
   // --- geometry on screen (viewer_draw.cpp) -----------------------------------------------
@@ -287,8 +292,7 @@ class Viewer {
     std::string what;
   };
   std::optional<Cleared> cleared_;
-  std::vector<hgd::Move> restoring_;  // an undo of C: applied once the deformer is built again
-  std::string restored_what_;         // ... and then said
+  std::optional<Cleared> restoring_;  // an undo of C: its moves, applied once the deformer is built
   std::size_t help_columns_ = 0;      // the width the help overlay is wrapped to
   std::vector<std::pair<std::string, char>> waiting_keys_;  // pressed during a build: run after it
   bool caps_lock_ = false;

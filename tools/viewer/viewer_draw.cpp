@@ -144,9 +144,7 @@ void Viewer::addShapeCloud() {
 // camera looking along its up vector is degenerate (a z-up statue opened as an empty window).
 void Viewer::openingView() {
   const Eigen::Vector3d up = upVector();
-  const bool sensor = up.y() < -0.5 && hgd::inSensorCone(run_.shape());
-  Eigen::Vector3d eye =
-      sensor ? Eigen::Vector3d(0, 0, -1) : hgd::defaultView(run_.shape(), up_option_).normalized();
+  Eigen::Vector3d eye = defaultEye(up);
   if (view_option_) {
     const Eigen::Vector3d v = view_option_->normalized();
     if (std::abs(v.dot(up)) < 0.999)
@@ -161,12 +159,16 @@ Eigen::Vector3d Viewer::upVector() const {
   return hgd::upAxis(up_option_, {&run_.shape()}).cast<double>();
 }
 
+Eigen::Vector3d Viewer::defaultEye(const Eigen::Vector3d& up) const {
+  if (up.y() < -0.5 && hgd::inSensorCone(run_.shape())) return {0, 0, -1};
+  return hgd::defaultView(run_.shape(), up_option_).normalized();
+}
+
 // The front of the shape for the standard views: the opening view's eye direction across the up
 // axis, on the nearest axis of the shape's frame.
 void Viewer::standardView(int which) {
   const Eigen::Vector3d up = upVector();
-  const bool sensor = up.y() < -0.5 && hgd::inSensorCone(run_.shape());
-  Eigen::Vector3d f = sensor ? Eigen::Vector3d(0, 0, -1) : hgd::defaultView(run_.shape(), up_option_);
+  Eigen::Vector3d f = defaultEye(up);
   f -= f.dot(up) * up;
   Eigen::Index axis = 0;
   f.cwiseAbs().maxCoeff(&axis);
@@ -674,10 +676,10 @@ void Viewer::updateStatus() {
   mode_label_->GetTextProperty()->SetColor(c.x(), c.y(), c.z());
 }
 
-void Viewer::message(const std::string& m) {
+void Viewer::message(const std::string& m, bool draw) {
   message_ = m;
   if (verbose_) std::fprintf(stderr, "hgdeform-view: %s\n", m.c_str());
-  if (vis_) render();
+  if (vis_ && draw) render();
 }
 
 Eigen::Vector3f Viewer::clusterColour(int id) {
