@@ -235,6 +235,53 @@ TEST(HandleDeformation, IndicesAndTransformMatchAScenarioWithRegionsAndAFrameMov
   EXPECT_LE(diff, 1e-6);  // measured 0
 }
 
+// A second scenario with another isovalue count (and then another blend) on the same stage is
+// built as a fresh stage builds it: the stage, the runner and Python share one session, whose
+// rebuild rule makes a new deformer when the isovalue count changes. Compared bit for bit with
+// deform() on the second scenario alone.
+TEST(HandleDeformation, ASecondScenarioWithOtherClustersIsBuiltAsAFreshOne) {
+  const auto cloud = std::make_shared<pcl::PointCloud<pcl::PointXYZ>>(plate<pcl::PointXYZ>(13));
+  hgd::Scenario s12 = plateScenario(), s5 = plateScenario();
+  s12.clusters = 12;
+  s5.clusters = 5;
+  hgd::HandleDeformation<pcl::PointXYZ> hd;
+  hd.setInputCloud(cloud);
+  hd.setScenario(s12);
+  pcl::PointCloud<pcl::PointXYZ> first, second, expected;
+  hd.getDeformedCloud(first);
+  const std::size_t clusters12 = hd.runner().deformer().clustering().clusters.size();
+  hd.setScenario(s5);
+  hd.getDeformedCloud(second);
+  const std::size_t clusters5 = hd.runner().deformer().clustering().clusters.size();
+  hgd::deform(*cloud, s5, expected);
+  std::printf("clusters: %zu at 12 isovalues, %zu at 5\n", clusters12, clusters5);
+  EXPECT_LT(clusters5, clusters12);
+  std::size_t differ = 0, moved = 0;
+  for (std::size_t i = 0; i < cloud->size(); ++i) {
+    if (!std::isfinite((*cloud)[i].x)) continue;
+    differ += std::memcmp(&second[i], &expected[i], sizeof(float) * 3) != 0;
+    moved += std::memcmp(&second[i], &first[i], sizeof(float) * 3) != 0;
+  }
+  EXPECT_EQ(differ, 0u) << "the second scenario on a used stage vs deform() with it";
+  EXPECT_GT(moved, 100u) << "the isovalue count changes the result";
+  EXPECT_EQ(hd.runner().report().isovalues, 5);
+
+  // The blend alone: applied to the same deformer, as a fresh stage with that blend gives.
+  hgd::Scenario linear = s5;
+  linear.blend = hgd::Blend::Linear;
+  const hgd::Deformer* before = &hd.runner().deformer();
+  hd.setScenario(linear);
+  pcl::PointCloud<pcl::PointXYZ> blended, blended_expected;
+  hd.getDeformedCloud(blended);
+  EXPECT_EQ(before, &hd.runner().deformer()) << "a blend change rebuilt the deformer";
+  hgd::deform(*cloud, linear, blended_expected);
+  differ = 0;
+  for (std::size_t i = 0; i < cloud->size(); ++i)
+    if (std::isfinite((*cloud)[i].x))
+      differ += std::memcmp(&blended[i], &blended_expected[i], sizeof(float) * 3) != 0;
+  EXPECT_EQ(differ, 0u) << "the linear blend on a used stage vs deform() with it";
+}
+
 // Interactive frames: the cursor moves in 40 steps; the picked point follows it.
 TEST(HandleDeformation, DragFramesFollowTheCursor) {
   const auto cloud = std::make_shared<pcl::PointCloud<pcl::PointXYZRGB>>(plate<pcl::PointXYZRGB>(5));

@@ -227,6 +227,46 @@ TEST(ScenarioRunner, FrontEndOptionsWinOverTheScenario) {
   EXPECT_EQ(a.scenario().blend, hgd::Blend::Rotation);
 }
 
+// A second scenario with another isovalue count or resolution builds a new deformer (the
+// session's rule, shared with the PCL stage and Python): the runner's result is a fresh
+// runner's, bit for bit. A runner that kept the first deformer would keep its clusters.
+TEST(ScenarioRunner, ASecondScenarioWithOtherClustersIsBuiltAsAFreshOne) {
+  hgd::Scenario s9 = barScenario(), s4 = barScenario();
+  s9.clusters = 9;
+  s4.clusters = 4;
+  s9.moves = s4.moves = {turnMove(60)};
+  hgd::ScenarioRunner used = bar(s9);
+  used.applyMoves();
+  const std::size_t clusters9 = used.deformer().clustering().clusters.size();
+  used.setScenario(s4);
+  used.applyMoves();
+  hgd::ScenarioRunner fresh = bar(s4);
+  fresh.applyMoves();
+  std::printf("clusters: %zu at 9 isovalues, %zu at 4 (fresh %zu)\n", clusters9,
+              used.deformer().clustering().clusters.size(), fresh.deformer().clustering().clusters.size());
+  EXPECT_LT(used.deformer().clustering().clusters.size(), clusters9);
+  EXPECT_EQ(used.deformer().clustering().clusters.size(), fresh.deformer().clustering().clusters.size());
+  EXPECT_EQ(largestDifference(used, fresh), 0.0);
+  EXPECT_EQ(used.report().isovalues, 4);
+  EXPECT_EQ(used.moves().size(), 1u);  // the first scenario's move went with its build
+
+  // Full resolution asked by the second scenario: every point in the graph, as fresh.
+  hgd::Scenario full = s4;
+  full.full_resolution = true;
+  hgd::RunOptions coarse;
+  coarse.deform.multires_above = 1;  // this small bar on a coarse level, as the test below
+  coarse.deform.coarse_points = 500;
+  coarse.deform.points_per_coarse = 0;
+  hgd::ScenarioRunner a = bar(s4, coarse);
+  ASSERT_TRUE(a.deformer().coarseLevel().points.size() > 0);
+  a.setScenario(full);
+  EXPECT_EQ(a.deformer().coarseLevel().points.size(), 0u);
+  a.applyMoves();
+  hgd::ScenarioRunner b = bar(full, coarse);
+  b.applyMoves();
+  EXPECT_EQ(largestDifference(a, b), 0.0);
+}
+
 // "resolution": "full" reaches the Deformer from the scenario (every front end reads one), is
 // saved back, and a bad value is refused with its path.
 TEST(ScenarioRunner, ResolutionKeyKeepsEveryPointInTheField) {

@@ -6,30 +6,12 @@
 #include <stdexcept>
 #include <utility>
 
+#include "deformer/precompute_internal.h"
 #include "hgdeform/app/regions.h"
 #include "util/phases.h"
 #include "util/timer.h"
 
 namespace hgd {
-
-DeformOptions mergedOptions(const RunOptions& options, const Scenario& scenario, const Shape& shape,
-                            const Geometry& geometry) {
-  DeformOptions opt = options.deform;
-  if (options.clusters)
-    opt.clusters.isovalues = *options.clusters;
-  else if (scenario.clusters)
-    opt.clusters.isovalues = *scenario.clusters;
-  if (options.blend)
-    opt.blend = *options.blend;
-  else if (scenario.blend)
-    opt.blend = *scenario.blend;
-  if (scenario.full_resolution && *scenario.full_resolution) opt.multires_above = 0;
-  if (shape.isOrganized()) {
-    opt.field.orient_to_viewpoint = true;
-    opt.field.viewpoint = (shape.sensor_origin.head<3>().cast<double>() - geometry.origin).cast<float>();
-  }
-  return opt;
-}
 
 ScenarioRunner ScenarioRunner::read(const std::string& path, const RunOptions& options) {
   Stopwatch t;
@@ -40,13 +22,20 @@ ScenarioRunner ScenarioRunner::read(const std::string& path, const RunOptions& o
   return run;
 }
 
-ScenarioRunner::ScenarioRunner(Shape shape, const RunOptions& options)
-    : shape_(std::move(shape)), options_(options) {
+ScenarioRunner::ScenarioRunner() = default;
+
+ScenarioRunner::ScenarioRunner(Shape shape, const RunOptions& options) {
+  session_.setOptions(options);
+  setShape(std::move(shape));
+}
+
+void ScenarioRunner::setShape(Shape shape) {
   Stopwatch t;
-  PhaseRecording recording(&phases_);
-  read_warnings_ = shape_.warnings;  // what reading noted (a format told by content, ...)
-  geometry_ = std::make_shared<const Geometry>(extractGeometry(shape_));
-  read_warnings_.insert(read_warnings_.end(), geometry_->warnings.begin(), geometry_->warnings.end());
+  dropLive();
+  clearHistory();
+  released_ = false;
+  write_warnings_.clear();
+  session_.setShape(std::move(shape));
   build_ms_ = t.ms();
 }
 
@@ -57,27 +46,20 @@ ScenarioRunner::~ScenarioRunner() = default;
 void ScenarioRunner::setScenario(const Scenario& scenario) {
   requireShape("setScenario");
   Stopwatch t;
-  scenario_ = scenario;
-  PhaseClock clock;
-  {
-    PhaseRecording recording(&phases_);
-    handles_ = resolveHandles(scenario_, *geometry_, shape_);
-    clock.lap("runner.handles");
-  }
-  dropLive();  // a live frame's level of detail goes with it
-  clearHistory();
-  build(mergedOptions(options_, scenario_, shape_, *geometry_));
+  session_.setScenario(scenario);
+  build();
   build_ms_ += t.ms();
 }
 
 FieldResult ScenarioRunner::field(const Scenario& scenario) const {
   requireShape("field");
   FieldResult r;
-  r.handles = resolveHandles(scenario, *geometry_, shape_);
+  const Geometry& geometry = session_.geometry();
+  r.handles = resolveHandles(scenario, geometry, session_.shape());
   const Handles& handles = r.handles;
   HarmonicField field;  // at full resolution, as Deformer's on a shape below multires_above
-  setGraphInput(field.surfaceGraph(), *geometry_);
-  field.setOptions(mergedOptions(options_, scenario, shape_, *geometry_).field);
+  setGraphInput(field.surfaceGraph(), geometry);
+  field.setOptions(session_.mergedOptions(scenario).field);
   field.setHandles(handles.fixed, handles.manipulated);
   field.compute(r.values);
   r.timings = field.timings();
@@ -87,27 +69,30 @@ FieldResult ScenarioRunner::field(const Scenario& scenario) const {
 
 void ScenarioRunner::setHandles(const Handles& handles) {
   requireShape("setHandles");
-  handles_ = handles;
+  session_.setHandles(handles);
   dropLive();  // a live frame's level of detail goes with it
   clearHistory();
-  if (handles_.fixed.empty() || handles_.manipulated.empty()) {
-    deformer_.reset();
-    return;
-  }
-  build(mergedOptions(options_, scenario_, shape_, *geometry_));
+  build();
 }
 
 void ScenarioRunner::setRegions(std::vector<Region> fixed, Region manipulated, std::vector<Region> joints) {
-  scenario_.fixed = std::move(fixed);
-  scenario_.manipulated = std::move(manipulated);
-  scenario_.joints = std::move(joints);
+  session_.setRegions(std::move(fixed), std::move(manipulated), std::move(joints));
 }
 
-void ScenarioRunner::build(const DeformOptions& options) {
-  if (deformer_)
-    deformer_->setHandles(handles_);  // normals and kNN are kept
-  else
-    deformer_ = std::make_unique<Deformer>(geometry_, handles_, options);
+void ScenarioRunner::build() {
+  if (session_.ready()) return;
+  dropLive();  // a live frame's level of detail goes with it
+  clearHistory();
+  session_.ensureBuilt();
+}
+
+bool ScenarioRunner::ensureBuilt() {
+  requireShape("ensureBuilt");
+  if (session_.ready()) return false;
+  Stopwatch t;
+  build();
+  build_ms_ += t.ms();
+  return session_.ready();
 }
 
 void ScenarioRunner::clearHistory() {
@@ -122,15 +107,16 @@ void ScenarioRunner::clearHistory() {
 }
 
 void ScenarioRunner::applyMoves() {
-  for (const Move& m : scenario_.moves) apply(m);
+  const std::vector<Move> moves = session_.scenario().moves;  // apply() may not change them, but be safe
+  for (const Move& m : moves) apply(m);
 }
 
 MoveResult ScenarioRunner::apply(const Move& move) {
   requireShape("apply");
-  if (!deformer_) throw std::logic_error("ScenarioRunner::apply: no handles yet");
+  if (!ready()) throw std::logic_error("ScenarioRunner::apply: no handles yet");
   dropLive();
-  history_.push_back(deformer_->state());
-  const MoveResult r = solveMove(move);
+  history_.push_back(deformer().state());
+  const MoveResult r = session_.applyMove(move, static_cast<int>(moves_.size()) + 1);
   record(move, r);
   return r;
 }
@@ -144,17 +130,17 @@ void ScenarioRunner::record(const Move& move, const MoveResult& result) {
 
 MoveResult ScenarioRunner::previewMove(const Move& move, const std::vector<int>* preview) {
   requireShape("previewMove");
-  if (!deformer_) throw std::logic_error("ScenarioRunner::previewMove: no handles yet");
-  if (!beginLive(preview)) deformer_->restore(history_.back());  // each preview starts where apply() would
+  if (!ready()) throw std::logic_error("ScenarioRunner::previewMove: no handles yet");
+  if (!beginLive(preview)) deformer().restore(history_.back());  // each preview starts where apply() would
   live_move_ = move;
-  live_result_ = solveMove(move);
+  live_result_ = session_.applyMove(move, static_cast<int>(moves_.size()) + 1);
   return *live_result_;
 }
 
 std::optional<MoveResult> ScenarioRunner::commitLive() {
   if (!live_ || !live_move_ || !live_result_) return std::nullopt;
   live_ = false;  // the state before the gesture stays in history_, as apply() leaves it
-  if (!deformer_->preview().empty()) deformer_->setPreview({});  // every point, same transforms
+  if (!deformer().preview().empty()) deformer().setPreview({});  // every point, same transforms
   const Move move = *live_move_;
   const MoveResult r = *live_result_;
   live_move_.reset();
@@ -163,67 +149,21 @@ std::optional<MoveResult> ScenarioRunner::commitLive() {
   return r;
 }
 
-MoveResult ScenarioRunner::solveMove(const Move& move) {
-  Deformer& d = *deformer_;
-  const int number = static_cast<int>(moves_.size()) + 1;
-  MoveResult r;
-  if (move.kind == Move::Kind::Drag && !move.drag.keep_orientation) {
-    const DragResult dr = d.dragTo(move.drag.from, move.drag.to);
-    r = MoveResult{dr.frames, dr.iterations, dr.max_frame_iterations, dr.reached,
-                   dr.error,  dr.solve_ms,   dr.interpolation_ms,     {}};
-    if (!dr.reached) {
-      char buf[320];
-      std::snprintf(buf, sizeof buf,
-                    "move %d (drag): the picked point stopped %.6g (%.3g of the diagonal) from its "
-                    "target after %d frames%s",
-                    number, dr.error, dr.error / d.diagonal(), dr.frames,
-                    dr.last.decreased ? "" : "; Gauss-Newton could not decrease the energy further");
-      r.warning = buf;
-    }
-  } else {
-    // One rigid motion of the handle, given exactly: a frame move, or a drag that keeps the
-    // handle's orientation (a translation that lands the picked point on the target).
-    const bool translate = move.kind == Move::Kind::Drag;
-    SolveStats st;
-    if (translate) {
-      st = d.translateHandle(move.drag.from, move.drag.to);  // reached: the point lands exactly
-    } else {
-      const FrameMove& f = move.frame;
-      const Eigen::Vector3d centre = f.centre ? *f.centre : d.handleCentre();
-      Eigen::Affine3d motion = Eigen::Affine3d::Identity();
-      motion.translate(centre + f.translate);
-      motion.rotate(Eigen::AngleAxisd(f.degrees * M_PI / 180.0, f.axis.normalized()));
-      motion.translate(-centre);
-      st = d.moveHandle(motion);
-    }
-    if (!st.decreased)
-      r.warning = "move " + std::to_string(number) +
-                  (translate ? " (drag, keeping orientation)" : " (frame)") +
-                  ": Gauss-Newton could not decrease the energy; the shape may not follow the handle exactly";
-    r.frames = 1;
-    r.iterations = st.iterations;
-    r.max_frame_iterations = st.iterations;
-    r.solve_ms = st.ms;
-    r.interpolation_ms = d.lastInterpolationMs();
-  }
-  return r;
-}
-
 SolveStats ScenarioRunner::liveDrag(const Eigen::Vector3d& from, const Eigen::Vector3d& to,
                                     bool keep_orientation, const std::vector<int>* preview) {
   requireShape("liveDrag");
-  if (!deformer_) throw std::logic_error("ScenarioRunner::liveDrag: no handles yet");
+  if (!ready()) throw std::logic_error("ScenarioRunner::liveDrag: no handles yet");
   beginLive(preview);
   live_move_.reset();  // incremental frames: no move to commit as shown
   live_result_.reset();
-  return keep_orientation ? deformer_->translateHandle(from, to) : deformer_->drag(from, to);
+  return keep_orientation ? deformer().translateHandle(from, to) : deformer().drag(from, to);
 }
 
 bool ScenarioRunner::beginLive(const std::vector<int>* preview) {
   if (live_) return false;
-  history_.push_back(deformer_->state());  // the last applied state, taken back by dropLive()
+  history_.push_back(deformer().state());  // the last applied state, taken back by dropLive()
   live_ = true;
-  if (preview) deformer_->setPreview(*preview);
+  if (preview) deformer().setPreview(*preview);
   return true;
 }
 
@@ -232,19 +172,19 @@ void ScenarioRunner::dropLive() {
   live_ = false;
   live_move_.reset();
   live_result_.reset();
-  deformer_->restore(history_.back());  // with a preview, its points only
+  deformer().restore(history_.back());  // with a preview, its points only
   history_.pop_back();
-  if (!deformer_->preview().empty()) deformer_->setPreview({});  // then every point
+  if (!deformer().preview().empty()) deformer().setPreview({});  // then every point
 }
 
 bool ScenarioRunner::undo() {
   dropLive();
   if (history_.empty()) return false;
-  redo_states_.push_back(deformer_->state());
+  redo_states_.push_back(deformer().state());
   undone_.emplace_back(moves_.back(), results_.back());
   moves_.pop_back();
   results_.pop_back();
-  deformer_->restore(history_.back());
+  deformer().restore(history_.back());
   history_.pop_back();
   return true;
 }
@@ -252,31 +192,31 @@ bool ScenarioRunner::undo() {
 bool ScenarioRunner::redo() {
   dropLive();
   if (undone_.empty()) return false;
-  history_.push_back(deformer_->state());
+  history_.push_back(deformer().state());
   moves_.push_back(undone_.back().first);
   results_.push_back(undone_.back().second);
   undone_.pop_back();
-  deformer_->restore(redo_states_.back());
+  deformer().restore(redo_states_.back());
   redo_states_.pop_back();
   return true;
 }
 
 void ScenarioRunner::reset() {
   dropLive();  // a live frame's level of detail goes with it (else only its points would reset)
-  if (deformer_) deformer_->reset();
+  if (session_.sharedDeformer()) deformer().reset();
   clearHistory();
 }
 
 void ScenarioRunner::setBlend(Blend blend) {
-  options_.blend = blend;
-  if (deformer_) deformer_->setBlend(blend);
+  session_.setBlend(blend);
 }
 
 Scenario ScenarioRunner::scenario() const {
-  Scenario s = scenario_;
+  Scenario s = session_.scenario();
   s.moves = moves_;
-  if (options_.clusters) s.clusters = options_.clusters;
-  if (options_.blend) s.blend = options_.blend;
+  const RunOptions& options = session_.options();
+  if (options.clusters) s.clusters = options.clusters;
+  if (options.blend) s.blend = options.blend;
   return s;
 }
 
@@ -284,20 +224,20 @@ DeformReport ScenarioRunner::report() const {
   DeformReport rep;
   rep.read_ms = read_ms_;
   rep.build_ms = read_ms_ + build_ms_;  // everything before the first solve
-  rep.points = geometry_->size();
+  rep.points = session_.sharedGeometry() ? session_.sharedGeometry()->size() : 0;
   rep.write_ms = write_ms_;
-  if (deformer_) {
-    const Deformer& d = *deformer_;
+  if (const std::shared_ptr<const Deformer> shared = session_.sharedDeformer()) {
+    const Deformer& d = *shared;
     const BuildTimings& b = d.buildTimings();
     rep.build = b;
     // The runner's own phases (the geometry, the handles) before the Deformer's.
-    rep.build.phases.insert(rep.build.phases.begin(), phases_.begin(), phases_.end());
+    rep.build.phases.insert(rep.build.phases.begin(), session_.phases().begin(), session_.phases().end());
     rep.field_ms = b.field_ms;
     rep.sampling_ms = b.sampling_ms;
     rep.clusters_ms = b.clusters_ms;
     rep.sample = d.clustering().sample.size();
     rep.clusters = d.clustering().clusters.size();
-    rep.isovalues = mergedOptions(options_, scenario_, shape_, *geometry_).clusters.isovalues;
+    rep.isovalues = session_.mergedOptions().clusters.isovalues;
     rep.unreachable = d.unreachablePoints();
     rep.notes = d.clustering().notes;
     if (d.surfaceGraph().normalsReoriented())
@@ -328,7 +268,7 @@ DeformReport ScenarioRunner::report() const {
     rep.surface = d.surfaceStretch();
     if (const std::string w = stretchWarning(rep.surface); !w.empty()) rep.warnings.push_back(w);
   }
-  rep.warnings.insert(rep.warnings.begin(), read_warnings_.begin(), read_warnings_.end());
+  rep.warnings.insert(rep.warnings.begin(), session_.warnings().begin(), session_.warnings().end());
   rep.warnings.insert(rep.warnings.end(), write_warnings_.begin(), write_warnings_.end());
   rep.total_ms = rep.build_ms + rep.solve_ms + rep.interpolation_ms + rep.write_ms;
   return rep;
@@ -336,8 +276,8 @@ DeformReport ScenarioRunner::report() const {
 
 Shape ScenarioRunner::deformedShape() const {
   requireShape("deformedShape");
-  Shape out = shape_;
-  if (deformer_) deformer_->writeDeformed(out);
+  Shape out = session_.shape();
+  if (ready()) deformer().writeDeformed(out);
   return out;
 }
 
@@ -361,13 +301,13 @@ void ScenarioRunner::writeOut(const std::string& path, const WriteOptions& optio
                               const std::vector<std::string>& inputs, bool release_shape) {
   requireShape("write");
   std::vector<std::string> all = inputs;
-  if (!shape_.path.empty()) all.push_back(shape_.path);
+  if (!session_.shape().path.empty()) all.push_back(session_.shape().path);
   refuseInputs(path, all);
   const FileFormat format = formatFromPath(path);
   Stopwatch t;
   // Released: the deformed positions go into the runner's own shape, held once.
-  Shape out = release_shape ? release(false) : shape_;
-  if (deformer_) noteWriteWarnings(deformer_->writeDeformed(out));
+  Shape out = release_shape ? release(false) : session_.shape();
+  if (ready()) noteWriteWarnings(deformer().writeDeformed(out));
   writeShape(path, out, options);
   write_ms_ = t.ms();
   if (const std::string lost = extrasLost(out, format); !lost.empty())
@@ -376,11 +316,9 @@ void ScenarioRunner::writeOut(const std::string& path, const WriteOptions& optio
 
 Shape ScenarioRunner::release(bool deformed) {
   requireShape("release");
-  if (deformed && deformer_) noteWriteWarnings(deformer_->writeDeformed(shape_));
+  if (deformed && ready()) noteWriteWarnings(deformer().writeDeformed(session_.mutableShape()));
   released_ = true;
-  Shape out = std::move(shape_);
-  shape_ = Shape{};
-  return out;
+  return session_.releaseShape();
 }
 
 void ScenarioRunner::requireShape(const char* what) const {

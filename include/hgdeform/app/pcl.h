@@ -44,9 +44,10 @@ template <typename PointT>
 DeformReport deform(const pcl::PointCloud<PointT>& input, const Scenario& scenario,
                     pcl::PointCloud<PointT>& output, const RunOptions& options = {});
 
-/// A PCL-style stage for interactive deformation. The deformer is built on the first frame
-/// after the input or the handles change (normals, kNN and the graph are kept when only the
-/// handles change).
+/// A PCL-style stage for interactive deformation, thin over a ScenarioRunner and its Session
+/// (session.h): the deformer is built on the first frame after the input, the options or the
+/// handles change (normals, kNN and the graph are kept when only the handles change; another
+/// isovalue count or resolution builds a new one).
 template <typename PointT>
 class HandleDeformation : public pcl::PCLBase<PointT> {
  public:
@@ -91,15 +92,10 @@ class HandleDeformation : public pcl::PCLBase<PointT> {
   ScenarioRunner& runner();
 
  private:
-  void invalidate();
   void ensureBuilt();
-  Scenario& indexHandles();
 
-  RunOptions options_;
-  Scenario scenario_;
-  bool have_scenario_ = false;
-  bool built_ = false;
-  std::unique_ptr<ScenarioRunner> runner_;
+  ScenarioRunner runner_;      // its session holds the handles and options until the input comes
+  bool input_changed_ = true;  // the input cloud is not the runner's shape yet
 };
 
 }  // namespace hgd

@@ -8,7 +8,9 @@
 //   hgd::writeReportJson("r.json", run.report());
 //
 // Interactive clients set handles directly (setHandles), apply moves one at a time (apply),
-// show live frames between them (liveDrag) and step through undo()/redo().
+// show live frames between them (liveDrag) and step through undo()/redo(). The shape, the
+// handles and the deformer's build are its Session's (session.h), which the PCL stage and the
+// Python module hold as well.
 #pragma once
 
 #include <memory>
@@ -18,6 +20,7 @@
 #include <vector>
 
 #include "hgdeform/app/scenario.h"
+#include "hgdeform/app/session.h"
 #include "hgdeform/deformer/deformer.h"
 #include "hgdeform/io/io.h"
 #include "hgdeform/io/shape.h"
@@ -54,31 +57,6 @@ struct DeformReport {
   bool huge_page_malloc = false;
 };
 
-/// Options a front end sets beside a scenario. Where both say something, the front end wins:
-/// `clusters` and `blend` override the scenario's values; unset, the scenario's, else the
-/// defaults in `deform`.
-struct RunOptions {
-  DeformOptions deform;
-  std::optional<int> clusters;  ///< isovalue count
-  std::optional<Blend> blend;
-};
-
-/// The options a run uses: `options` merged with the scenario, and the shape's sensor
-/// viewpoint for organized scans (normals turned towards the sensor).
-DeformOptions mergedOptions(const RunOptions& options, const Scenario& scenario, const Shape& shape,
-                            const Geometry& geometry);
-
-/// What one move did.
-struct MoveResult {
-  int frames = 0;
-  int iterations = 0;
-  int max_frame_iterations = 0;
-  bool reached = true;      ///< drags: the picked point reached its target
-  double handle_error = 0;  ///< drags: final distance of the picked point from the target
-  double solve_ms = 0, interpolation_ms = 0;
-  std::string warning;  ///< empty, or why the move ended short
-};
-
 /// The harmonic field of a scenario's handles over every point (`hgdeform field`).
 struct FieldResult {
   std::vector<float> values;  ///< one per point of the geometry: 1 on the manipulated handle, 0 on the fixed
@@ -92,6 +70,11 @@ class ScenarioRunner {
   /// Reads `path` (any format readShape() takes); the time goes into the report.
   static ScenarioRunner read(const std::string& path, const RunOptions& options = {});
   explicit ScenarioRunner(Shape shape, const RunOptions& options = {});
+  /// A runner without a shape yet (setShape()): handles and options may be set on session().
+  ScenarioRunner();
+  /// Another shape (the PCL stage's new input): the deformer and the history go; handles and
+  /// options stay, built on the new shape at the next ensureBuilt().
+  void setShape(Shape shape);
   ScenarioRunner(ScenarioRunner&&) noexcept;
   ScenarioRunner& operator=(ScenarioRunner&&) noexcept;
   ScenarioRunner(const ScenarioRunner&) = delete;
@@ -118,7 +101,12 @@ class ScenarioRunner {
   /// index regions for handles set directly).
   void setRegions(std::vector<Region> fixed, Region manipulated, std::vector<Region> joints);
 
-  bool ready() const { return deformer_ != nullptr; }
+  bool ready() const { return session_.ready(); }
+
+  /// Builds the deformer if the session has something due (handles or options changed through
+  /// session()); the history is cleared when it builds. True when it built: the caller then
+  /// applies the scenario's moves (applyMoves()) if it wants them.
+  bool ensureBuilt();
 
   /// Applies every move of the scenario given to setScenario(), in order.
   void applyMoves();
@@ -167,7 +155,7 @@ class ScenarioRunner {
   DeformReport report() const;
 
   /// The rest shape as read.
-  const Shape& shape() const { return shape_; }
+  const Shape& shape() const { return session_.shape(); }
   /// A copy of the shape with the deformed positions (and rotated normals).
   Shape deformedShape() const;
   /// Writes the deformed shape to `path`: refuses to replace any of `inputs` (the shape's own
@@ -187,17 +175,24 @@ class ScenarioRunner {
   /// writeAndRelease()).
   Shape release(bool deformed = true);
 
-  const Geometry& geometry() const { return *geometry_; }
-  const Handles& handles() const { return handles_; }
+  const Geometry& geometry() const { return session_.geometry(); }
+  const Handles& handles() const { return session_.handles(); }
   /// The deformer (ready() must be true).
-  const Deformer& deformer() const { return *deformer_; }
+  const Deformer& deformer() const { return session_.deformer(); }
   /// The deformer for direct frames (Deformer::drag, setHandleTransform): those are not
   /// recorded as moves, and undo() does not see them.
-  Deformer& deformer() { return *deformer_; }
-  const RunOptions& options() const { return options_; }
+  Deformer& deformer() { return session_.deformer(); }
+  /// The deformer, alive as long as the pointer is held (a view of its buffers outlives a rebuild).
+  std::shared_ptr<const Deformer> sharedDeformer() const { return session_.sharedDeformer(); }
+  const RunOptions& options() const { return session_.options(); }
+  /// The session: handles by index or scenario, options; a change is built at the next
+  /// ensureBuilt() (or setScenario(), setHandles()).
+  Session& session() { return session_; }
+  const Session& session() const { return session_; }
 
  private:
-  void build(const DeformOptions& options);
+  /// Builds what the session has due; the history goes when it builds (the shape is at rest).
+  void build();
   /// Throws std::logic_error naming `what` once the shape was handed over.
   void requireShape(const char* what) const;
   void writeOut(const std::string& path, const WriteOptions& options, const std::vector<std::string>& inputs,
@@ -207,28 +202,20 @@ class ScenarioRunner {
   /// Enters live frames (the last applied state kept for dropLive(), `preview` set); false
   /// when already in them.
   bool beginLive(const std::vector<int>* preview);
-  /// Solves `move` from the deformer's current state (apply()'s and previewMove()'s solve).
-  MoveResult solveMove(const Move& move);
   /// Records an applied move and its result; the redo list is cleared.
   void record(const Move& move, const MoveResult& result);
 
-  Shape shape_;
-  std::shared_ptr<const Geometry> geometry_;  // shared with the deformer
-  RunOptions options_;
-  Scenario scenario_;  // regions and moves given to setScenario()
-  Handles handles_;
-  std::unique_ptr<Deformer> deformer_;
+  Session session_;
   std::vector<Move> moves_;
   std::vector<std::pair<Move, MoveResult>> undone_;
   std::vector<DeformerState> history_, redo_states_;
   std::vector<MoveResult> results_;  // one per applied move
-  std::vector<std::string> read_warnings_, write_warnings_;
+  std::vector<std::string> write_warnings_;
   bool live_ = false;
   std::optional<Move> live_move_;  // the move the live frame shows (previewMove), if any
   std::optional<MoveResult> live_result_;
   bool released_ = false;  // the shape was handed over (release, writeAndRelease)
   double read_ms_ = 0, build_ms_ = 0, write_ms_ = 0;
-  std::vector<BuildPhase> phases_;  ///< the runner's own build phases (geometry, handles)
 };
 
 /// The whole of `hgdeform deform` on a shape already read: the scenario applied by a

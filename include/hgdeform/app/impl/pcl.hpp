@@ -76,114 +76,94 @@ HandleDeformation<PointT>::~HandleDeformation() = default;
 template <typename PointT>
 void HandleDeformation<PointT>::setInputCloud(const PointCloudConstPtr& cloud) {
   pcl::PCLBase<PointT>::setInputCloud(cloud);
-  runner_.reset();
-  built_ = false;
+  input_changed_ = true;
 }
 
 template <typename PointT>
 void HandleDeformation<PointT>::setOptions(const RunOptions& options) {
-  options_ = options;
-  runner_.reset();
-  built_ = false;
+  runner_.session().setOptions(options);
 }
 
 namespace pcl_detail {
-inline Region indexRegion(const pcl::Indices& indices) {
-  return Region::fromIndices(std::vector<long long>(indices.begin(), indices.end()));
+inline std::vector<long long> indexList(const pcl::Indices& indices) {
+  return std::vector<long long>(indices.begin(), indices.end());
 }
 }  // namespace pcl_detail
 
 template <typename PointT>
-Scenario& HandleDeformation<PointT>::indexHandles() {
-  // Handles by index replace a scenario given before (its regions, moves and options) whole.
-  invalidate();
-  return scenario_;
-}
-
-template <typename PointT>
 void HandleDeformation<PointT>::setFixedHandles(const std::vector<pcl::Indices>& handles) {
-  Scenario& s = indexHandles();
-  s.fixed.clear();
-  for (const auto& h : handles) s.fix(pcl_detail::indexRegion(h));
+  std::vector<std::vector<long long>> lists;
+  for (const auto& h : handles) lists.push_back(pcl_detail::indexList(h));
+  runner_.session().setFixedIndices(lists);
 }
 
 template <typename PointT>
 void HandleDeformation<PointT>::setManipulatedHandle(const pcl::Indices& handle) {
-  indexHandles().manipulate(pcl_detail::indexRegion(handle));
+  runner_.session().setManipulatedIndices(pcl_detail::indexList(handle));
 }
 
 template <typename PointT>
 void HandleDeformation<PointT>::setJoints(const std::vector<pcl::Indices>& joints) {
-  if (have_scenario_) scenario_ = Scenario{};
-  have_scenario_ = false;
-  Scenario& s = indexHandles();
-  s.joints.clear();
-  for (const auto& j : joints) s.joint(pcl_detail::indexRegion(j));
+  std::vector<std::vector<long long>> lists;
+  for (const auto& j : joints) lists.push_back(pcl_detail::indexList(j));
+  runner_.session().setJointIndices(lists);
 }
 
 template <typename PointT>
 void HandleDeformation<PointT>::setScenario(const Scenario& scenario) {
-  scenario_ = scenario;
-  have_scenario_ = true;
-  invalidate();
-}
-
-template <typename PointT>
-void HandleDeformation<PointT>::invalidate() {
-  // The runner is kept (normals, kNN and the graph): new handles only re-solve the field.
-  built_ = false;
+  runner_.session().setScenario(scenario);
 }
 
 template <typename PointT>
 void HandleDeformation<PointT>::ensureBuilt() {
-  if (runner_ && built_) return;
   if (!this->input_ || this->input_->empty())
     throw std::invalid_argument("HandleDeformation: no input cloud (setInputCloud)");
-  if (scenario_.fixed.empty())
+  const std::string missing = runner_.session().missingHandle();
+  if (missing == "fixed")
     throw ScenarioError("HandleDeformation: no fixed handle (setFixedHandles or setScenario)");
-  if (!have_scenario_ && scenario_.manipulated.indices.empty())
+  if (!missing.empty())
     throw ScenarioError("HandleDeformation: no manipulated handle (setManipulatedHandle or setScenario)");
-  if (!runner_)
-    runner_ = std::make_unique<ScenarioRunner>(pcl_detail::shapeFromCloud(*this->input_), options_);
-  runner_->setScenario(scenario_);
-  runner_->applyMoves();
-  built_ = true;
+  if (input_changed_) {
+    runner_.setShape(pcl_detail::shapeFromCloud(*this->input_));
+    input_changed_ = false;
+  }
+  if (runner_.ensureBuilt()) runner_.applyMoves();  // a scenario's moves, as hgdeform deform applies them
 }
 
 template <typename PointT>
 SolveStats HandleDeformation<PointT>::drag(const Eigen::Vector3d& from, const Eigen::Vector3d& to) {
   ensureBuilt();
-  return runner_->deformer().drag(from, to);
+  return runner_.deformer().drag(from, to);
 }
 
 template <typename PointT>
 DragResult HandleDeformation<PointT>::dragTo(const Eigen::Vector3d& from, const Eigen::Vector3d& to) {
   ensureBuilt();
-  return runner_->deformer().dragTo(from, to);
+  return runner_.deformer().dragTo(from, to);
 }
 
 template <typename PointT>
 SolveStats HandleDeformation<PointT>::setHandleTransform(const Eigen::Affine3d& transform) {
   ensureBuilt();
-  return runner_->deformer().setHandleTransform(transform);
+  return runner_.deformer().setHandleTransform(transform);
 }
 
 template <typename PointT>
 void HandleDeformation<PointT>::reset() {
-  if (runner_ && built_) runner_->reset();
+  if (runner_.ready()) runner_.reset();
 }
 
 template <typename PointT>
 void HandleDeformation<PointT>::getDeformedCloud(PointCloud& output) {
   ensureBuilt();
   output = *this->input_;
-  pcl_detail::copyDeformed(*runner_, output);
+  pcl_detail::copyDeformed(runner_, output);
 }
 
 template <typename PointT>
 ScenarioRunner& HandleDeformation<PointT>::runner() {
   ensureBuilt();
-  return *runner_;
+  return runner_;
 }
 
 }  // namespace hgd
