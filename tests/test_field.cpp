@@ -8,8 +8,9 @@
 #include <random>
 #include <string>
 
-#include "../src/graph/grid_knn.h"  // the grid search itself: which clouds it keeps
-#include "../src/graph/nearest.h"   // strays hang from the nearest coarse point
+#include "../src/field/laplacian.h"  // the Dirichlet solve, the multilevel solver's reference
+#include "../src/graph/grid_knn.h"   // the grid search itself: which clouds it keeps
+#include "../src/graph/nearest.h"    // strays hang from the nearest coarse point
 #include "hgdeform/field/harmonic_field.h"
 #include "hgdeform/graph/knn.h"
 #include "hgdeform/graph/neighbor_graph.h"

@@ -19,9 +19,9 @@
 #include <vector>
 
 #include "cli_common.h"
-#include "hgdeform/app/cleanup.h"
 #include "hgdeform/app/regions.h"
 #include "hgdeform/app/scenario.h"
+#include "hgdeform/io/cleanup.h"
 #include "hgdeform/io/fields.h"
 #include "hgdeform/io/geometry.h"
 #include "hgdeform/io/io.h"

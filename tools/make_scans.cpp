@@ -9,7 +9,7 @@
 #include <string>
 
 #include "cli_common.h"
-#include "hgdeform/app/cleanup.h"
+#include "hgdeform/io/cleanup.h"
 #include "hgdeform/io/io.h"
 #include "support/shapes.h"
 

@@ -1,4 +1,4 @@
-#include "hgdeform/app/json_reader.h"
+#include "app/json_reader.h"
 
 #include <fcntl.h>
 #include <sys/stat.h>

@@ -2,7 +2,7 @@
 
 #include <cstdio>
 
-#include "hgdeform/app/report_json.h"
+#include "app/report_json.h"
 #include "hgdeform/io/io.h"
 #include "hgdeform/version.h"
 

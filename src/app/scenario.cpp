@@ -6,7 +6,7 @@
 #include <limits>
 #include <nlohmann/json.hpp>
 
-#include "hgdeform/app/json_reader.h"
+#include "app/json_reader.h"
 
 namespace hgd {
 

@@ -1,5 +1,3 @@
-#include "hgdeform/deformer/deformer.h"
-
 #include <omp.h>
 
 #include <Eigen/SVD>
@@ -9,6 +7,8 @@
 #include <cstring>
 #include <stdexcept>
 
+#include "deformer/deformer_impl.h"
+#include "deformer/precompute_internal.h"
 #include "hgdeform/io/fields.h"
 #include "util/phases.h"
 #include "util/timer.h"
@@ -20,11 +20,8 @@ constexpr std::size_t kMaxMatchPoints = 32;  // shape-matching points besides th
 constexpr double kPinWeight = 1e4;           // relative weight of the barycentre pin
 }  // namespace
 
-Deformer::Deformer(const Geometry& geometry, const Handles& handles, const DeformOptions& options)
-    : Deformer(std::make_shared<const Geometry>(geometry), handles, options) {}
-
-Deformer::Deformer(std::shared_ptr<const Geometry> geometry, const Handles& handles,
-                   const DeformOptions& options)
+Deformer::Impl::Impl(std::shared_ptr<const Geometry> geometry, const Handles& handles,
+                     const DeformOptions& options)
     : geometry_(std::move(geometry)), handles_(handles), options_(options) {
   if (!geometry_) throw std::invalid_argument("Deformer: no geometry");
   if (geometry_->hasFileNormals() && geometry_->file_normals->size() != geometry_->size())
@@ -45,12 +42,12 @@ Deformer::Deformer(std::shared_ptr<const Geometry> geometry, const Handles& hand
   rebuild();
 }
 
-void Deformer::setHandles(const Handles& handles) {
+void Deformer::Impl::setHandles(const Handles& handles) {
   handles_ = handles;
   rebuild();
 }
 
-void Deformer::rebuild() {
+void Deformer::Impl::rebuild() {
   // The tables change: normals due on points a preview frame will leave alone, now; without a
   // preview the first frame derives them all again.
   if (!preview_.empty()) updateNormals();
@@ -85,11 +82,11 @@ void Deformer::rebuild() {
   clock.lap("deformer.first_shape");
 }
 
-DeformerState Deformer::state() const {
+DeformerState Deformer::Impl::state() const {
   return {solver_.transforms(), frame_mode_};
 }
 
-void Deformer::restore(const DeformerState& state) {
+void Deformer::Impl::restore(const DeformerState& state) {
   if (state.transforms.size() != data_.clustering.clusters.size())
     throw std::invalid_argument("Deformer::restore: the state belongs to other clusters");
   solver_.setTransforms(state.transforms);
@@ -103,21 +100,21 @@ void Deformer::restore(const DeformerState& state) {
   updateShape();
 }
 
-void Deformer::leaveFrameMode() {
+void Deformer::Impl::leaveFrameMode() {
   if (!frame_mode_) return;
   solver_.release();
   frame_mode_ = false;
   picked_ = -1;
 }
 
-Eigen::Vector3d Deformer::currentNormalised(int cluster, const Eigen::Vector3d& rest) const {
+Eigen::Vector3d Deformer::Impl::currentNormalised(int cluster, const Eigen::Vector3d& rest) const {
   const NormalisedTransform& t = solver_.transforms()[static_cast<std::size_t>(cluster)];
   const Eigen::Vector3d g =
       normalise(data_.clustering.clusters[static_cast<std::size_t>(cluster)].barycentre);
   return t.A * (rest - g) + g + t.t;
 }
 
-void Deformer::pick(const Eigen::Vector3d& world) {
+void Deformer::Impl::pick(const Eigen::Vector3d& world) {
   const Eigen::Vector3f local = (world - geometry_->origin).cast<float>();
   float best = INFINITY;
   picked_ = handles_.manipulated.front();
@@ -160,7 +157,7 @@ void Deformer::pick(const Eigen::Vector3d& world) {
   manip_target_.resize(manip_rest_.size());
 }
 
-SolveStats Deformer::drag(const Eigen::Vector3d& from, const Eigen::Vector3d& to) {
+SolveStats Deformer::Impl::drag(const Eigen::Vector3d& from, const Eigen::Vector3d& to) {
   if (!to.allFinite() || !from.allFinite()) throw std::invalid_argument("drag: target is not finite");
   leaveFrameMode();
   if (picked_ < 0 || from != last_to_) pick(from);
@@ -169,7 +166,7 @@ SolveStats Deformer::drag(const Eigen::Vector3d& from, const Eigen::Vector3d& to
   return st;
 }
 
-SolveStats Deformer::dragFrame(const Eigen::Vector3d& to) {
+SolveStats Deformer::Impl::dragFrame(const Eigen::Vector3d& to) {
   const int mc = data_.clustering.manipulated;
   // Targets: the picked point at the cursor, the other points where they are now, and the
   // pin at the weighted barycentre of those targets.
@@ -189,7 +186,7 @@ SolveStats Deformer::dragFrame(const Eigen::Vector3d& to) {
   return st;
 }
 
-SolveStats Deformer::translateHandle(const Eigen::Vector3d& from, const Eigen::Vector3d& to) {
+SolveStats Deformer::Impl::translateHandle(const Eigen::Vector3d& from, const Eigen::Vector3d& to) {
   if (!to.allFinite() || !from.allFinite()) throw std::invalid_argument("drag: target is not finite");
   if (picked_ < 0 || from != last_to_) pick(from);
   const SolveStats st = moveHandle(Eigen::Affine3d(Eigen::Translation3d(to - pickedWorld())));
@@ -197,13 +194,13 @@ SolveStats Deformer::translateHandle(const Eigen::Vector3d& from, const Eigen::V
   return st;
 }
 
-Eigen::Vector3d Deformer::pickedWorld() const {
+Eigen::Vector3d Deformer::Impl::pickedWorld() const {
   const Eigen::Vector3d rest =
       normalise((*geometry_->points)[static_cast<std::size_t>(picked_)].getVector3fMap().cast<double>());
   return currentNormalised(data_.clustering.manipulated, rest) / scale_ + centre_ + geometry_->origin;
 }
 
-DragResult Deformer::dragTo(const Eigen::Vector3d& from, const Eigen::Vector3d& to) {
+DragResult Deformer::Impl::dragTo(const Eigen::Vector3d& from, const Eigen::Vector3d& to) {
   DragResult r;
   if (!to.allFinite() || !from.allFinite()) throw std::invalid_argument("drag: target is not finite");
   leaveFrameMode();
@@ -244,13 +241,13 @@ DragResult Deformer::dragTo(const Eigen::Vector3d& from, const Eigen::Vector3d& 
   return r;
 }
 
-SolveStats Deformer::setHandleTransform(const Eigen::Affine3d& transform) {
+SolveStats Deformer::Impl::setHandleTransform(const Eigen::Affine3d& transform) {
   if (!transform.matrix().allFinite())
     throw std::invalid_argument("setHandleTransform: transform is not finite");
   return moveHandle(transform * handleTransform().inverse());
 }
 
-Eigen::Vector3d Deformer::handleCentre() const {
+Eigen::Vector3d Deformer::Impl::handleCentre() const {
   Eigen::Vector3d c = Eigen::Vector3d::Zero();
   readHandlePositions([&](const std::vector<Eigen::Vector3f>& at) {
     for (int i : handles_.manipulated)
@@ -259,7 +256,7 @@ Eigen::Vector3d Deformer::handleCentre() const {
   return c / static_cast<double>(handles_.manipulated.size());
 }
 
-SolveStats Deformer::moveHandle(const Eigen::Affine3d& motion) {
+SolveStats Deformer::Impl::moveHandle(const Eigen::Affine3d& motion) {
   if (!motion.matrix().allFinite()) throw std::invalid_argument("moveHandle: motion is not finite");
   // No motion at all (a frame move of 0): nothing is solved, so nothing moves, not even by the
   // rounding of a solve about a far origin (what did not move comes back bit for bit).
@@ -305,7 +302,7 @@ SolveStats Deformer::moveHandle(const Eigen::Affine3d& motion) {
   return total;
 }
 
-SolveStats Deformer::solveHandle(const Eigen::Affine3d& transform) {
+SolveStats Deformer::Impl::solveHandle(const Eigen::Affine3d& transform) {
   if (!frame_mode_) picked_ = -1;  // a drag after the frame move picks again
   frame_mode_ = true;
   const Eigen::Matrix3d a = transform.linear();
@@ -318,7 +315,7 @@ SolveStats Deformer::solveHandle(const Eigen::Affine3d& transform) {
   return solver_.solve(options_.gauss_newton);
 }
 
-Eigen::Affine3d Deformer::handleTransform() const {
+Eigen::Affine3d Deformer::Impl::handleTransform() const {
   const int mc = data_.clustering.manipulated;
   const NormalisedTransform& t = solver_.transforms()[static_cast<std::size_t>(mc)];
   const Eigen::Vector3d g = normalise(data_.clustering.clusters[static_cast<std::size_t>(mc)].barycentre);
@@ -330,14 +327,14 @@ Eigen::Affine3d Deformer::handleTransform() const {
   return w;
 }
 
-void Deformer::reset() {
+void Deformer::Impl::reset() {
   leaveFrameMode();
   solver_.reset();
   picked_ = -1;
   updateShape();
 }
 
-void Deformer::setPreview(std::vector<int> points) {
+void Deformer::Impl::setPreview(std::vector<int> points) {
   for (const int i : points)
     if (i < 0 || static_cast<std::size_t>(i) >= geometry_->size())
       throw std::invalid_argument("Deformer::setPreview: point index out of range");
@@ -350,7 +347,7 @@ void Deformer::setPreview(std::vector<int> points) {
   if (was && preview_.empty()) updateShape();  // the points left behind catch up
 }
 
-void Deformer::buildPreviewTable() {
+void Deformer::Impl::buildPreviewTable() {
   preview_table_ = InterpolationTable{};
   preview_.clear();
   if (preview_request_.empty()) return;
@@ -364,7 +361,7 @@ void Deformer::buildPreviewTable() {
   preview_normals_.resize(preview_.size());
 }
 
-InterpolationTable Deformer::subTable(const std::vector<int>& points) const {
+InterpolationTable Deformer::Impl::subTable(const std::vector<int>& points) const {
   InterpolationTable t;
   t.has_normals = data_.table.has_normals;
   if (data_.table.has_normals)
@@ -376,7 +373,7 @@ InterpolationTable Deformer::subTable(const std::vector<int>& points) const {
   return t;
 }
 
-void Deformer::settleFirstShape() const {
+void Deformer::Impl::settleFirstShape() const {
   const std::lock_guard<std::mutex> lock(first_shape_.mutex);
   if (!first_shape_.due.load(std::memory_order_relaxed)) return;
   // local_ is still the build's: updateShape() and rebuild() settle or drop this first.
@@ -385,7 +382,7 @@ void Deformer::settleFirstShape() const {
 }
 
 template <typename Read>
-void Deformer::readHandlePositions(Read&& read) const {
+void Deformer::Impl::readHandlePositions(Read&& read) const {
   const std::lock_guard<std::mutex> lock(first_shape_.mutex);
   if (first_shape_.due.load(std::memory_order_relaxed) && !first_shape_.handle_done) {
     // Row by row what the whole table gives (as a preview frame's points), for these only.
@@ -401,12 +398,12 @@ void Deformer::readHandlePositions(Read&& read) const {
   read(static_cast<const std::vector<Eigen::Vector3f>&>(positions_));
 }
 
-void Deformer::setBlend(Blend blend) {
+void Deformer::Impl::setBlend(Blend blend) {
   options_.blend = blend;
   updateShape();
 }
 
-void Deformer::updateShape(bool lazy) {
+void Deformer::Impl::updateShape(bool lazy) {
   if (preview_.empty()) {
     // Every point is (re)made below, or marked due: a pending first shape is not needed.
     const std::lock_guard<std::mutex> lock(first_shape_.mutex);
@@ -454,13 +451,13 @@ void Deformer::updateShape(bool lazy) {
   interp_ms_ = sw.ms();
 }
 
-SurfaceStretch Deformer::surfaceStretch() const {
+SurfaceStretch Deformer::Impl::surfaceStretch() const {
   // (Never under 1e-4 of the diagonal: a move and back, float noise on near-duplicate points
   // must not count as a split.)
   return measureSurfaceStretch(*geometry_, deformedPoints(), *data_.graph, data_.coarse, 1e-4 / scale_);
 }
 
-void Deformer::updateNormals() const {
+void Deformer::Impl::updateNormals() const {
   const std::lock_guard<std::mutex> lock(normals_.mutex);
   out_normals_.resize(geometry_->size());
   // The last full frame's (the points a preview frame left alone keep those), then the preview's.
@@ -476,9 +473,130 @@ void Deformer::updateNormals() const {
   normals_.preview_due = false;
 }
 
-const std::vector<Eigen::Vector3f>& Deformer::deformedNormals() const {
+const std::vector<Eigen::Vector3f>& Deformer::Impl::deformedNormals() const {
   updateNormals();
   return out_normals_;
+}
+
+// --- Deformer: the public face, each call the Impl's --------------------------------------------
+
+Deformer::Deformer(const Geometry& geometry, const Handles& handles, const DeformOptions& options)
+    : Deformer(std::make_shared<const Geometry>(geometry), handles, options) {}
+Deformer::Deformer(std::shared_ptr<const Geometry> geometry, const Handles& handles,
+                   const DeformOptions& options)
+    : impl_(std::make_unique<Impl>(std::move(geometry), handles, options)) {}
+Deformer::~Deformer() = default;
+
+SolveStats Deformer::drag(const Eigen::Vector3d& from, const Eigen::Vector3d& to) {
+  return impl_->drag(from, to);
+}
+DragResult Deformer::dragTo(const Eigen::Vector3d& from, const Eigen::Vector3d& to) {
+  return impl_->dragTo(from, to);
+}
+SolveStats Deformer::translateHandle(const Eigen::Vector3d& from, const Eigen::Vector3d& to) {
+  return impl_->translateHandle(from, to);
+}
+SolveStats Deformer::setHandleTransform(const Eigen::Affine3d& transform) {
+  return impl_->setHandleTransform(transform);
+}
+SolveStats Deformer::moveHandle(const Eigen::Affine3d& motion) {
+  return impl_->moveHandle(motion);
+}
+Eigen::Vector3d Deformer::handleCentre() const {
+  return impl_->handleCentre();
+}
+Eigen::Affine3d Deformer::handleTransform() const {
+  return impl_->handleTransform();
+}
+void Deformer::reset() {
+  impl_->reset();
+}
+void Deformer::setHandles(const Handles& handles) {
+  impl_->setHandles(handles);
+}
+DeformerState Deformer::state() const {
+  return impl_->state();
+}
+void Deformer::restore(const DeformerState& state) {
+  impl_->restore(state);
+}
+void Deformer::setBlend(Blend blend) {
+  impl_->setBlend(blend);
+}
+void Deformer::setPreview(std::vector<int> points) {
+  impl_->setPreview(std::move(points));
+}
+const std::vector<int>& Deformer::preview() const {
+  return impl_->preview();
+}
+const std::vector<Eigen::Vector3f>& Deformer::deformedPoints() const {
+  return impl_->deformedPoints();
+}
+const std::vector<Eigen::Vector3f>& Deformer::deformedNormals() const {
+  return impl_->deformedNormals();
+}
+Eigen::Vector3d Deformer::deformedWorld(std::size_t i) const {
+  return impl_->deformedWorld(i);
+}
+std::vector<std::string> Deformer::writeDeformed(Shape& shape) const {
+  return impl_->writeDeformed(shape);
+}
+ExactInterpolation Deformer::exactInterpolation() const {
+  return impl_->exactInterpolation();
+}
+std::vector<Eigen::Affine3d> Deformer::worldTransforms() const {
+  return impl_->worldTransforms();
+}
+const Geometry& Deformer::geometry() const {
+  return impl_->geometry();
+}
+const Handles& Deformer::handles() const {
+  return impl_->handles();
+}
+const std::vector<float>& Deformer::field() const {
+  return impl_->field();
+}
+const SurfaceGraph& Deformer::surfaceGraph() const {
+  return impl_->surfaceGraph();
+}
+const HarmonicField& Deformer::harmonicField() const {
+  return impl_->harmonicField();
+}
+const CoarseLevel& Deformer::coarseLevel() const {
+  return impl_->coarseLevel();
+}
+std::size_t Deformer::unreachablePoints() const {
+  return impl_->unreachablePoints();
+}
+const Clustering& Deformer::clustering() const {
+  return impl_->clustering();
+}
+const InterpolationTable& Deformer::interpolationTable() const {
+  return impl_->interpolationTable();
+}
+const PieceAnalysis& Deformer::pieces() const {
+  return impl_->pieces();
+}
+SurfaceStretch Deformer::surfaceStretch() const {
+  return impl_->surfaceStretch();
+}
+const std::vector<NormalisedTransform>& Deformer::clusterTransforms() const {
+  return impl_->clusterTransforms();
+}
+Energies Deformer::energies() const {
+  return impl_->energies();
+}
+const BuildTimings& Deformer::buildTimings() const {
+  return impl_->buildTimings();
+}
+double Deformer::lastInterpolationMs() const {
+  return impl_->lastInterpolationMs();
+}
+int Deformer::picked() const {
+  return impl_->picked();
+}
+double Deformer::diagonal() const {
+  return impl_->diagonal();
 }
 
 }  // namespace hgd

@@ -5,6 +5,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "deformer/precompute_internal.h"
 #include "hgdeform/graph/normals.h"
 #include "util/parallel.h"
 #include "util/phases.h"

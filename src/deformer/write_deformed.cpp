@@ -4,14 +4,14 @@
 #include <cstring>
 #include <stdexcept>
 
-#include "hgdeform/deformer/deformer.h"
+#include "deformer/deformer_impl.h"
 #include "hgdeform/io/fields.h"
 #include "hgdeform/io/io.h"
 #include "util/parallel.h"
 
 namespace hgd {
 
-ExactInterpolation Deformer::exactInterpolation() const {
+ExactInterpolation Deformer::Impl::exactInterpolation() const {
   std::vector<Eigen::Vector3d> barycentres;
   barycentres.reserve(data_.clustering.clusters.size());
   for (const Cluster& cl : data_.clustering.clusters) barycentres.push_back(cl.barycentre);
@@ -74,7 +74,7 @@ class XyzAccess {
 };
 }  // namespace
 
-std::vector<Eigen::Affine3d> Deformer::worldTransforms() const {
+std::vector<Eigen::Affine3d> Deformer::Impl::worldTransforms() const {
   std::vector<Eigen::Affine3d> out;
   const Eigen::Vector3d o = geometry_->origin;
   for (const ExactTransform& e : exact_) {
@@ -86,7 +86,7 @@ std::vector<Eigen::Affine3d> Deformer::worldTransforms() const {
   return out;
 }
 
-std::vector<std::string> Deformer::writeDeformed(Shape& shape) const {
+std::vector<std::string> Deformer::Impl::writeDeformed(Shape& shape) const {
   std::vector<std::string> warnings;
   pcl::PCLPointCloud2& c = shape.cloud;
   XyzFields f = findXyzFields(c);

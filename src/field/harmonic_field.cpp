@@ -5,6 +5,7 @@
 #include <numeric>
 #include <stdexcept>
 
+#include "field/laplacian.h"
 #include "util/parallel.h"
 #include "util/phases.h"
 #include "util/timer.h"

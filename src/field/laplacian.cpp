@@ -1,6 +1,8 @@
 // The field's linear system: the uniform quasi-Laplacian D - W of the neighbour graph,
 // restricted to the free points, with the handles' values on the right-hand side; solved
 // exactly (CHOLMOD) or by the multilevel solver (multigrid.cpp).
+#include "field/laplacian.h"
+
 #include <Eigen/CholmodSupport>
 #include <Eigen/Sparse>
 #include <algorithm>

@@ -11,7 +11,7 @@
 #include <filesystem>
 #include <random>
 
-#include "hgdeform/app/cleanup.h"
+#include "hgdeform/io/cleanup.h"
 #include "io/internal.h"
 
 namespace hgd {

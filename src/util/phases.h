@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "hgdeform/deformer/phases.h"
+#include "hgdeform/util/phase.h"
 
 namespace hgd {
 

@@ -16,7 +16,7 @@
 #include <system_error>
 
 #include "batch_internal.h"
-#include "hgdeform/app/cleanup.h"
+#include "hgdeform/io/cleanup.h"
 #include "hgdeform/io/io.h"
 
 namespace hgdcli {

@@ -5,7 +5,7 @@
 #include <cstdio>
 #include <string>
 
-#include "hgdeform/app/report_json.h"
+#include "app/report_json.h"
 #include "hgdeform/version.h"
 
 namespace hgdcli {

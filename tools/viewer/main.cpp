@@ -25,7 +25,7 @@
 
 #include "blas_guard.h"
 #include "cli_common.h"
-#include "hgdeform/app/cleanup.h"
+#include "hgdeform/io/cleanup.h"
 #include "hgdeform/io/io.h"
 #include "hgdeform/render/render.h"
 #include "keys.h"

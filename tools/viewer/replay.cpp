@@ -3,7 +3,7 @@
 #include <cmath>
 #include <initializer_list>
 
-#include "hgdeform/app/json_reader.h"
+#include "app/json_reader.h"
 #include "hgdeform/io/io.h"
 
 namespace hgdview {

@@ -13,13 +13,13 @@
 
 #include "hgdeform/cluster/clustering.h"
 #include "hgdeform/cluster/pieces.h"
-#include "hgdeform/deformer/phases.h"
 #include "hgdeform/field/harmonic_field.h"
 #include "hgdeform/interp/blend.h"
 #include "hgdeform/interp/interpolation.h"
 #include "hgdeform/io/geometry.h"
 #include "hgdeform/multires/multires.h"
 #include "hgdeform/solve/solver.h"
+#include "hgdeform/util/phase.h"
 
 namespace hgd {
 
@@ -81,22 +81,10 @@ struct DeformationData {
   BuildTimings timings;  ///< field_ms, sampling_ms, coarse_ms, field; clusters_ms so far
 };
 
-/// The graph's input at full resolution: every point of `geometry`, its file's normals (else
-/// none: estimated, or a mesh's) and its faces.
-void setGraphInput(SurfaceGraph& graph, const Geometry& geometry);
-
 /// Builds `data` for `handles` (valid indices, checked: std::invalid_argument) on `geometry`,
 /// whose clouds must stay as they are while `data` lives. The resolution is chosen on the first
 /// call (options.multires_above, coarse_points) and kept.
 void precompute(const Geometry& geometry, const Handles& handles, const DeformOptions& options,
                 DeformationData& data);
-
-/// The solver's view of the clusters: members and barycentres through `normalise` (the
-/// deformer's frame), handles constant or free, and each cluster's Rot(A) weight (w_MHC on the
-/// manipulated cluster, bone_rigidity x w_MHC on bones).
-std::vector<SolverCluster> solverClusters(const Clustering& clustering,
-                                          const pcl::PointCloud<pcl::PointXYZ>& points,
-                                          const DeformOptions& options, const Eigen::Vector3d& centre,
-                                          double scale);
 
 }  // namespace hgd

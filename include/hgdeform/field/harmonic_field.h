@@ -88,12 +88,4 @@ class HarmonicField {
   FieldTimings timings_;
 };
 
-/// Solves the Dirichlet problem on a graph: value[i] given for constrained points (mask[i] =
-/// true), harmonic (uniform weights) elsewhere. Points in components without a constraint are
-/// set to 0 and listed in `unreachable`. `piece`, when given, receives every point's connected
-/// piece label. Exposed for tests and the multilevel comparison.
-void solveDirichlet(const NeighborGraph& graph, const std::vector<char>& constrained,
-                    std::vector<double>& value, const FieldOptions& options, std::vector<int>& unreachable,
-                    FieldTimings& timings, std::vector<int>* piece = nullptr);
-
 }  // namespace hgd

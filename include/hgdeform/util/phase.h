@@ -1,4 +1,4 @@
-// One named phase of a Deformer's build (its kNN, normals, field solve, prolongation ...), as
+// One named phase of a build (its kNN, normals, field solve, prolongation ...), as
 // BuildTimings::phases lists them: what the benchmark's per-phase thread scaling is made of.
 #pragma once
 
