@@ -23,12 +23,14 @@
 #include "hgdeform/io/geometry.h"
 #include "hgdeform/multires/multires.h"
 #include "support/shapes.h"
+#include "support/threads.h"
 #include "test_util.h"
 
 namespace {
 
 using hgd::Deformer;
 using hgd::DeformOptions;
+using hgdtest::ThreadCount;
 
 DeformOptions fullResolution() {
   DeformOptions o;
@@ -527,18 +529,6 @@ TEST(Multires, TableStraightFromTheCoarseLevelIsTheLabelledRoutes) {
   EXPECT_EQ(both.upper, c.manipulated);
 }
 
-// Sets the OpenMP thread count back to what it was when made.
-class ThreadCount {
- public:
-  explicit ThreadCount(int threads) : threads_(threads) {}
-  ~ThreadCount() { omp_set_num_threads(threads_); }
-  ThreadCount(const ThreadCount&) = delete;
-  ThreadCount& operator=(const ThreadCount&) = delete;
-
- private:
-  int threads_;
-};
-
 // The coarse level against a reference computed here, point by point: each point's cell is
 // floor((p - lo) / side) (lo: the cloud's lowest corner, side: the level's), split by handle
 // (a later list wins: joints, then fixed, then the manipulated handle); a cell's coarse point is
@@ -821,67 +811,4 @@ TEST(Multires, SurfaceSampleIsTheSameOnAnyNumberOfThreads) {
   ASSERT_GT(samples[0].size(), 3000u);
   EXPECT_EQ(samples[1], samples[0]);
   EXPECT_EQ(samples[2], samples[0]);
-}
-
-// Graphs with edges added (the isoclusters' site graph, a mesh's dropped edges) against rows
-// made here with std::set: both directions, self-loops and repeats dropped, rows sorted; on a
-// graph large enough to be built on every thread, and a small one, at 1, 2 and 3 threads; with
-// the edges in a random order, repeated, some already in the graph, and on an empty graph.
-TEST(Graphs, AddedEdgesMakeTheSameRowsOnAnyNumberOfThreads) {
-  const ThreadCount restore(omp_get_max_threads());
-  for (const std::size_t n : {std::size_t{40}, std::size_t{30000}}) {
-    std::mt19937 rng(static_cast<unsigned>(n));
-    std::uniform_int_distribution<int> node(0, static_cast<int>(n) - 1);
-    std::vector<std::set<int>> base_rows(n);
-    for (std::size_t i = 0; i < n; ++i)
-      for (int k = 0; k < 3; ++k) {
-        const int j = node(rng);
-        if (j == static_cast<int>(i)) continue;
-        base_rows[i].insert(j);
-        base_rows[static_cast<std::size_t>(j)].insert(static_cast<int>(i));
-      }
-    hgd::NeighborGraph base, empty;
-    base.offsets.assign(1, 0);
-    for (const auto& row : base_rows) {
-      base.adj.insert(base.adj.end(), row.begin(), row.end());
-      base.offsets.push_back(static_cast<int>(base.adj.size()));
-    }
-    empty.offsets.assign(n + 1, 0);
-    std::vector<std::pair<int, int>> edges;
-    for (std::size_t e = 0; e < 7 * n; ++e) {
-      const int a = node(rng);
-      edges.emplace_back(a, e % 97 == 0 ? a : node(rng));  // some self-loops
-    }
-    for (std::size_t e = 0; e < n; ++e)
-      edges.push_back(edges[static_cast<std::size_t>(node(rng)) % edges.size()]);
-    for (std::size_t i = 0; i < n; i += 5)
-      if (!base_rows[i].empty())
-        edges.emplace_back(*base_rows[i].begin(), static_cast<int>(i));  // in the graph
-    std::shuffle(edges.begin(), edges.end(), rng);
-    std::vector<std::set<int>> added_rows(n);
-    for (const auto& [a, b] : edges)
-      if (a != b) {
-        added_rows[static_cast<std::size_t>(a)].insert(b);
-        added_rows[static_cast<std::size_t>(b)].insert(a);
-      }
-    const auto expect_rows = [&](const hgd::NeighborGraph& g, bool with_base, int threads) {
-      ASSERT_EQ(g.size(), n);
-      ASSERT_EQ(g.offsets.front(), 0);
-      ASSERT_EQ(static_cast<std::size_t>(g.offsets.back()), g.adj.size());
-      for (std::size_t i = 0; i < n; ++i) {
-        std::set<int> want = added_rows[i];
-        if (with_base) want.insert(base_rows[i].begin(), base_rows[i].end());
-        const std::vector<int> got(g.begin(i), g.end(i));
-        ASSERT_EQ(got, std::vector<int>(want.begin(), want.end()))
-            << "row " << i << " of " << n << (with_base ? ", graph" : ", empty graph") << ", " << threads
-            << " threads";
-      }
-    };
-    for (const int threads : {1, 2, 3}) {
-      omp_set_num_threads(threads);
-      expect_rows(hgd::addEdges(base, edges), true, threads);
-      expect_rows(hgd::addEdges(empty, edges), false, threads);
-      expect_rows(hgd::unionGraph(base, hgd::addEdges(empty, edges)), true, threads);
-    }
-  }
 }

@@ -73,14 +73,14 @@ bool bin(const float* xyz, std::size_t n, double h, Grid& g, const double hi[3])
     g.order[i] = static_cast<std::uint32_t>(i);
   }
   radixSort(keys, g.order, g.key(g.dim[0] - 1, g.dim[1] - 1, g.dim[2] - 1), 11);
-  g.cell_key.clear();
-  g.cell_start.clear();
-  for (std::size_t i = 0; i < n; ++i)
-    if (i == 0 || keys[i] != keys[i - 1]) {
-      g.cell_key.push_back(keys[i]);
-      g.cell_start.push_back(static_cast<std::uint32_t>(i));
-    }
-  g.cell_start.push_back(static_cast<std::uint32_t>(n));
+  const std::vector<int> starts = runStarts(keys);
+  g.cell_key.resize(starts.size());
+  g.cell_start.resize(starts.size() + 1);
+  for (std::size_t c = 0; c < starts.size(); ++c) {
+    g.cell_key[c] = keys[static_cast<std::size_t>(starts[c])];
+    g.cell_start[c] = static_cast<std::uint32_t>(starts[c]);
+  }
+  g.cell_start.back() = static_cast<std::uint32_t>(n);
   return true;
 }
 

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "graph/graph_build.h"
+#include "graph/stray_rule.h"
 #include "util/parallel.h"
 
 namespace hgd {
@@ -40,13 +41,8 @@ std::vector<char> findOutliers(const pcl::PointCloud<pcl::PointXYZ>& points, con
   for (std::size_t i = 0; i < n; i += stride)
     if (std::isfinite(nearest[i])) sorted.push_back(nearest[i]);
   if (sorted.empty()) return out;
-  // Squared distances: 3 times the median distance; but outliers are few by definition, so
-  // never more than the sparsest 3% (a scan whose density falls off with range is no outlier).
-  const auto at = [&](std::size_t k) {
-    std::nth_element(sorted.begin(), sorted.begin() + static_cast<long>(k), sorted.end());
-    return sorted[k];
-  };
-  const float limit = std::max(9.0f * at(sorted.size() / 2), at(sorted.size() * 97 / 100));
+  // The stray rule (graph/stray_rule.h), on the distances to the k-th neighbour.
+  const float limit = strayLimit2(sorted);
   // Also a stray: a point that none of its k nearest neighbours counts among theirs (it is
   // farther from each than that neighbour's own k-th). A point of the surface, however noisy,
   // is someone's neighbour; a stray between two parts of the surface (the prongs of a fork),

@@ -9,7 +9,6 @@
 #include "hgdeform/graph/normals.h"
 #include "hgdeform/graph/strays.h"
 #include "util/phases.h"
-#include "util/timer.h"
 
 namespace hgd {
 
@@ -45,8 +44,7 @@ bool SurfaceGraph::compute() {
 
 void SurfaceGraph::build() {
   const auto& pts = *cloud_;
-  Stopwatch sw;
-  PhaseClock clock;
+  PhaseClock clock;  // each lap in the build's phase log and, in ms, in timings_
   const bool have_normals = input_normals_ && input_normals_->size() == pts.size();
   const bool mesh = !polygons_.empty();
   const bool ring = mesh && options_.mesh_ring;
@@ -55,8 +53,7 @@ void SurfaceGraph::build() {
       (have_normals || mesh) ? options_.k_neighbors : std::max(options_.k_neighbors, options_.k_normals);
   knn_ = KnnTable{};
   if (!ring) knn_ = computeKnn(pts, k);
-  timings_.knn_ms = sw.lap();
-  clock.lap("graph.knn");
+  timings_.knn_ms = clock.lap("graph.knn");
   if (have_normals) {
     normals_ = input_normals_;
   } else if (mesh) {
@@ -90,8 +87,7 @@ void SurfaceGraph::build() {
     normals_ = unit;
     reoriented_ = true;
   }
-  timings_.normals_ms = sw.lap();
-  clock.lap("graph.normals");
+  timings_.normals_ms = clock.lap("graph.normals");
   dropped_.clear();
   joined_.clear();
   if (ring) {
@@ -113,7 +109,7 @@ void SurfaceGraph::build() {
       graph_ = addEdges(graph_, back);
     }
   }
-  clock.lap("graph.edges");
+  timings_.graph_ms = clock.lap("graph.edges");
   // Stray points of a cloud hang from the surface as leaves, so that they cannot carry the
   // field across a gap (meshes have none).
   outliers_ = mesh ? std::vector<char>{} : findOutliers(pts, knn_);
@@ -128,11 +124,10 @@ void SurfaceGraph::build() {
   } else {
     outliers_.clear();
   }
-  clock.lap("graph.strays");
+  timings_.graph_ms += clock.lap("graph.strays");
   base_piece_.clear();
   if (!dropped_.empty()) connectedComponents(graph_, base_piece_);
-  timings_.graph_ms = sw.lap();
-  clock.lap("graph.pieces");
+  timings_.graph_ms += clock.lap("graph.pieces");  // the graph: edges, strays and pieces
   valid_ = true;
 }
 

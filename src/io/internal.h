@@ -32,7 +32,7 @@ constexpr std::size_t kMaxHeaderLine = std::size_t{1} << 20;
 constexpr std::size_t kFlushBytes = std::size_t{1} << 16;
 
 // ------------------------------------------------------------------------------------------
-// Small helpers (common.cpp)
+// Small helpers (common.cpp; the clouds made and converted: clouds.cpp)
 
 /// Throws IoError("<path>: <problem>").
 [[noreturn]] void fail(const std::string& path, const std::string& problem);
@@ -323,7 +323,7 @@ struct TextFile {
 };
 
 // ------------------------------------------------------------------------------------------
-// Output
+// Output (checking and packing a shape: output.cpp)
 
 /// Whether `size` bytes make a binary STL whose bytes 80-83 (`count`, little-endian) are its
 /// triangle count: an 80-byte header, the count, 50 bytes per triangle, nothing else.
@@ -426,7 +426,7 @@ void writeObj(const std::string& path, const Shape& shape);
 Shape readXyz(const std::string& path);
 Shape readOff(const std::string& path);
 Shape readStl(const std::string& path);
-/// ASPRS LAS 1.0-1.4 (las.cpp). lasLosses: what writing `shape` as LAS would not keep, or move
+/// ASPRS LAS 1.0-1.4 (las.cpp, las_write.cpp). lasLosses: what writing `shape` as LAS would not keep, or move
 /// (fields LAS has no place for; an offset moved so that moved points fit), "" if nothing.
 Shape readLas(const std::string& path);
 void writeLas(const std::string& path, const Shape& shape);

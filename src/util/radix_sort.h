@@ -74,4 +74,13 @@ void radixSort(std::vector<Key, KeyAlloc>& keys, std::vector<std::uint32_t, Payl
   }
 }
 
+/// Where each run of equal keys starts in sorted `keys` (0 first, ascending), found on every
+/// thread: the cells of a grid whose points were sorted by cell key (graph/grid_knn.cpp, the
+/// coarse level's multires/coarse_cells.cpp).
+template <typename Key, typename KeyAlloc>
+std::vector<int> runStarts(const std::vector<Key, KeyAlloc>& keys) {
+  return indicesWhere(static_cast<long long>(keys.size()),
+                      [&keys](std::size_t s) { return s == 0 || keys[s] != keys[s - 1]; });
+}
+
 }  // namespace hgd

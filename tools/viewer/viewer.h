@@ -5,7 +5,9 @@
 //   viewer_input.cpp   the interactor style, keys, picks, the area selection, the drag gesture
 //   viewer_replay.cpp  plays a replay file's events (read and checked by replay.cpp)
 //   viewer.cpp         state: selection, handles, moves, undo, saving
-//   viewer_draw.cpp    the window: drawing, colours, the status line, screenshots, screen geometry
+//   viewer_draw.cpp    the window: drawing the shape, colours, shading, screenshots
+//   viewer_overlays.cpp what is drawn over it: the lasso, the axes, the status line
+//   viewer_camera.cpp  the views, the up axis, screen geometry
 //   viewer_x11.cpp     what is asked of X directly (Caps Lock, queued pointer motions)
 //   keys.cpp           the table of keys: what each does and when, the help and --help texts
 #pragma once
@@ -122,8 +124,6 @@ class Viewer {
   void setCapsLock(bool on);
   /// The current mode: "pick", "area", "lasso", "drag" or "frame".
   const char* mode() const;
-  /// Places the help and the status line for the window's size (before every render).
-  void placeOverlays();
   void pickAt(int x, int y, bool remove = false);
   void selectArea(int x0, int y0, int x1, int y1, bool remove = false);
   bool lassoing() const { return lasso_mode_; }
@@ -189,25 +189,10 @@ class Viewer {
 
   // --- drawing (viewer_draw.cpp) ----------------------------------------------------------
   void fileColours();
-  /// The lasso as drawn so far (none when lasso_ is empty).
-  void drawLasso();
-  /// The axes trihedron in the window's lower right corner.
-  void showAxes(bool on);
   /// Shading (light from the normals, or eye-dome lighting) on or off: the colours as they are.
   void setShading(bool on);
   void shade(const std::string& id, const std::vector<Eigen::Vector3f>* normals);
   void setMeshLighting(bool on);
-  void openingView();
-  /// The up axis of up_option_ for this shape.
-  Eigen::Vector3d upVector() const;
-  /// 0 front, 1 back, 2 left, 3 right, 4 top, 5 bottom.
-  void standardView(int which);
-  /// The next up axis (u): +y, +z, +x, -y, -z, -x.
-  void cycleUp();
-  void setView(const Eigen::Vector3d& eye_direction, const Eigen::Vector3d& up);
-  /// The opening view's eye direction for up axis `up` (unit): from the sensor's side for a scan
-  /// in its sensor's frame, else the renderer's three-quarter view.
-  Eigen::Vector3d defaultEye(const Eigen::Vector3d& up) const;
   void refreshRoles();
   void refresh();
   void fillDisplay();
@@ -219,13 +204,32 @@ class Viewer {
   vtkPolyData* shapePolyData();
   vtkPolyData* cloudPolyData(const std::string& id);
   void render();
+  static Eigen::Vector3f clusterColour(int id);
+
+  // --- over the shape (viewer_overlays.cpp) -----------------------------------------------
+  /// The lasso as drawn so far (none when lasso_ is empty).
+  void drawLasso();
+  /// The axes trihedron in the window's lower right corner.
+  void showAxes(bool on);
+  /// Places the help and the status line for the window's size (before every render).
+  void placeOverlays();
   void updateStatus();
   /// `m` on the status line (and stderr unless quiet); drawn at once unless `draw` is false (the
   /// caller draws the frame it belongs to).
   void message(const std::string& m, bool draw = true);
-  static Eigen::Vector3f clusterColour(int id);
 
-  // --- geometry on screen (viewer_draw.cpp) -----------------------------------------------
+  // --- the camera and geometry on screen (viewer_camera.cpp) -------------------------------
+  void openingView();
+  /// The up axis of up_option_ for this shape.
+  Eigen::Vector3d upVector() const;
+  /// 0 front, 1 back, 2 left, 3 right, 4 top, 5 bottom.
+  void standardView(int which);
+  /// The next up axis (u): +y, +z, +x, -y, -z, -x.
+  void cycleUp();
+  void setView(const Eigen::Vector3d& eye_direction, const Eigen::Vector3d& up);
+  /// The opening view's eye direction for up axis `up` (unit): from the sensor's side for a scan
+  /// in its sensor's frame, else the renderer's three-quarter view.
+  Eigen::Vector3d defaultEye(const Eigen::Vector3d& up) const;
   vtkRenderer* renderer();
   Eigen::Vector3d toDisplay(const Eigen::Vector3d& w);
   Eigen::Vector3d fromDisplay(double x, double y, double depth);

@@ -1,6 +1,7 @@
-// The viewer's window: opening it, drawing the shape in its colours (file, field, clusters,
-// handle roles, selection), the rest-shape overlay, the status line, screenshots, and the
-// conversions between the shape's space and the screen.
+// The viewer's window: opening it, and drawing the shape in its colours (file, field, clusters,
+// handle roles, selection), shaded or not, and at its level of detail. (The camera's views:
+// viewer_camera.cpp; the lasso, the axes, the rest-shape overlay and the status line:
+// viewer_overlays.cpp.)
 #include <pcl/conversions.h>
 #include <vtkActor.h>
 #include <vtkAxesActor.h>
@@ -142,143 +143,6 @@ void Viewer::addShapeCloud() {
 // horse) has +z up; anything else +y up), in the renderer's three-quarter view across the
 // shape's broad side (a plane seen straight down was a flat square). Never along the up axis: a
 // camera looking along its up vector is degenerate (a z-up statue opened as an empty window).
-void Viewer::openingView() {
-  const Eigen::Vector3d up = upVector();
-  Eigen::Vector3d eye = defaultEye(up);
-  if (view_option_) {
-    const Eigen::Vector3d v = view_option_->normalized();
-    if (std::abs(v.dot(up)) < 0.999)
-      eye = v;
-    else if (opening_)
-      message("--view lies along the up axis (no picture can be upright so): the default view instead");
-  }
-  setView(eye, up);
-}
-
-Eigen::Vector3d Viewer::upVector() const {
-  return hgd::upAxis(up_option_, {&run_.shape()}).cast<double>();
-}
-
-Eigen::Vector3d Viewer::defaultEye(const Eigen::Vector3d& up) const {
-  if (up.y() < -0.5 && hgd::inSensorCone(run_.shape())) return {0, 0, -1};
-  return hgd::defaultView(run_.shape(), up_option_).normalized();
-}
-
-// The front of the shape for the standard views: the opening view's eye direction across the up
-// axis, on the nearest axis of the shape's frame.
-void Viewer::standardView(int which) {
-  const Eigen::Vector3d up = upVector();
-  Eigen::Vector3d f = defaultEye(up);
-  f -= f.dot(up) * up;
-  Eigen::Index axis = 0;
-  f.cwiseAbs().maxCoeff(&axis);
-  const double sign = f[axis] < 0 ? -1.0 : 1.0;
-  f = Eigen::Vector3d::Unit(axis) * sign;
-  const Eigen::Vector3d right = up.cross(f);  // the shape's right seen from its front
-  static const char* const kNames[6] = {"front", "back", "left", "right", "top", "bottom"};
-  switch (which) {
-    case 0: setView(f, up); break;
-    case 1: setView(-f, up); break;
-    case 2: setView(-right, up); break;
-    case 3: setView(right, up); break;
-    case 4: setView(up, -f); break;  // from above, the front at the bottom of the window
-    default: setView(-up, f); break;
-  }
-  message(std::string(kNames[std::clamp(which, 0, 5)]) + " view");
-}
-
-void Viewer::cycleUp() {
-  static const char* const kAxes[6] = {"y", "z", "x", "-y", "-z", "-x"};
-  const Eigen::Vector3d up = upVector();
-  int now = 0;
-  for (int k = 0; k < 6; ++k)
-    if (hgd::upAxis(kAxes[k], {}).cast<double>().isApprox(up)) now = k;
-  up_option_ = kAxes[(now + 1) % 6];
-  view_option_.reset();
-  openingView();
-  message(std::string("up axis ") + (up_option_[0] == '-' ? "" : "+") + up_option_ + " (u: the next)");
-}
-
-// Looks along -eye at the shape as it is now, `up` up, the whole of it in the window (its
-// bounding sphere in the 30-degree view angle).
-void Viewer::setView(const Eigen::Vector3d& eye_direction, const Eigen::Vector3d& up) {
-  Eigen::Vector3d lo = Eigen::Vector3d::Constant(INFINITY), hi = -lo;
-  for (std::size_t i = 0; i < run_.geometry().size(); ++i) {
-    const Eigen::Vector3d p = deformed(i);
-    if (!p.allFinite()) continue;
-    lo = lo.cwiseMin(p);
-    hi = hi.cwiseMax(p);
-  }
-  const bool any = lo.allFinite() && hi.allFinite();
-  const Eigen::Vector3d c = any ? Eigen::Vector3d(0.5 * (lo + hi)) : centre();
-  const double diagonal = any && (hi - lo).norm() > 0 ? (hi - lo).norm() : diagonal_;
-  const Eigen::Vector3d at = c + 2.2 * diagonal * eye_direction.normalized();
-  if (opening_) {
-    // PCL's own call once, at opening (nothing large is drawn yet, so its render is cheap):
-    // without it PCL frames the view anew when the whole cloud is added later.
-    vis_->setCameraPosition(at.x(), at.y(), at.z(), c.x(), c.y(), c.z(), up.x(), up.y(), up.z());
-  }
-  // Then on VTK's camera: PCL's setCameraPosition renders (seconds for a large cloud).
-  vtkCamera* cam = renderer()->GetActiveCamera();
-  cam->SetPosition(at.x(), at.y(), at.z());
-  cam->SetFocalPoint(c.x(), c.y(), c.z());
-  cam->SetViewUp(up.x(), up.y(), up.z());
-  cam->SetViewAngle(30);  // VTK's default (PCL's camera calls may leave another)
-  cam->SetClippingRange(0.01 * diagonal, 10 * diagonal);
-  if (style_ && !opening_) render();  // (open() renders once, at its end)
-}
-
-void Viewer::drawLasso() {
-  if (!lasso_actor_) {
-    lasso_actor_ = vtkSmartPointer<vtkActor2D>::New();
-    auto mapper = vtkSmartPointer<vtkPolyDataMapper2D>::New();
-    mapper->SetInputData(vtkSmartPointer<vtkPolyData>::New());
-    lasso_actor_->SetMapper(mapper);
-    lasso_actor_->GetProperty()->SetColor(0.0, 0.5, 0.55);
-    lasso_actor_->GetProperty()->SetLineWidth(2);
-    renderer()->AddActor2D(lasso_actor_);
-  }
-  auto points = vtkSmartPointer<vtkPoints>::New();
-  auto lines = vtkSmartPointer<vtkCellArray>::New();
-  if (lasso_.size() >= 2) {
-    lines->InsertNextCell(static_cast<vtkIdType>(lasso_.size() + 1));
-    for (std::size_t k = 0; k <= lasso_.size(); ++k) {  // closed: back to the first vertex
-      const Eigen::Vector2d& p = lasso_[k % lasso_.size()];
-      lines->InsertCellPoint(points->InsertNextPoint(p.x(), p.y(), 0));
-    }
-  }
-  auto poly = vtkSmartPointer<vtkPolyData>::New();
-  poly->SetPoints(points);
-  poly->SetLines(lines);
-  vtkPolyDataMapper2D::SafeDownCast(lasso_actor_->GetMapper())->SetInputData(poly);
-  render();
-}
-
-// The axes trihedron, as CloudCompare and MeshLab show one: x red, y green, z blue, turning with
-// the view, in the lower right corner (the mode and the status line are at the lower left).
-void Viewer::showAxes(bool on) {
-  vtkRenderWindowInteractor* iren = vis_->getRenderWindow()->GetInteractor();
-  if (on && !axes_ && iren) {
-    auto axes = vtkSmartPointer<vtkAxesActor>::New();
-    for (vtkCaptionActor2D* c :
-         {axes->GetXAxisCaptionActor2D(), axes->GetYAxisCaptionActor2D(), axes->GetZAxisCaptionActor2D()}) {
-      c->GetCaptionTextProperty()->SetColor(0.1, 0.1, 0.1);
-      c->GetCaptionTextProperty()->ShadowOff();
-      c->GetCaptionTextProperty()->ItalicOff();
-    }
-    axes_ = vtkSmartPointer<vtkOrientationMarkerWidget>::New();
-    axes_->SetOrientationMarker(axes);
-    axes_->SetInteractor(iren);
-    axes_->SetViewport(0.86, 0.05, 1.0, 0.23);
-  }
-  axes_shown_ = on && axes_;
-  if (axes_) {
-    axes_->SetEnabled(axes_shown_ ? 1 : 0);
-    if (axes_shown_) axes_->InteractiveOff();  // (VTK warns when asked while disabled)
-  }
-  if (!opening_) message(axes_shown_ ? "axes shown" : "axes hidden");
-}
-
 void Viewer::setShading(bool on) {
   shading_ = on;
   const bool file_colours = hgd::findColourFields(run_.shape().cloud).any();
@@ -317,22 +181,6 @@ void Viewer::setMeshLighting(bool on) {
   auto it = vis_->getShapeActorMap()->find("shape");
   vtkActor* actor = it != vis_->getShapeActorMap()->end() ? vtkActor::SafeDownCast(it->second) : nullptr;
   if (actor) actor->GetProperty()->SetLighting(on);
-}
-
-void Viewer::placeOverlays() {
-  if (!help_) return;
-  const int* size = vis_->getRenderWindow()->GetSize();
-  // The help wraps to the window's width (8 pixels a Courier character at 13 points), as the
-  // status line does: it was cut off in a window narrower than its longest line.
-  const auto columns = static_cast<std::size_t>(std::max(20, (size[0] - 40) / 8));
-  if (columns != help_columns_) {
-    help_columns_ = columns;
-    help_->SetInput(helpOverlay(columns).c_str());
-  }
-  help_->SetPosition(10, size[1] - 10);
-  help_->SetVisibility(help_visible_);
-  mode_label_->SetPosition(10, 10);
-  status_->SetPosition(80, 10);
 }
 
 void Viewer::drawWhole() {
@@ -629,59 +477,6 @@ void Viewer::render() {
 // The status line: the mode (its own label, always there), then what the shape is, the
 // timings, the warnings and the last message; wrapped at " | " to the window's width (it grows
 // upwards) rather than cut off.
-void Viewer::updateStatus() {
-  if (!status_) return;
-  static const char* kViews[3] = {"colours", "field", "clusters"};
-  std::vector<std::string> parts;
-  std::ostringstream s;
-  s << run_.geometry().size() << " points";
-  if (ready()) s << ", " << run_.deformer().clustering().clusters.size() << " clusters";
-  parts.push_back(s.str());
-  parts.push_back(std::string("view ") + kViews[view_]);
-  if (!stats_.solve.empty())
-    parts.push_back("solve " + num(stats_.solve.back()) + " ms, interpolate " +
-                    num(stats_.interpolate.back()) + " ms, render " +
-                    (stats_.render.empty() ? std::string("-") : num(stats_.render.back())) + " ms");
-  for (std::size_t p = alert_.find(" | "); p != std::string::npos;) {
-    const std::size_t next = alert_.find(" | ", p + 3);
-    parts.push_back(alert_.substr(p + 3, next == std::string::npos ? std::string::npos : next - p - 3));
-    p = next;
-  }
-  if (!message_.empty()) parts.push_back(message_);
-  const int* size = vis_->getRenderWindow()->GetSize();
-  // About 7 pixels a character at 13 points.
-  const std::size_t columns = static_cast<std::size_t>(std::max(20, (size[0] - 90) / 7));
-  std::string text, line;
-  for (const std::string& part : parts) {
-    const std::string add = line.empty() ? part : " | " + part;
-    if (!line.empty() && line.size() + add.size() > columns) {
-      text += line + "\n";
-      line = part;
-    } else {
-      line += add;
-    }
-  }
-  text += line;
-  status_->SetInput(text.c_str());
-  static const std::map<std::string, Eigen::Vector3d> kModeColour = {{"pick", {0.1, 0.1, 0.1}},
-                                                                     {"area", {0.85, 0.45, 0.0}},
-                                                                     {"lasso", {0.0, 0.5, 0.55}},
-                                                                     {"drag", {0.8, 0.1, 0.1}},
-                                                                     {"frame", {0.45, 0.1, 0.75}}};
-  std::string label = mode();
-  const Eigen::Vector3d c = kModeColour.at(label);
-  for (char& ch : label) ch = static_cast<char>(std::toupper(static_cast<unsigned char>(ch)));
-  if (caps_lock_) label += "\nCAPS";
-  mode_label_->SetInput(label.c_str());
-  mode_label_->GetTextProperty()->SetColor(c.x(), c.y(), c.z());
-}
-
-void Viewer::message(const std::string& m, bool draw) {
-  message_ = m;
-  if (verbose_) std::fprintf(stderr, "hgdeform-view: %s\n", m.c_str());
-  if (vis_ && draw) render();
-}
-
 Eigen::Vector3f Viewer::clusterColour(int id) {
   // Golden-ratio hues: neighbouring ids look different.
   const float h = std::fmod(static_cast<float>(id) * 0.618034f, 1.0f) * 6.0f;
@@ -700,87 +495,6 @@ Eigen::Vector3f Viewer::clusterColour(int id) {
   else
     c = {1, 0, x};
   return 0.25f + 0.7f * c.array();
-}
-
-vtkRenderer* Viewer::renderer() {
-  return vis_->getRenderWindow()->GetRenderers()->GetFirstRenderer();
-}
-
-Eigen::Vector3d Viewer::toDisplay(const Eigen::Vector3d& w) {
-  vtkRenderer* r = renderer();
-  r->SetWorldPoint(w.x(), w.y(), w.z(), 1.0);
-  r->WorldToDisplay();
-  double d[3];
-  r->GetDisplayPoint(d);
-  return {d[0], d[1], d[2]};
-}
-
-Eigen::Vector3d Viewer::fromDisplay(double x, double y, double depth) {
-  vtkRenderer* r = renderer();
-  r->SetDisplayPoint(x, y, depth);
-  r->DisplayToWorld();
-  double w[4];
-  r->GetWorldPoint(w);
-  return Eigen::Vector3d(w[0], w[1], w[2]) / (w[3] != 0 ? w[3] : 1.0);
-}
-
-void Viewer::cameraAxes(Eigen::Vector3d& up, Eigen::Vector3d& right, Eigen::Vector3d& view) {
-  vtkCamera* cam = renderer()->GetActiveCamera();
-  double u[3], p[3], f[3];
-  cam->GetViewUp(u);
-  cam->GetPosition(p);
-  cam->GetFocalPoint(f);
-  view = (Eigen::Vector3d(f[0], f[1], f[2]) - Eigen::Vector3d(p[0], p[1], p[2])).normalized();
-  up = Eigen::Vector3d(u[0], u[1], u[2]).normalized();
-  right = view.cross(up).normalized();
-  up = right.cross(view).normalized();
-}
-
-// The point nearest to the cursor on screen (within `pixels`), front-most on ties.
-// The point under the cursor is the front-most one: of the points within `pixels` of it on
-// screen, those within a band (3% of the diagonal) of the nearest one's depth, and of these the
-// nearest on screen. Screen distance alone picked through the surface: a denser far side has a
-// point nearer the cursor than the near side's (three of five clicks on the bunny's near flank
-// selected its far flank).
-int Viewer::nearestOnScreen(int x, int y, double pixels, bool manipulated_only) {
-  vtkCamera* cam = renderer()->GetActiveCamera();
-  double pos[3], dir[3];
-  cam->GetPosition(pos);
-  cam->GetDirectionOfProjection(dir);
-  const Eigen::Vector3d eye(pos[0], pos[1], pos[2]), view(dir[0], dir[1], dir[2]);
-  struct Candidate {
-    int index;
-    double screen2, depth;
-  };
-  std::vector<Candidate> near;
-  double front = INFINITY;
-  auto consider = [&](std::size_t i) {
-    const Eigen::Vector3d w = deformed(i);
-    const Eigen::Vector3d d = toDisplay(w);
-    const double dd = (d.x() - x) * (d.x() - x) + (d.y() - y) * (d.y() - y);
-    if (dd > pixels * pixels) return;
-    const double depth = (w - eye).dot(view);
-    if (depth <= 0) return;  // behind the eye
-    near.push_back({static_cast<int>(i), dd, depth});
-    front = std::min(front, depth);
-  };
-  if (manipulated_only) {
-    for (int i : handles_.manipulated) consider(static_cast<std::size_t>(i));
-  } else {
-    for (std::size_t i = 0; i < run_.geometry().size(); ++i) consider(i);
-  }
-  const double band = 0.03 * diagonal_;
-  int best = -1;
-  double best_d = INFINITY, best_z = INFINITY;
-  for (const Candidate& c : near) {
-    if (c.depth > front + band) continue;
-    if (c.screen2 < best_d - 1e-9 || (std::abs(c.screen2 - best_d) <= 1e-9 && c.depth < best_z)) {
-      best_d = c.screen2;
-      best_z = c.depth;
-      best = c.index;
-    }
-  }
-  return best;
 }
 
 }  // namespace hgdview
