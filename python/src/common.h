@@ -39,6 +39,7 @@ HGD_PY_ARG(RegionLike, "Region | numpy.typing.ArrayLike")
 HGD_PY_ARG(PathLike, "str | os.PathLike")
 HGD_PY_ARG(ScenarioLike, "Scenario | dict | str | os.PathLike")
 HGD_PY_ARG(FieldsLike, "dict[str, numpy.typing.ArrayLike] | None")
+HGD_PY_ARG(OptionalOut, "numpy.ndarray | None")
 #undef HGD_PY_ARG
 
 namespace hgd_py {

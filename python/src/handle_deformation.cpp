@@ -3,6 +3,7 @@
 
 #include <cstring>
 #include <string>
+#include <vector>
 
 #include "shape.h"
 
@@ -18,6 +19,54 @@ py::dict solveStats(const hgd::SolveStats& s, double interpolation_ms) {
   d["energy"] = s.energy.total();
   d["solve_ms"] = s.ms;
   return d;
+}
+
+/// The array world_points() fills: `out` when given (checked: an (n, 3) C-contiguous, writable
+/// float64 array), else a new one.
+py::array_t<double> worldOut(const py::handle& out, std::size_t n) {
+  const auto rows = static_cast<py::ssize_t>(n);
+  if (out.is_none()) return py::array_t<double>({rows, py::ssize_t{3}});
+  if (!py::isinstance<py::array>(out))
+    throw py::type_error("out must be a numpy array (float64, (N, 3), C-contiguous), got " + typeName(out));
+  const auto a = py::reinterpret_borrow<py::array>(out);
+  if (!a.dtype().is(py::dtype::of<double>()))
+    throw py::type_error("out must be a float64 array, got dtype " + dtypeText(a.dtype()));
+  if (a.ndim() != 2 || a.shape(0) != rows || a.shape(1) != 3)
+    throw py::value_error("out must have shape (" + std::to_string(n) + ", 3), got " + shapeText(a));
+  if (!(a.flags() & py::array::c_style))
+    throw py::value_error("out must be C-contiguous (np.ascontiguousarray, or np.empty((N, 3)))");
+  if (!a.writeable()) throw py::value_error("out is read-only");
+  return py::reinterpret_borrow<py::array_t<double>>(out);
+}
+
+/// The deformed positions in the input's order, in world coordinates (float32 positions + the
+/// origin, in double, as Deformer::deformedWorld gives them), into `o` (n × 3); the rows of the
+/// points that are not finite (which the deformer does not hold) as the input has them.
+void fillWorld(const hgd::Deformer& d, const hgd::Geometry& g, const hgd::Shape& shape, double* o) {
+  const std::vector<Eigen::Vector3f>& p = d.deformedPoints();
+  const std::vector<int>& index = g.raw_index;
+  const std::size_t n = shape.size(), rows = index.size();
+  if (p.size() != rows) throw std::logic_error("world_points: the deformer's points are not the geometry's");
+  const double ox = g.origin.x(), oy = g.origin.y(), oz = g.origin.z();
+  for (std::size_t k = 0; k < rows; ++k) {
+    double* w = o + 3 * static_cast<std::size_t>(index[k]);
+    w[0] = static_cast<double>(p[k].x()) + ox;
+    w[1] = static_cast<double>(p[k].y()) + oy;
+    w[2] = static_cast<double>(p[k].z()) + oz;
+  }
+  if (rows == n) return;
+  std::vector<char> held(n, 0);
+  for (const int i : index) held[static_cast<std::size_t>(i)] = 1;
+  const hgd::XyzFields f = hgd::findXyzFields(shape.cloud);
+  const pcl::PCLPointCloud2& c = shape.cloud;
+  const Field &fx = c.fields[static_cast<std::size_t>(f.x)], &fy = c.fields[static_cast<std::size_t>(f.y)],
+              &fz = c.fields[static_cast<std::size_t>(f.z)];
+  for (std::size_t i = 0; i < n; ++i)
+    if (!held[i]) {
+      o[3 * i] = hgd::readValue(c, i, fx);
+      o[3 * i + 1] = hgd::readValue(c, i, fy);
+      o[3 * i + 2] = hgd::readValue(c, i, fz);
+    }
 }
 
 }  // namespace
@@ -199,6 +248,24 @@ void bindHandleDeformation(py::module_& m) {
           },
           "(N,) float32: the harmonic field φ (1 on the manipulated handle, 0 on the fixed), rows as "
           "`points`.")
+      .def(
+          "world_points",
+          [](PyHandleDeformation& h, const OptionalOut& out) {
+            py::array_t<double> result = worldOut(out, h.shape().size());
+            double* o = result.mutable_data();
+            std::shared_ptr<const hgd::Deformer> d;
+            {
+              py::gil_scoped_release release;
+              d = h.deformer();
+              fillWorld(*d, h.geometry(), h.shape(), o);
+            }
+            return result;
+          },
+          py::arg("out") = py::none(),
+          "The deformed positions in the input's order (as deform() returns them), world coordinates: "
+          "(N, 3) float64, `points` + `origin` put back in input order (float32 precision, as the view); "
+          "the points that are not finite as the input has them. Into `out` when given ((N, 3) float64, "
+          "C-contiguous, writable), which is returned. The GIL is released while it fills.")
       .def(
           "deformed_shape",
           [](PyHandleDeformation& h) {
