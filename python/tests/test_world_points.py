@@ -111,3 +111,20 @@ def test_world_points_from_threads():
     assert not errors
     for r in results:
         assert same_bits(r, by_hand(hd, points))
+
+
+def test_deformed_geometry_of_arrays_and_shapes():
+    points, _ = tube(n=1000, seed=65)
+    hd = handles(points)
+    hd.drag((10, 1, 0), (10, 2, 0))
+    out = hd.deformed_geometry()
+    assert isinstance(out, np.ndarray) and same_bits(out, hd.deformed_shape().points)
+    shape = hgdeform.Shape(points, fields={"label": np.arange(len(points), dtype=np.uint16)})
+    hs = hgdeform.HandleDeformation(shape)
+    hs.set_fixed([np.flatnonzero(points[:, 0] < 1.0)])
+    hs.set_manipulated(np.flatnonzero(points[:, 0] > 9.0))
+    hs.drag((10, 1, 0), (10, 2, 0))
+    got = hs.deformed_geometry()
+    assert isinstance(got, hgdeform.Shape)
+    assert same_bits(got.points, out)
+    assert np.array_equal(got.field("label"), np.arange(len(points)))
