@@ -25,6 +25,8 @@ packages=(
   python3-numpy                             # the Python module's arrays (numpy in and out)
   python3-pytest                            # the Python tests (python/tests, run by ctest)
   python3-open3d                            # the Python tests' Open3D interop (optional for the module; ~15 s to install)
+  python3-setuptools python3-wheel          # pip install . (pyproject.toml, setup.py drives CMake; no build isolation)
+  python3-venv python3-pip                  # the python_pip_install test: pip install . into a fresh venv
   cloudcompare meshlab pcl-tools            # tests/conformance: files written by CloudCompare, meshlabserver and pcl_* converters (headless under xvfb-run)
 )
 

@@ -36,6 +36,7 @@ __all__ = [
     "Shape",
     "__version__",
     "deform",
+    "deform_by_constraints",
     "field",
     "read",
     "write",
@@ -301,14 +302,163 @@ class HandleDeformation(_HandleDeformation):
     (the library's local frame). deformed_shape() is, in the input's order, what
     ``hgdeform deform`` writes for the same scenario, to the bit. A set_scenario that changes
     clusters or full resolution builds a new deformer: fetch `points` again after it.
+    world_points() gives the deformed positions in the input's order and world coordinates
+    (float64, no permutation in Python), deformed_geometry() the deformed input in kind.
     """
 
     def __init__(self, points, normals=None, faces=None, **options):
+        self._input = points
         if _is_open3d(points):
             if normals is not None or faces is not None:
                 raise TypeError("normals and faces come from the Open3D geometry itself")
             points, normals, faces = _open3d_arrays(points)
         super().__init__(points, normals, faces, **options)
+
+    def deformed_geometry(self):
+        """The deformed input, of the kind given to the constructor: a Shape for a Shape (as
+        deformed_shape()), an (N, 3) float64 array for arrays, and for an Open3D geometry (legacy
+        or tensor PointCloud or TriangleMesh, or a Vector3dVector) a new one of that kind, its
+        other attributes copied from the geometry as it is now. Positions (and normals) are
+        deformed_shape()'s: in double from the input's values, what ``hgdeform deform`` writes.
+        """
+        shape = self.deformed_shape()
+        if isinstance(self._input, Shape):
+            return shape
+        if _is_open3d(self._input):
+            return _open3d_like(self._input, shape.points, shape.normals)
+        return shape.points
+
+
+def _rigid_fit(rest, target):
+    """The rotation R and the centroids (c, d) of the rigid motion x -> R (x - c) + d that takes
+    `rest` (K, 3) nearest to `target` in the least-squares sense (Kabsch, without scale). With
+    one point, or points on one line, the rotation is the smallest that does it."""
+    import numpy as np
+
+    c, d = rest.mean(axis=0), target.mean(axis=0)
+    h = (rest - c).T @ (target - d)
+    u, s, vt = np.linalg.svd(h)
+    if s[0] == 0.0:  # one point (or all at one place): a translation
+        return np.eye(3), c, d
+    a, b = u[:, 0], vt[0]
+    if s[1] <= 1e-12 * s[0] and a @ b > -1.0 + 1e-9:  # on a line: the smallest rotation that
+        v, cos = np.cross(a, b), float(a @ b)            # turns its direction as the targets'
+        k = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+        return np.eye(3) + k + k @ k / (1.0 + cos), c, d
+    sign = 1.0 if np.linalg.det(vt.T @ u.T) >= 0 else -1.0  # a rotation, not a reflection
+    return vt.T @ np.diag([1.0, 1.0, sign]) @ u.T, c, d
+
+
+def _axis_degrees(r):
+    """A rotation matrix as (unit axis, degrees), accurate near 0 and 180 degrees."""
+    import numpy as np
+
+    w = 0.5 * np.array([r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]])  # sin θ · axis
+    cos = 0.5 * (np.trace(r) - 1.0)
+    sin = float(np.linalg.norm(w))
+    angle = np.arctan2(sin, cos)
+    if sin == 0.0 and cos > 0:
+        return np.array([0.0, 0.0, 1.0]), 0.0
+    if cos >= 0:
+        axis = w / sin
+    else:  # near 180°: from the symmetric part, (R + Rᵀ)/2 − cos θ I = (1 − cos θ) a aᵀ
+        b = 0.5 * (r + r.T) - cos * np.eye(3)
+        j = int(np.argmax(np.diag(b)))
+        axis = b[:, j] / np.sqrt(b[j, j] * (1.0 - cos))
+        if axis @ w < 0:
+            axis = -axis
+        axis /= np.linalg.norm(axis)
+    return axis, float(np.degrees(angle))
+
+
+def deform_by_constraints(geometry, constraint_ids, constraint_pos, fixed_ids=None,
+                          normals=None, faces=None, return_report=False, **options):
+    """Deforms a geometry so that constrained points go to their targets, as Open3D's
+    ``TriangleMesh.deform_as_rigid_as_possible(constraint_vertex_indices,
+    constraint_vertex_positions, ...)`` is called.
+
+    geometry: an (N, 3) array, a Shape, or an Open3D PointCloud or TriangleMesh (legacy or
+        tensor) or Vector3dVector.
+    constraint_ids: (K,) point indices (an array, a list or an open3d.utility.IntVector).
+    constraint_pos: (K, 3) their target positions (an array or a Vector3dVector).
+    fixed_ids: more point indices that stay where they are, or None.
+    normals, faces: with arrays, as deform()'s. options: deform()'s (clusters, blend, ...).
+
+    The constrained points whose target is their rest position (equal, in float64) and the
+    fixed_ids are the fixed handle; the others are the manipulated handle, which moves
+    rigidly: by the rotation and translation that take their rest positions nearest to their
+    targets (Kabsch, least squares, no scale), applied as a frame move. Targets that are a
+    rigid motion of their points are met exactly (to rounding); others in the least-squares
+    sense. The rest of the shape follows as deform() makes it.
+
+    Returns the deformed geometry of the kind given (an (N, 3) float64 array for arrays, or
+    (points, normals) when normals were given), and with return_report=True a tuple with the
+    report last: (geometry, report). Raises ValueError when no point is fixed or none moves.
+    """
+    import numpy as np
+
+    if isinstance(geometry, Shape):
+        rest = geometry.points
+    elif _is_open3d(geometry):
+        rest = _open3d_arrays(geometry)[0]
+    else:
+        rest = geometry
+    rest = np.asarray(rest, dtype=np.float64)
+    if rest.ndim != 2 or rest.shape[1] != 3:
+        raise ValueError("geometry must be N×3 points, got shape %s" % (rest.shape,))
+    n = len(rest)
+
+    def ids_arg(values, name):
+        ids = np.asarray(values)
+        if ids.size == 0:
+            return np.zeros(0, dtype=np.int64)
+        if ids.ndim != 1 or ids.dtype.kind not in "iu":
+            raise TypeError("%s must be a 1-D array of integer point indices, got %s %s"
+                            % (name, ids.dtype, ids.shape))
+        ids = ids.astype(np.int64)
+        bad = ids[(ids < 0) | (ids >= n)]
+        if len(bad):
+            raise ValueError("%s: point index %d is out of range (the geometry has %d points)"
+                             % (name, bad[0], n))
+        return ids
+
+    ids = ids_arg(constraint_ids, "constraint_ids")
+    pos = np.asarray(constraint_pos, dtype=np.float64)
+    if pos.shape != (len(ids), 3):
+        raise ValueError("constraint_pos must be a K×3 array with K = %d (one per constraint "
+                         "id), got shape %s" % (len(ids), pos.shape))
+    if not np.isfinite(pos).all():
+        raise ValueError("constraint_pos: a target is not finite")
+    order = np.argsort(ids, kind="stable")
+    same = ids[order][1:] == ids[order][:-1]
+    if same.any():
+        k = np.flatnonzero(same)
+        if (pos[order][k] != pos[order][k + 1]).any():
+            raise ValueError("constraint_ids: a point is given two different targets")
+        ids, first = np.unique(ids, return_index=True)
+        pos = pos[first]
+    still = (pos == rest[ids]).all(axis=1)
+    fixed = np.union1d(ids[still], ids_arg([] if fixed_ids is None else fixed_ids, "fixed_ids"))
+    moving, targets = ids[~still], pos[~still]
+    if np.isin(moving, fixed).any():
+        raise ValueError("fixed_ids: point %d is fixed and given a target elsewhere"
+                         % moving[np.isin(moving, fixed)][0])
+    if len(fixed) == 0:
+        raise ValueError("no fixed point: give fixed_ids, or constraints whose target is their "
+                         "rest position")
+    if len(moving) == 0:
+        raise ValueError("no constraint moves its point (every target is its rest position)")
+    if not np.isfinite(rest[moving]).all():
+        raise ValueError("constraint_ids: a constrained point is not finite")
+    r, centre, moved_centre = _rigid_fit(rest[moving], targets)
+    axis, degrees = _axis_degrees(r)
+    scenario = (Scenario().fix(Region.indices(fixed)).manipulate(Region.indices(moving))
+                .frame(translate=moved_centre - centre, axis=axis, degrees=degrees,
+                       center=centre))
+    result = deform(geometry, scenario, normals=normals, faces=faces, **options)
+    if return_report:
+        return result
+    return result[0] if len(result) == 2 else result[:-1]
 
 
 def _no_arrays(normals, faces, what):

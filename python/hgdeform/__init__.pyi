@@ -1,7 +1,7 @@
 # Type stub of the hgdeform package (the module hgdeform._hgdeform and python/hgdeform/__init__.py),
 # for editors and type checkers. Array shapes are in the docstrings: N points, M faces.
 import os
-from typing import Any, Dict, List, Optional, Sequence, Tuple, Union, overload
+from typing import Any, Dict, List, Literal, Optional, Sequence, Tuple, Union, overload
 
 import numpy as np
 import numpy.typing as npt
@@ -131,6 +131,47 @@ def field(
 ) -> npt.NDArray[np.float32]:
     """φ, (N,) float32 in the input's order (NaN where a point is not finite)."""
 
+@overload
+def deform_by_constraints(
+    geometry: ArrayLike,
+    constraint_ids: ArrayLike,
+    constraint_pos: ArrayLike,
+    fixed_ids: Optional[ArrayLike] = None,
+    normals: None = None,
+    faces: Optional[Faces] = None,
+    return_report: Literal[False] = False,
+    **options: Any,
+) -> npt.NDArray[np.float64]:
+    """Arrays (N, 3) -> the deformed points (N, 3) float64."""
+@overload
+def deform_by_constraints(
+    geometry: ArrayLike,
+    constraint_ids: ArrayLike,
+    constraint_pos: ArrayLike,
+    fixed_ids: Optional[ArrayLike] = None,
+    normals: None = None,
+    faces: Optional[Faces] = None,
+    *,
+    return_report: Literal[True],
+    **options: Any,
+) -> Tuple[npt.NDArray[np.float64], Dict[str, Any]]: ...
+@overload
+def deform_by_constraints(
+    geometry: Any,
+    constraint_ids: ArrayLike,
+    constraint_pos: ArrayLike,
+    fixed_ids: Optional[ArrayLike] = None,
+    normals: Optional[ArrayLike] = None,
+    faces: Optional[Faces] = None,
+    return_report: bool = False,
+    **options: Any,
+) -> Any:
+    """Open3D's deform_as_rigid_as_possible(constraint_vertex_indices, constraint_vertex_positions)
+    as an Open3D user calls it: constraint_ids (K,) and their targets constraint_pos (K, 3); the
+    ids whose target is their rest position, and fixed_ids, stay; the others move rigidly (the
+    least-squares rigid fit of their targets, no scale). A Shape or an Open3D geometry comes
+    back in kind; (points, normals) with normals; with return_report, the report last."""
+
 class HandleDeformation:
     def __init__(
         self,
@@ -170,5 +211,12 @@ class HandleDeformation:
         """(N,) float32, rows as points."""
     def deformed_shape(self) -> Shape:
         """The deformed Shape in the input's order: what ``hgdeform deform`` writes, to the bit."""
+    def deformed_geometry(self) -> Any:
+        """The deformed input in kind: a Shape, an (N, 3) float64 array, or an Open3D geometry of
+        the kind given (legacy or tensor PointCloud or TriangleMesh, Vector3dVector)."""
+    def world_points(self, out: Optional[npt.NDArray[np.float64]] = None) -> npt.NDArray[np.float64]:
+        """(N, 3) float64: the deformed positions in the input's order, world coordinates (the view
+        put in order, + origin); non-finite input rows as they were. Into `out` when given
+        ((N, 3) float64, C-contiguous, writable). The GIL is released while it fills."""
     @property
     def energy(self) -> Dict[str, float]: ...

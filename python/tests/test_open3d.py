@@ -164,3 +164,59 @@ def test_written_pcd_is_read_by_open3d_with_normals_and_colours(tmp_path):
     back = o3d.io.read_point_cloud(str(tmp_path / "shape.pcd"))
     assert back.has_normals()
     assert np.abs(np.asarray(back.normals) - normals).max() < 1e-6
+
+
+def test_tensor_geometries_in_field_and_float32_positions():
+    points, normals = tube(n=900, seed=44)
+    pc = o3d.t.geometry.PointCloud(o3d.core.Tensor(points.astype(np.float32)))
+    pc.point.normals = o3d.core.Tensor(normals.astype(np.float32))
+    pc.point.colors = o3d.core.Tensor(np.full((len(points), 3), 0.25, np.float32))
+    phi = hgdeform.field(pc, tube_scenario())
+    assert same_bits(phi, hgdeform.field(points.astype(np.float32), tube_scenario(),
+                                         normals=normals.astype(np.float32)))
+    out, _ = hgdeform.deform(pc, tube_scenario())
+    expected, _, _ = hgdeform.deform(points.astype(np.float32), tube_scenario(),
+                                     normals=normals.astype(np.float32))
+    assert out.point.positions.dtype == o3d.core.float32
+    assert np.array_equal(out.point.positions.numpy(), expected.astype(np.float32))
+    assert np.array_equal(out.point.colors.numpy(), pc.point.colors.numpy())
+
+    vertices, faces = tube_mesh()
+    mesh = o3d.t.geometry.TriangleMesh(o3d.core.Tensor(vertices), o3d.core.Tensor(faces))
+    assert same_bits(hgdeform.field(mesh, tube_scenario()),
+                     hgdeform.field(vertices, tube_scenario(), faces=faces))
+
+
+def handle_deformation_of(geometry, points):
+    hd = hgdeform.HandleDeformation(geometry)
+    hd.set_fixed([np.flatnonzero(points[:, 0] < 1.0)])
+    hd.set_manipulated(np.flatnonzero(points[:, 0] > 9.0))
+    hd.drag((10.0, 1.0, 0.0), (10.0, 2.5, 0.5))
+    return hd
+
+
+def test_handle_deformation_gives_the_deformed_geometry_in_kind():
+    points, normals = tube(n=1200, seed=45)
+    expected = handle_deformation_of(points, points).deformed_shape().points
+
+    legacy = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
+    legacy.colors = o3d.utility.Vector3dVector(np.full((len(points), 3), 0.5))
+    out = handle_deformation_of(legacy, points).deformed_geometry()
+    assert isinstance(out, o3d.geometry.PointCloud) and out is not legacy
+    assert same_bits(np.asarray(out.points), expected)
+    assert same_bits(np.asarray(out.colors), np.asarray(legacy.colors))
+
+    tensor = o3d.t.geometry.PointCloud(o3d.core.Tensor(points))
+    tensor.point.intensity = o3d.core.Tensor(np.arange(len(points), dtype=np.float32)[:, None])
+    hd = handle_deformation_of(tensor, points)
+    out = hd.deformed_geometry()
+    assert type(out) is o3d.t.geometry.PointCloud
+    assert same_bits(out.point.positions.numpy(), expected)
+    assert np.array_equal(out.point.intensity.numpy(), tensor.point.intensity.numpy())
+    assert same_bits(tensor.point.positions.numpy(), points)  # the input left as it was
+    # world_points: the same positions to float32's precision, in the same order
+    assert np.abs(hd.world_points() - expected).max() < 1e-5
+
+    out = handle_deformation_of(o3d.utility.Vector3dVector(points), points).deformed_geometry()
+    assert isinstance(out, o3d.utility.Vector3dVector)
+    assert same_bits(np.asarray(out), expected)
