@@ -181,16 +181,7 @@ TEST(Render, DrawsTheFileColours) {
 TEST(Render, CameraFrameScanIsTheRightWayUp) {
   if (!haveXvfb()) GTEST_SKIP() << "xvfb-run not installed";
   hgdtest::TempDir dir;
-  const pcl::PointCloud<pcl::PointXYZRGB> cloud = cameraScan();
-  hgd::Shape organized;
-  pcl::toPCLPointCloud2(cloud, organized.cloud);
-  organized.format = hgd::FileFormat::Pcd;
-  hgd::writeShape(dir.file("scan.pcd"), organized);
-  hgd::Shape flat = organized;
-  flat.cloud.width = flat.cloud.width * flat.cloud.height;
-  flat.cloud.height = 1;
-  flat.cloud.row_step = flat.cloud.point_step * flat.cloud.width;
-  hgd::writeShape(dir.file("flat.pcd"), flat);
+  hgdtest::writeCameraScans(dir);
   struct Case {
     std::string input, options;
     bool red_on_top;

@@ -267,6 +267,49 @@ TEST(ScenarioRunner, ASecondScenarioWithOtherClustersIsBuiltAsAFreshOne) {
   EXPECT_EQ(largestDifference(a, b), 0.0);
 }
 
+// What a failed or emptying change leaves: a scenario whose region fits no point throws and the
+// runner keeps its deformer, moves and undo; emptying the handles during live frames does not
+// throw and marking them again builds what a fresh runner builds; a session whose handles were
+// given as indices falls back to the saved regions on a new shape.
+TEST(ScenarioRunner, FailedAndEmptyingChangesKeepTheRunnerConsistent) {
+  hgd::ScenarioRunner run = bar();
+  run.apply(turnMove(40));
+  const std::vector<Eigen::Vector3f> turned = run.deformer().deformedPoints();
+  hgd::Scenario off = barScenario();
+  off.manipulate(hgd::Region::box(Eigen::Vector3d(5, 5, 5), Eigen::Vector3d(6, 6, 6)));  // no point
+  EXPECT_THROW(run.setScenario(off), hgd::ScenarioError);
+  ASSERT_TRUE(run.ready());
+  EXPECT_EQ(run.moves().size(), 1u);
+  EXPECT_TRUE(run.deformer().deformedPoints() == turned);
+  EXPECT_TRUE(run.undo());
+  EXPECT_TRUE(run.deformer().deformedPoints() == bar().deformer().deformedPoints());
+
+  const hgd::Handles handles = run.handles();
+  run.liveDrag(kTip, kTip + Eigen::Vector3d(0, 0.1, 0));
+  EXPECT_NO_THROW(run.setHandles(hgd::Handles{}));
+  EXPECT_FALSE(run.ready());
+  run.setHandles(handles);
+  ASSERT_TRUE(run.ready());
+  EXPECT_TRUE(run.undo() == false);  // the history went with the handles
+  run.apply(turnMove(30));
+  hgd::ScenarioRunner fresh = bar();
+  fresh.apply(turnMove(30));
+  EXPECT_EQ(largestDifference(run, fresh), 0.0);
+
+  hgd::Session session(hgd::shapes::bar(1.0f, 0.1f, 0.01f));
+  session.setHandles(handles);
+  const hgd::Scenario regions = barScenario();
+  session.setRegions(regions.fixed, regions.manipulated, regions.joints);
+  ASSERT_TRUE(session.ensureBuilt());
+  session.setShape(hgd::shapes::bar(2.0f, 0.1f, 0.01f));  // twice as long: other indices
+  EXPECT_TRUE(session.missingHandle().empty());
+  ASSERT_TRUE(session.ensureBuilt());
+  hgd::ScenarioRunner longer(hgd::shapes::bar(2.0f, 0.1f, 0.01f));
+  longer.setScenario(regions);
+  EXPECT_EQ(session.handles().fixed, longer.handles().fixed);
+  EXPECT_EQ(session.handles().manipulated, longer.handles().manipulated);
+}
+
 // "resolution": "full" reaches the Deformer from the scenario (every front end reads one), is
 // saved back, and a bad value is refused with its path.
 TEST(ScenarioRunner, ResolutionKeyKeepsEveryPointInTheField) {

@@ -647,16 +647,7 @@ namespace {
 TEST(Viewer, CameraFrameScanOpensTheRightWayUp) {
   if (!haveXvfb()) GTEST_SKIP() << "xvfb-run not installed";
   hgdtest::TempDir dir;
-  const pcl::PointCloud<pcl::PointXYZRGB> cloud = cameraScan();
-  hgd::Shape organized;
-  pcl::toPCLPointCloud2(cloud, organized.cloud);
-  organized.format = hgd::FileFormat::Pcd;
-  hgd::writeShape(dir.file("scan.pcd"), organized);
-  hgd::Shape flat = organized;
-  flat.cloud.width = flat.cloud.width * flat.cloud.height;
-  flat.cloud.height = 1;
-  flat.cloud.row_step = flat.cloud.point_step * flat.cloud.width;
-  hgd::writeShape(dir.file("flat.pcd"), flat);
+  hgdtest::writeCameraScans(dir);
   // Issue 49, defect 5: the unorganized scan opened +y up (upside down for a camera's frame):
   // every point ahead of the sensor makes it a camera-frame scan too; --up y turns it over.
   struct Case {

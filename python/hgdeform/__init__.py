@@ -307,7 +307,11 @@ class HandleDeformation(_HandleDeformation):
     """
 
     def __init__(self, points, normals=None, faces=None, **options):
-        self._input = points
+        # What deformed_geometry() returns in kind: the Open3D geometry itself (its other
+        # attributes are copied from it), else only the kind (no second reference to the input).
+        self._input = points if _is_open3d(points) else None
+        self._kind = "shape" if isinstance(points, Shape) else "arrays"
+        self._with_normals = normals is not None
         if _is_open3d(points):
             if normals is not None or faces is not None:
                 raise TypeError("normals and faces come from the Open3D geometry itself")
@@ -316,16 +320,19 @@ class HandleDeformation(_HandleDeformation):
 
     def deformed_geometry(self):
         """The deformed input, of the kind given to the constructor: a Shape for a Shape (as
-        deformed_shape()), an (N, 3) float64 array for arrays, and for an Open3D geometry (legacy
+        deformed_shape()), an (N, 3) float64 array for arrays (with normals given: (points,
+        normals), as deform() returns them), and for an Open3D geometry (legacy
         or tensor PointCloud or TriangleMesh, or a Vector3dVector) a new one of that kind, its
         other attributes copied from the geometry as it is now. Positions (and normals) are
         deformed_shape()'s: in double from the input's values, what ``hgdeform deform`` writes.
         """
         shape = self.deformed_shape()
-        if isinstance(self._input, Shape):
-            return shape
-        if _is_open3d(self._input):
+        if self._input is not None:
             return _open3d_like(self._input, shape.points, shape.normals)
+        if self._kind == "shape":
+            return shape
+        if self._with_normals:
+            return shape.points, shape.normals
         return shape.points
 
 

@@ -212,7 +212,8 @@ class HandleDeformation:
     def deformed_shape(self) -> Shape:
         """The deformed Shape in the input's order: what ``hgdeform deform`` writes, to the bit."""
     def deformed_geometry(self) -> Any:
-        """The deformed input in kind: a Shape, an (N, 3) float64 array, or an Open3D geometry of
+        """The deformed input in kind: a Shape, an (N, 3) float64 array ((points, normals) when
+        normals were given), or an Open3D geometry of
         the kind given (legacy or tensor PointCloud or TriangleMesh, Vector3dVector)."""
     def world_points(self, out: Optional[npt.NDArray[np.float64]] = None) -> npt.NDArray[np.float64]:
         """(N, 3) float64: the deformed positions in the input's order, world coordinates (the view

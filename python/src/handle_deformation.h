@@ -28,19 +28,19 @@ class PyHandleDeformation {
 
   void setFixed(const std::vector<std::vector<long long>>& handles) {
     std::lock_guard<std::mutex> lock(mutex_);
-    run_.session().setFixedIndices(handles);
+    run_.setFixedIndices(handles);
   }
   void setManipulated(std::vector<long long> handle) {
     std::lock_guard<std::mutex> lock(mutex_);
-    run_.session().setManipulatedIndices(std::move(handle));
+    run_.setManipulatedIndices(std::move(handle));
   }
   void setJoints(const std::vector<std::vector<long long>>& joints) {
     std::lock_guard<std::mutex> lock(mutex_);
-    run_.session().setJointIndices(joints);
+    run_.setJointIndices(joints);
   }
   void setScenario(const hgd::Scenario& scenario) {
     std::lock_guard<std::mutex> lock(mutex_);
-    run_.session().setScenario(scenario);
+    run_.setScenarioLater(scenario);
   }
 
   hgd::SolveStats drag(const Eigen::Vector3d& from, const Eigen::Vector3d& to) {

@@ -113,6 +113,42 @@ def test_world_points_from_threads():
         assert same_bits(r, by_hand(hd, points))
 
 
+def test_world_points_never_shows_half_a_frame():
+    # Readers fetch while another thread drags: every fill must be one whole state the dragging
+    # thread also saw (a fill racing a frame would mix two states' rows).
+    points, _ = tube(n=20000, seed=66)
+    hd = handles(points)
+    states = {hd.world_points().tobytes()}
+    seen, errors, done = [], [], threading.Event()
+
+    def drag():
+        try:
+            for k in range(25):
+                hd.drag((10, 1 + 0.04 * k, 0), (10, 1 + 0.04 * (k + 1), 0.02 * k))
+                states.add(hd.world_points().tobytes())
+        except Exception as e:  # noqa: BLE001 (reported below)
+            errors.append(e)
+        finally:
+            done.set()
+
+    def read():
+        try:
+            while not done.is_set():
+                seen.append(hd.world_points().tobytes())
+        except Exception as e:  # noqa: BLE001 (reported below)
+            errors.append(e)
+
+    threads = [threading.Thread(target=drag)] + [threading.Thread(target=read) for _ in range(2)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert not errors
+    assert len(states) > 10 and len(seen) > 10
+    torn = sum(1 for r in seen if r not in states)
+    assert torn == 0, f"{torn} of {len(seen)} fills mixed two frames"
+
+
 def test_deformed_geometry_of_arrays_and_shapes():
     points, _ = tube(n=1000, seed=65)
     hd = handles(points)
@@ -128,3 +164,14 @@ def test_deformed_geometry_of_arrays_and_shapes():
     assert isinstance(got, hgdeform.Shape)
     assert same_bits(got.points, out)
     assert np.array_equal(got.field("label"), np.arange(len(points)))
+    # Arrays with normals: (points, normals), as deform() gives them; the normals turned.
+    normals = np.tile([0.0, 1.0, 0.0], (len(points), 1))
+    hn = hgdeform.HandleDeformation(points, normals)
+    hn.set_fixed([np.flatnonzero(points[:, 0] < 1.0)])
+    hn.set_manipulated(np.flatnonzero(points[:, 0] > 9.0))
+    hn.drag((10, 1, 0), (10, 2, 0))
+    got_points, got_normals = hn.deformed_geometry()
+    assert same_bits(got_points, hn.deformed_shape().points)
+    tip = points[:, 0] > 9.0
+    assert np.abs(got_normals[tip] - normals[tip]).max() > 0.05  # the dragged end turned
+    assert np.allclose(np.linalg.norm(got_normals, axis=1), 1.0)

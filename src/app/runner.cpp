@@ -32,10 +32,11 @@ ScenarioRunner::ScenarioRunner(Shape shape, const RunOptions& options) {
 void ScenarioRunner::setShape(Shape shape) {
   Stopwatch t;
   dropLive();
+  session_.setShape(std::move(shape));  // (throws with nothing changed)
   clearHistory();
   released_ = false;
   write_warnings_.clear();
-  session_.setShape(std::move(shape));
+  read_ms_ = write_ms_ = 0;
   build_ms_ = t.ms();
 }
 
@@ -46,7 +47,7 @@ ScenarioRunner::~ScenarioRunner() = default;
 void ScenarioRunner::setScenario(const Scenario& scenario) {
   requireShape("setScenario");
   Stopwatch t;
-  session_.setScenario(scenario);
+  session_.setScenario(scenario, true);  // a region that does not fit throws here: nothing lost
   build();
   build_ms_ += t.ms();
 }
@@ -69,9 +70,9 @@ FieldResult ScenarioRunner::field(const Scenario& scenario) const {
 
 void ScenarioRunner::setHandles(const Handles& handles) {
   requireShape("setHandles");
-  session_.setHandles(handles);
-  dropLive();  // a live frame's level of detail goes with it
+  dropLive();  // a live frame's level of detail goes with it (before the deformer may go)
   clearHistory();
+  session_.setHandles(handles);
   build();
 }
 
@@ -84,6 +85,28 @@ void ScenarioRunner::build() {
   dropLive();  // a live frame's level of detail goes with it
   clearHistory();
   session_.ensureBuilt();
+}
+
+void ScenarioRunner::setFixedIndices(const std::vector<std::vector<long long>>& handles) {
+  session_.setFixedIndices(handles);
+}
+
+void ScenarioRunner::setManipulatedIndices(std::vector<long long> handle) {
+  session_.setManipulatedIndices(std::move(handle));
+}
+
+void ScenarioRunner::setJointIndices(const std::vector<std::vector<long long>>& joints) {
+  session_.setJointIndices(joints);
+}
+
+void ScenarioRunner::setScenarioLater(const Scenario& scenario) {
+  session_.setScenario(scenario);
+}
+
+void ScenarioRunner::setOptions(const RunOptions& options) {
+  dropLive();
+  clearHistory();
+  session_.setOptions(options);
 }
 
 bool ScenarioRunner::ensureBuilt() {

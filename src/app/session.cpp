@@ -29,15 +29,24 @@ Session::Session(Shape shape, const RunOptions& options) : options_(options) {
 }
 
 void Session::setShape(Shape shape) {
+  std::vector<BuildPhase> phases;
+  std::shared_ptr<const Geometry> geometry;
+  {
+    PhaseRecording recording(&phases);
+    geometry = std::make_shared<const Geometry>(extractGeometry(shape));  // may throw: nothing changed
+  }
   deformer_.reset();
   built_ = false;
   built_options_.reset();
-  if (direct_) handles_ = {};  // indices into the old geometry
-  phases_.clear();
+  resolved_ = false;
+  if (direct_) {  // indices into the old geometry: the regions saved for them stand in
+    handles_ = {};
+    direct_ = false;
+  }
+  phases_ = std::move(phases);
   shape_ = std::move(shape);
-  PhaseRecording recording(&phases_);
+  geometry_ = std::move(geometry);
   warnings_ = shape_.warnings;  // what reading noted (a format told by content, ...)
-  geometry_ = std::make_shared<const Geometry>(extractGeometry(shape_));
   warnings_.insert(warnings_.end(), geometry_->warnings.begin(), geometry_->warnings.end());
 }
 
@@ -48,11 +57,21 @@ void Session::setOptions(const RunOptions& options) {
   built_options_.reset();
 }
 
-void Session::setScenario(const Scenario& scenario) {
+void Session::setScenario(const Scenario& scenario, bool resolve_now) {
+  Handles resolved;
+  if (resolve_now) {  // before anything changes: a region that does not fit leaves all as it was
+    requireShape("setScenario");
+    PhaseRecording recording(&phases_);
+    PhaseClock clock;
+    resolved = resolveHandles(scenario, *geometry_, shape_);
+    clock.lap("runner.handles");
+  }
   scenario_ = scenario;
   from_scenario_ = true;
   direct_ = false;
   built_ = false;
+  resolved_ = resolve_now;
+  if (resolve_now) handles_ = std::move(resolved);
 }
 
 Scenario& Session::indexHandles() {
@@ -60,6 +79,7 @@ Scenario& Session::indexHandles() {
   from_scenario_ = false;
   direct_ = false;
   built_ = false;
+  resolved_ = false;
   return scenario_;
 }
 
@@ -83,6 +103,7 @@ void Session::setHandles(const Handles& handles) {
   handles_ = handles;
   direct_ = true;
   built_ = false;
+  resolved_ = false;
   if (handles_.fixed.empty() || handles_.manipulated.empty()) deformer_.reset();  // until both are there
 }
 
@@ -139,7 +160,7 @@ bool Session::ensureBuilt() {
   if (built_ && deformer_) return false;
   if (direct_) {
     if (handles_.fixed.empty() || handles_.manipulated.empty()) return false;  // marking goes on
-  } else {
+  } else if (!resolved_) {
     if (const std::string missing = missingHandle(); !missing.empty())
       throw ScenarioError("no " + missing + " handle");
     PhaseRecording recording(&phases_);
@@ -155,8 +176,13 @@ bool Session::ensureBuilt() {
     deformer_.reset();  // its memory back before the new one is built
     deformer_ = std::make_shared<Deformer>(geometry_, handles_, opt);
   } else {
-    deformer_->setHandles(handles_);  // normals, kNN and the graph are kept
-    if (opt.blend != built_options_->blend) deformer_->setBlend(opt.blend);
+    const Handles& old = deformer_->handles();
+    if (handles_.fixed == old.fixed && handles_.manipulated == old.manipulated &&
+        handles_.joints == old.joints)
+      deformer_->reset();  // the same handles (another blend, or the scenario again): at rest
+    else
+      deformer_->setHandles(handles_);  // normals, kNN and the graph are kept
+    deformer_->setBlend(opt.blend);
   }
   built_options_ = opt;
   built_ = true;

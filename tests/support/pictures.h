@@ -3,6 +3,7 @@
 // camera's scan.
 #pragma once
 
+#include <pcl/conversions.h>
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
 
@@ -10,6 +11,7 @@
 #include <cstdlib>
 #include <string>
 
+#include "hgdeform/io/io.h"
 #include "support/png_image.h"
 #include "test_util.h"
 
@@ -59,6 +61,19 @@ inline pcl::PointCloud<pcl::PointXYZRGB> cameraScan() {
       p.b = top || right ? 0 : 128;
     }
   return cloud;
+}
+
+/// cameraScan() written to `dir` twice: organized (scan.pcd) and as one row (flat.pcd).
+inline void writeCameraScans(const TempDir& dir) {
+  hgd::Shape organized;
+  pcl::toPCLPointCloud2(cameraScan(), organized.cloud);
+  organized.format = hgd::FileFormat::Pcd;
+  hgd::writeShape(dir.file("scan.pcd"), organized);
+  hgd::Shape flat = organized;
+  flat.cloud.width = flat.cloud.width * flat.cloud.height;
+  flat.cloud.height = 1;
+  flat.cloud.row_step = flat.cloud.point_step * flat.cloud.width;
+  hgd::writeShape(dir.file("flat.pcd"), flat);
 }
 
 }  // namespace hgdtest

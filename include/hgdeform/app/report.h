@@ -1,5 +1,5 @@
-// The report of a deformation, as JSON (report_json.h has its objects for the tools) and as one
-// line for the terminal. The field stored as a per-point scalar is storeField() in fields.h.
+// The report of a deformation, as JSON (the tools' JSON objects are internal: src/app/report_json.h) and as
+// one line for the terminal. The field stored as a per-point scalar is storeField() in fields.h.
 #pragma once
 
 #include <string>

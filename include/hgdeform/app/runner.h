@@ -185,10 +185,20 @@ class ScenarioRunner {
   /// The deformer, alive as long as the pointer is held (a view of its buffers outlives a rebuild).
   std::shared_ptr<const Deformer> sharedDeformer() const { return session_.sharedDeformer(); }
   const RunOptions& options() const { return session_.options(); }
-  /// The session: handles by index or scenario, options; a change is built at the next
-  /// ensureBuilt() (or setScenario(), setHandles()).
-  Session& session() { return session_; }
+  /// The session (shape, handles, options, deformer). Changes go through the runner, which keeps
+  /// its history and live frames consistent with them:
   const Session& session() const { return session_; }
+  /// Handles by point index (file order), built at the next ensureBuilt(); each replaces a
+  /// scenario given before whole (Session::setFixedIndices).
+  void setFixedIndices(const std::vector<std::vector<long long>>& handles);
+  void setManipulatedIndices(std::vector<long long> handle);
+  void setJointIndices(const std::vector<std::vector<long long>>& joints);
+  /// A scenario's handles and options, built at the next ensureBuilt() (setScenario() builds at
+  /// once): what a front end that receives its input later (the PCL stage) gives.
+  void setScenarioLater(const Scenario& scenario);
+  /// Other options: the deformer, the live frames and the history go; the next ensureBuilt()
+  /// builds a new deformer.
+  void setOptions(const RunOptions& options);
 
  private:
   /// Builds what the session has due; the history goes when it builds (the shape is at rest).

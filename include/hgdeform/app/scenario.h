@@ -101,11 +101,6 @@ struct Scenario {
   Scenario& frame(const FrameMove& move);  ///< adds a frame move
 };
 
-/// One JSON-pointer step for `key`, as every JSON error of hgdeform names its place: "/" and
-/// the key with RFC 6901 escapes, control characters spelled out (\u0001) so that a message
-/// never carries raw control bytes.
-std::string jsonPointerStep(const std::string& key);
-
 /// Parses scenario JSON text. `name` is used in messages (a file name).
 Scenario parseScenario(const std::string& json_text, const std::string& name);
 

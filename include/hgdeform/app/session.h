@@ -13,7 +13,8 @@
 // before, and each change is built once. What a change costs:
 //   - new handles (or a scenario with other regions): the field, the clusters and the solver are
 //     built again; normals, kNN and the graph are kept;
-//   - another blend: applied at once, nothing built;
+//   - another blend (setBlend(), or a scenario that differs in its blend alone): applied at
+//     once, nothing built;
 //   - another isovalue count, resolution (a scenario's `full_resolution`) or RunOptions, or another
 //     shape: a new Deformer. A view of the old one (sharedDeformer()) keeps it alive.
 #pragma once
@@ -66,8 +67,10 @@ class Session {
   Session& operator=(const Session&) = delete;
   ~Session();
 
-  /// Another shape: the deformer is dropped; handles and options are kept (resolved again on
-  /// the new shape at the next build).
+  /// Another shape: the deformer is dropped; handles by scenario or index and the options are
+  /// kept (resolved again on the new shape at the next build); handles given by setHandles()
+  /// (indices into the old geometry) give way to the regions of setRegions(). If the shape has
+  /// no point to deform (extractGeometry throws), the session is left as it was.
   void setShape(Shape shape);
   bool hasShape() const { return geometry_ != nullptr; }
 
@@ -76,8 +79,10 @@ class Session {
   const RunOptions& options() const { return options_; }
 
   /// Handles (and clusters, blend, resolution) from a scenario's regions; its moves are kept
-  /// (scenario().moves) for the caller to apply. Replaces handles set by index whole.
-  void setScenario(const Scenario& scenario);
+  /// (scenario().moves) for the caller to apply. Replaces handles set by index whole. With
+  /// `resolve_now` (a shape is there) the regions are resolved at once: a region that does not
+  /// fit throws ScenarioError here and the session is left as it was.
+  void setScenario(const Scenario& scenario, bool resolve_now = false);
   /// Handles by point index (file order). Each replaces a scenario given before whole (its
   /// regions, moves and options); the other handles set by index stay.
   void setFixedIndices(const std::vector<std::vector<long long>>& handles);
@@ -153,6 +158,7 @@ class Session {
   Scenario scenario_;
   bool from_scenario_ = false;  // scenario_ was given whole (setScenario)
   bool direct_ = false;         // handles_ set by setHandles(), not resolved from scenario_
+  bool resolved_ = false;       // handles_ resolved from scenario_ already (setScenario(.., true))
   Handles handles_;
   std::shared_ptr<Deformer> deformer_;
   std::optional<DeformOptions> built_options_;  // the options deformer_ was built with

@@ -81,7 +81,7 @@ void HandleDeformation<PointT>::setInputCloud(const PointCloudConstPtr& cloud) {
 
 template <typename PointT>
 void HandleDeformation<PointT>::setOptions(const RunOptions& options) {
-  runner_.session().setOptions(options);
+  runner_.setOptions(options);
 }
 
 namespace pcl_detail {
@@ -94,39 +94,39 @@ template <typename PointT>
 void HandleDeformation<PointT>::setFixedHandles(const std::vector<pcl::Indices>& handles) {
   std::vector<std::vector<long long>> lists;
   for (const auto& h : handles) lists.push_back(pcl_detail::indexList(h));
-  runner_.session().setFixedIndices(lists);
+  runner_.setFixedIndices(lists);
 }
 
 template <typename PointT>
 void HandleDeformation<PointT>::setManipulatedHandle(const pcl::Indices& handle) {
-  runner_.session().setManipulatedIndices(pcl_detail::indexList(handle));
+  runner_.setManipulatedIndices(pcl_detail::indexList(handle));
 }
 
 template <typename PointT>
 void HandleDeformation<PointT>::setJoints(const std::vector<pcl::Indices>& joints) {
   std::vector<std::vector<long long>> lists;
   for (const auto& j : joints) lists.push_back(pcl_detail::indexList(j));
-  runner_.session().setJointIndices(lists);
+  runner_.setJointIndices(lists);
 }
 
 template <typename PointT>
 void HandleDeformation<PointT>::setScenario(const Scenario& scenario) {
-  runner_.session().setScenario(scenario);
+  runner_.setScenarioLater(scenario);
 }
 
 template <typename PointT>
 void HandleDeformation<PointT>::ensureBuilt() {
   if (!this->input_ || this->input_->empty())
     throw std::invalid_argument("HandleDeformation: no input cloud (setInputCloud)");
+  if (input_changed_) {
+    runner_.setShape(pcl_detail::shapeFromCloud(*this->input_));
+    input_changed_ = false;
+  }
   const std::string missing = runner_.session().missingHandle();
   if (missing == "fixed")
     throw ScenarioError("HandleDeformation: no fixed handle (setFixedHandles or setScenario)");
   if (!missing.empty())
     throw ScenarioError("HandleDeformation: no manipulated handle (setManipulatedHandle or setScenario)");
-  if (input_changed_) {
-    runner_.setShape(pcl_detail::shapeFromCloud(*this->input_));
-    input_changed_ = false;
-  }
   if (runner_.ensureBuilt()) runner_.applyMoves();  // a scenario's moves, as hgdeform deform applies them
 }
 
