@@ -13,6 +13,7 @@
 
 #include "blas_guard.h"
 #include "cli_common.h"
+#include "hgdeform/app/memory.h"
 #include "hgdeform/app/regions.h"
 #include "hgdeform/app/report.h"
 #include "hgdeform/app/runner.h"
@@ -75,6 +76,7 @@ struct DeformArgs {
   int reweight = 0;   // GaussNewtonOptions::reweight_rounds
   std::string blend;  // empty: the scenario's
   std::string solver = "auto";
+  std::string memory;  // --memory: empty for the memory the machine has available
   bool mesh_ring = false, full_field = false, ascii = false, quiet = false;
 };
 
@@ -154,6 +156,10 @@ int parseDeform(int argc, const char* const* argv, DeformArgs& a) {
   app.add_flag("--full-field", a.full_field,
                "the field, pieces and clusters over every point, however many (default: above 131,072\n"
                "points, on a subsample of about 65,536 or a tenth of the points, prolonged to every point)");
+  app.add_option("--memory", a.memory,
+                 "the memory the run may take (e.g. 1.5G, 800M; default: what the machine has\n"
+                 "available): a shape estimated to need more is refused before it is read")
+      ->type_name("BYTES");
   addOutputFlags(app, a.ascii, a.quiet);
   return hgdcli::parse(app, argc, argv);
 }
@@ -271,7 +277,13 @@ int runDeform(const DeformArgs& a) {
       throw hgdcli::UsageError("--blend must be linear or rotation (got '" + a.blend + "')");
     ro.blend = blend;
   }
+  std::uint64_t memory = 0;
+  if (!a.memory.empty() && !hgd::parseByteCount(a.memory, &memory))
+    throw hgdcli::UsageError("--memory takes a byte count such as 1500000000, 1.5G or 800M (got '" +
+                             a.memory + "')");
   const hgd::Scenario scenario = hgd::readScenario(scenario_path);
+  // (The scenario's "resolution": "full" keeps every point in the graph, as --full-field.)
+  hgd::checkDeformMemory(input, memory, scenario.full_resolution.value_or(false) ? 0 : opt.multires_above);
   hgd::ScenarioRunner run = hgd::ScenarioRunner::read(input, ro);
   run.setScenario(scenario);
   run.applyMoves();

@@ -3,6 +3,7 @@
 // The typed PCL entry, hgdeform/pcl.h, is left to those who want its templates.
 #pragma once
 
+#include "hgdeform/app/memory.h"
 #include "hgdeform/app/report.h"
 #include "hgdeform/app/runner.h"
 #include "hgdeform/app/scenario.h"

@@ -21,6 +21,7 @@
 #include "batch_provenance.h"
 #include "batch_report.h"
 #include "cli_common.h"
+#include "hgdeform/app/memory.h"
 #include "hgdeform/app/scenario.h"
 #include "hgdeform/io/io.h"
 #ifdef HGD_HAVE_RENDER
@@ -80,7 +81,7 @@ int parseArgs(int argc, char** argv, Config& c, bool print) {
   CLI::App app(kBatchDescription);
   hgdcli::configureApp(app, "hgdeform batch");
   app.footer(kBatchFooter);
-  std::string input, output, scenario, shard, report;
+  std::string input, output, scenario, shard, report, memory;
   app.add_option("INPUT_DIR", input, "the folder of scans")->required()->type_name("");
   app.add_option("-s,--scenario", scenario, "default scenario (docs/scenario.md); required")
       ->required()
@@ -107,10 +108,16 @@ int parseArgs(int argc, char** argv, Config& c, bool print) {
                  "process only shard K (0-based) of N: scan i of the list sorted by\n"
                  "relative path belongs to shard i % N")
       ->type_name("K/N");
+  app.add_option("--memory", memory,
+                 "the memory a scan may take (e.g. 1.5G; default: what the machine has available\n"
+                 "when the scan starts): a scan estimated to need more fails before it is read")
+      ->type_name("BYTES");
   app.add_flag("-q,--quiet", c.quiet, "print errors only");
   const int status = hgdcli::parse(app, argc, argv, print);
   if (status >= 0) return status;
   c.input_dir = input;
+  if (!memory.empty() && !hgd::parseByteCount(memory, &c.memory))
+    throw UsageError("--memory takes a byte count such as 1500000000, 1.5G or 800M (got '" + memory + "')");
   if (scenario.empty()) throw UsageError("--scenario is required");
   if (output.empty()) throw UsageError("--output is required");
   c.scenario_path = scenario;

@@ -37,6 +37,7 @@ struct Config {
   std::string format = "same";  // "ply", "pcd" or "same"
   int shard_k = 0, shard_n = 1;
   bool sharded = false;
+  std::uint64_t memory = 0;  // --memory: a scan's cap, 0 for what the machine has available
 };
 
 // --- the scans (batch_scans.cpp) -------------------------------------------------------------

@@ -14,6 +14,7 @@
 
 #include "batch_internal.h"
 #include "batch_provenance.h"
+#include "hgdeform/app/memory.h"
 #include "hgdeform/app/regions.h"
 #include "hgdeform/app/runner.h"
 #include "hgdeform/app/scenario.h"
@@ -210,6 +211,9 @@ ScanResult processScan(const Scan& s, const Context& ctx) {
     // read by its name: the reader's precise error would quote its text into stderr and the
     // summary (the first line of a file that is no scan).
     hgd::sniffFormat(s.input.string());
+    hgd::checkDeformMemory(
+        s.input.string(), ctx.cfg.memory,
+        scenario.full_resolution.value_or(false) ? 0 : hgd::DeformOptions().multires_above);
     hgd::ScenarioRunner run = hgd::ScenarioRunner::read(s.input.string());
     run.setScenario(scenario);
     run.applyMoves();

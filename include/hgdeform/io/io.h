@@ -30,6 +30,27 @@ FileFormat formatFromPath(const std::string& path);
 /// when it cannot be read or its content matches no format.
 FileFormat sniffFormat(const std::string& path);
 
+/// What a shape file's header says of its size, read without its data (probeShapeSize).
+struct ShapeSize {
+  FileFormat format = FileFormat::Ply;
+  std::uint64_t file_bytes = 0;
+  /// Points: the header's count (PLY, PCD, LAS, OFF: `exact`), else an upper estimate from the
+  /// file's size (text rows of at least 24 bytes; STL: three a triangle). 0 when unknown.
+  std::uint64_t points = 0;
+  bool exact = false;
+  /// The bytes of a point's record in the file (text: 24, the three doubles its values are
+  /// read as; LAS: its record, whose coordinates the reader holds as doubles).
+  std::uint64_t record_bytes = 0;
+  std::uint64_t faces = 0;  ///< faces the header declares (PLY, OFF) or STL's triangles
+  bool binary = false;      ///< records of a fixed size (binary PLY and PCD, LAS, binary STL)
+  bool compressed = false;  ///< PCD binary_compressed
+};
+
+/// Reads a shape file's header only (the format by content, as readShape). Throws IoError when
+/// the file cannot be opened or matches no format; a malformed header is not an error here
+/// (readShape says what is wrong with it): the size is then unknown (points 0).
+ShapeSize probeShapeSize(const std::string& path);
+
 /// Reads a shape file. The format is the content's (sniffFormat): when the extension names
 /// another format, or none, the shape's `warnings` say which format the content was read as.
 /// One exception: a binary STL is known by its size alone, so a file named for a text format
