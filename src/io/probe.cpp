@@ -138,9 +138,14 @@ void probeOff(InputFile& in, ShapeSize& s) {
 }  // namespace
 
 ShapeSize probeShapeSize(const std::string& path) {
-  const FileFormat format = sniffFormat(path);
-  InputFile in(path);
   ShapeSize s;
+  FileFormat format = FileFormat::Ply;
+  try {
+    format = sniffFormat(path);
+  } catch (const IoError&) {  // missing, unreadable, of no format: readShape says which, as it reads
+    return s;
+  }
+  InputFile in(path);
   s.format = format;
   s.file_bytes = in.size();
   std::uint64_t data = s.file_bytes;  // the bytes after the header

@@ -46,9 +46,9 @@ struct ShapeSize {
   bool compressed = false;  ///< PCD binary_compressed
 };
 
-/// Reads a shape file's header only (the format by content, as readShape). Throws IoError when
-/// the file cannot be opened or matches no format; a malformed header is not an error here
-/// (readShape says what is wrong with it): the size is then unknown (points 0).
+/// Reads a shape file's header only (the format by content, as readShape). Never says what is
+/// wrong with a file: when it cannot be opened, matches no format, has a malformed header or a
+/// count its data cannot hold, the size is unknown (points 0) and readShape says what is wrong.
 ShapeSize probeShapeSize(const std::string& path);
 
 /// Reads a shape file. The format is the content's (sniffFormat): when the extension names
