@@ -14,6 +14,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "hgdeform/app/memory.h"
 #include "hgdeform/version.h"
 
 namespace hgdcli {
@@ -23,6 +24,14 @@ namespace hgdcli {
 struct UsageError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
+
+/// `--memory BYTES` as the user wrote it ("1.5G", "800M", hgd::parseByteCount); "" for none (0).
+inline std::uint64_t memoryOption(const std::string& text) {
+  std::uint64_t bytes = 0;
+  if (!text.empty() && !hgd::parseByteCount(text, &bytes))
+    throw UsageError("--memory takes a byte count such as 1500000000, 1.5G or 800M (got '" + text + "')");
+  return bytes;
+}
 
 /// This process's peak resident memory in MB (VmHWM in /proc/self/status), 0 where it cannot be
 /// read. Not getrusage's ru_maxrss: that also counts the image this process was forked from

@@ -277,10 +277,7 @@ int runDeform(const DeformArgs& a) {
       throw hgdcli::UsageError("--blend must be linear or rotation (got '" + a.blend + "')");
     ro.blend = blend;
   }
-  std::uint64_t memory = 0;
-  if (!a.memory.empty() && !hgd::parseByteCount(a.memory, &memory))
-    throw hgdcli::UsageError("--memory takes a byte count such as 1500000000, 1.5G or 800M (got '" +
-                             a.memory + "')");
+  const std::uint64_t memory = hgdcli::memoryOption(a.memory);
   const hgd::Scenario scenario = hgd::readScenario(scenario_path);
   // (The scenario's "resolution": "full" keeps every point in the graph, as --full-field.)
   hgd::checkDeformMemory(input, memory, scenario.full_resolution.value_or(false) ? 0 : opt.multires_above);

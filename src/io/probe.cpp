@@ -15,16 +15,11 @@ using io_internal::lower;
 using io_internal::parseU64;
 using io_internal::splitWords;
 
-std::uint64_t plyTypeBytes(std::string_view t) {
-  static const struct {
-    const char* name;
-    std::uint64_t bytes;
-  } kTypes[] = {{"char", 1},   {"int8", 1},    {"uchar", 1},  {"uint8", 1},  {"short", 2}, {"int16", 2},
-                {"ushort", 2}, {"uint16", 2},  {"int", 4},    {"int32", 4},  {"uint", 4},  {"uint32", 4},
-                {"float", 4},  {"float32", 4}, {"double", 8}, {"float64", 8}};
-  for (const auto& k : kTypes)
-    if (t == k.name) return k.bytes;
-  return 0;
+/// The bytes of a PLY scalar type named as a header names it (the reader's own table); 0 when
+/// it names none.
+std::uint64_t plyTypeBytes(std::string_view name) {
+  std::uint8_t type = 0;
+  return io_internal::plyTypeFromName(name, &type) ? datatypeSize(type) : 0;
 }
 
 /// The header's lines, up to and including the one `last` names (its first word, any case).

@@ -21,7 +21,6 @@
 #include "batch_provenance.h"
 #include "batch_report.h"
 #include "cli_common.h"
-#include "hgdeform/app/memory.h"
 #include "hgdeform/app/scenario.h"
 #include "hgdeform/io/io.h"
 #ifdef HGD_HAVE_RENDER
@@ -116,8 +115,7 @@ int parseArgs(int argc, char** argv, Config& c, bool print) {
   const int status = hgdcli::parse(app, argc, argv, print);
   if (status >= 0) return status;
   c.input_dir = input;
-  if (!memory.empty() && !hgd::parseByteCount(memory, &c.memory))
-    throw UsageError("--memory takes a byte count such as 1500000000, 1.5G or 800M (got '" + memory + "')");
+  c.memory = hgdcli::memoryOption(memory);
   if (scenario.empty()) throw UsageError("--scenario is required");
   if (output.empty()) throw UsageError("--output is required");
   c.scenario_path = scenario;
