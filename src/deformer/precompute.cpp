@@ -198,7 +198,9 @@ void precompute(const Geometry& geometry, const Handles& handles, const DeformOp
         options.points_per_coarse > 0
             ? std::min(options.coarse_points, geometry.size() / options.points_per_coarse)
             : options.coarse_points;
-    data.coarse = coarsen(*geometry.points, handles, target, geometry.faces.empty());
+    data.coarse = coarsen(*geometry.points, handles, target, geometry.faces.empty(),
+                          geometry.raw_index.size() == geometry.size() ? &geometry.raw_index : nullptr,
+                          geometry.finite_index.size());
     if (data.coarse.empty()) {  // thousands of handles: no cell key holds them all
       data.multires = false;
       setGraphInput(*data.graph, geometry);

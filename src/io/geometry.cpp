@@ -11,19 +11,16 @@
 
 #include "hgdeform/io/fields.h"
 #include "hgdeform/io/io.h"
+#include "io/frame.h"
 #include "util/parallel.h"
 #include "util/phases.h"
 #include "util/radix_sort.h"
 
 namespace hgd {
 
-namespace {
+using namespace frame;
 
-constexpr double kFarFactor = 1e6;    // a point this many times the shape's size away is set apart
-constexpr double kStrayFactor = 16;   // and one this many times, when such points are few:
-constexpr double kStrayShare = 0.01;  // at most this share of the points
-constexpr double kMaxOffset = 1e12;   // and any point this far from the shape's centre
-constexpr double kMaxExtent = 1e11;   // a shape larger than this is refused
+namespace {
 
 /// The forBlocks() blocks of `v` (one a count) each kept their first counts[b] items in place at
 /// their block's start; moves them together at the front of `v`, in block order, and resizes it.
@@ -41,36 +38,6 @@ void joinBlocks(std::vector<T>& v, const std::vector<std::size_t>& counts) {
     total += counts[b];
   }
   v.resize(total);
-}
-
-struct RobustFrame {
-  Eigen::Vector3d centre;  ///< the per-axis median
-  double extent = 0;       ///< the shape's size: twice the largest per-axis interquartile range
-};
-
-// The median and spread of a sample of at most 65,536 points taken evenly (in file order): far
-// strays, however many digits they have, cannot move either.
-RobustFrame robustFrame(const std::vector<Eigen::Vector3d>& world) {
-  const std::size_t m = world.size();
-  const std::size_t step = std::max<std::size_t>(1, m / 65536);
-  std::vector<double> v;
-  v.reserve(m / step + 1);
-  RobustFrame f;
-  for (int a = 0; a < 3; ++a) {
-    v.clear();
-    for (std::size_t k = 0; k < m; k += step) v.push_back(world[k][a]);
-    const std::size_t s = v.size();
-    auto at = [&](std::size_t r) {
-      std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(r), v.end());
-      return v[r];
-    };
-    f.centre[a] = at(s / 2);
-    // Twice the interquartile range: the shape's size along the axis for an even sampling,
-    // whatever a quarter of the points do (strays, a scanner's zero returns).
-    const double q1 = at(s / 4), q3 = at(s - 1 - s / 4);
-    f.extent = std::max(f.extent, 2 * (q3 - q1));
-  }
-  return f;
 }
 
 }  // namespace
@@ -144,15 +111,21 @@ Geometry extractGeometry(const Shape& shape) {
   // they are no part of it, yet they would set the frame's origin and size (the median and the
   // spread) and cost the deformation its precision. Set apart like far points: untouched, said.
   std::size_t no_return = 0;
+  const std::size_t frame_step = frameSampleStep(n);
   {
     const auto isZero = [](const Eigen::Vector3d& w) { return w.x() == 0 && w.y() == 0 && w.z() == 0; };
     const std::size_t zeros = static_cast<std::size_t>(std::count_if(world.begin(), world.end(), isZero));
     if (zeros > 0 && zeros < world.size()) {
       std::vector<Eigen::Vector3d> rest;
+      std::vector<int> rest_index;
       rest.reserve(world.size() - zeros);
-      for (const auto& w : world)
-        if (!isZero(w)) rest.push_back(w);
-      const RobustFrame nz = robustFrame(rest);
+      rest_index.reserve(world.size() - zeros);
+      for (std::size_t j = 0; j < world.size(); ++j)
+        if (!isZero(world[j])) {
+          rest.push_back(world[j]);
+          rest_index.push_back(g.raw_index[j]);
+        }
+      const RobustFrame nz = robustFrame(rest, rest_index, frame_step);
       const double distance = nz.centre.cwiseAbs().maxCoeff();
       if (distance > 1000 * nz.extent) {
         std::size_t k = 0;
@@ -173,7 +146,7 @@ Geometry extractGeometry(const Shape& shape) {
       }
     }
   }
-  const RobustFrame frame = robustFrame(world);
+  const RobustFrame frame = robustFrame(world, g.raw_index, frame_step);
   if (frame.extent > kMaxExtent) {
     char buf[200];
     std::snprintf(
@@ -206,31 +179,11 @@ Geometry extractGeometry(const Shape& shape) {
     std::vector<std::size_t> beyond;
     for (const auto& v : beyond_in) beyond.insert(beyond.end(), v.begin(), v.end());
     if (!beyond.empty() && static_cast<double>(beyond.size()) <= kStrayShare * static_cast<double>(m)) {
-      // Alone: no other candidate within one size (cells of that size; the body is 12 sizes away).
-      const double r = frame.extent;
-      const auto cellOf = [&](const Eigen::Vector3d& w) {
-        const Eigen::Vector3d q = ((w - frame.centre) / r).array().floor();
-        return std::array<long long, 3>{static_cast<long long>(q.x()), static_cast<long long>(q.y()),
-                                        static_cast<long long>(q.z())};
-      };
-      std::map<std::array<long long, 3>, std::vector<std::size_t>> cells;
-      for (const std::size_t j : beyond) cells[cellOf(world[j])].push_back(j);
-      for (const std::size_t j : beyond) {
-        const std::array<long long, 3> home = cellOf(world[j]);
-        bool alone = true;
-        for (long long dx = -1; dx <= 1 && alone; ++dx)
-          for (long long dy = -1; dy <= 1 && alone; ++dy)
-            for (long long dz = -1; dz <= 1 && alone; ++dz) {
-              const auto it = cells.find({home[0] + dx, home[1] + dy, home[2] + dz});
-              if (it == cells.end()) continue;
-              for (const std::size_t o : it->second)
-                if (o != j && (world[o] - world[j]).norm() <= r) {
-                  alone = false;
-                  break;
-                }
-            }
-        if (alone) strays.push_back(j);
-      }
+      // Alone: no other candidate within one size (the body is 12 sizes away).
+      std::vector<Eigen::Vector3d> at;
+      at.reserve(beyond.size());
+      for (const std::size_t j : beyond) at.push_back(world[j]);
+      for (const std::size_t k : aloneAmong(at, frame.centre, frame.extent)) strays.push_back(beyond[k]);
     }
   }
   // The frame's origin: the centre of the bounding box of the shape's body, the points within

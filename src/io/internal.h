@@ -21,6 +21,7 @@
 
 #include "hgdeform/io/fields.h"
 #include "hgdeform/io/io.h"
+#include "hgdeform/io/records.h"
 #include "io/field_codec.h"
 
 namespace hgd::io_internal {
@@ -224,6 +225,8 @@ class InputFile {
     if (buffered_) return buf_.size() - bpos_;
     return pos_ < size_ ? size_ - pos_ : 0;
   }
+  /// Where the next byte is read from, in the file.
+  std::uint64_t offset() const { return size_ - remaining(); }
   /// The file's size (without a skipped UTF-8 byte-order mark).
   std::uint64_t size() const { return size_ - skipped_; }
 
@@ -417,8 +420,10 @@ inline bool plainUnsigned(std::string_view tok) {
 // ------------------------------------------------------------------------------------------
 // The formats (ply.cpp, pcd.cpp, obj.cpp, xyz.cpp, off.cpp, stl.cpp)
 
-Shape readPly(const std::string& path);
-Shape readPcd(const std::string& path);
+/// `layout`: when given, the vertex records are not read but placed (readRecordLayout): the
+/// shape comes back without its points' data, or IoError says why the file cannot be read so.
+Shape readPly(const std::string& path, RecordLayout* layout = nullptr);
+Shape readPcd(const std::string& path, RecordLayout* layout = nullptr);
 Shape readObj(const std::string& path);
 void writePly(const std::string& path, const Shape& shape, bool ascii);
 void writePcd(const std::string& path, const Shape& shape, bool ascii);

@@ -184,7 +184,10 @@ void refuseNul(const std::string& path) {
 }
 }  // namespace
 
-Shape readShape(const std::string& path) {
+namespace {
+
+/// readShape, or with `layout` readRecordLayout's reading (the points' records placed, not read).
+Shape readShapeAs(const std::string& path, RecordLayout* layout) {
   refuseNul(path);
   const std::string ext = lower(fs::path(path).extension().string());
   const std::optional<FileFormat> by_ext = formatOfExtension(ext);
@@ -216,10 +219,13 @@ Shape readShape(const std::string& path) {
          "extension " +
              excerpt(ext) + " names none");
   const FileFormat format = by_content ? *by_content : *by_ext;
+  if (layout && format != FileFormat::Ply && format != FileFormat::Pcd)
+    fail(path, std::string("cannot read the points in place (") + formatName(format) +
+                   " files: only binary PLY and PCD); read the whole file instead");
   Shape shape;
   switch (format) {
-    case FileFormat::Ply: shape = readPly(path); break;
-    case FileFormat::Pcd: shape = readPcd(path); break;
+    case FileFormat::Ply: shape = readPly(path, layout); break;
+    case FileFormat::Pcd: shape = readPcd(path, layout); break;
     case FileFormat::Obj: shape = readObj(path); break;
     case FileFormat::Xyz:
     case FileFormat::Pts: shape = readXyz(path); break;
@@ -235,6 +241,18 @@ Shape readShape(const std::string& path) {
   shape.path = path;
   shape.format = format;
   return shape;
+}
+
+}  // namespace
+
+Shape readShape(const std::string& path) {
+  return readShapeAs(path, nullptr);
+}
+
+RecordLayout readRecordLayout(const std::string& path) {
+  RecordLayout layout;
+  layout.shape = readShapeAs(path, &layout);
+  return layout;
 }
 
 std::string extrasLost(const Shape& shape, FileFormat format) {

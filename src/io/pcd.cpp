@@ -13,7 +13,7 @@
 
 namespace hgd::io_internal {
 
-Shape readPcd(const std::string& path) {
+Shape readPcd(const std::string& path, RecordLayout* layout) {
   InputFile in(path);
   std::vector<std::string> names;
   std::vector<std::uint64_t> sizes, counts;
@@ -194,9 +194,18 @@ Shape readPcd(const std::string& path) {
       Eigen::Quaternionf(static_cast<float>(viewpoint[3]), static_cast<float>(viewpoint[4]),
                          static_cast<float>(viewpoint[5]), static_cast<float>(viewpoint[6]));
 
-  if (data_kind == "binary") {
+  if (layout && data_kind != "binary")
+    fail(path, "cannot read the points in place (" + data_kind + " PCD); read the whole file instead");
+  if (data_kind == "binary" && layout) {
+    layout->offset = in.offset();
+    layout->count = points;
+    layout->bytes = cloud.point_step;
+    in.skip(need, "point data");
+  } else if (data_kind == "binary") {
     cloud.data.resize(need);
     in.read(cloud.data.data(), need, "point data");
+  }
+  if (data_kind == "binary") {
     // PCL's binary writer sizes the file to whole pages: zeros after the last point are that
     // padding (PCL and Open3D read past them). Anything else there is data the header does not
     // declare.
@@ -284,7 +293,7 @@ Shape readPcd(const std::string& path) {
     for (const auto& f : cloud.fields) field_names.push_back(f.name);
     decimals.store(shape.extras, field_names);
   }
-  cloud.is_dense = computeDense(cloud);
+  cloud.is_dense = layout ? false : computeDense(cloud);
   return shape;
 }
 

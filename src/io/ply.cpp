@@ -93,7 +93,7 @@ void organizeRangeGrid(Shape& shape) {
 
 }  // namespace
 
-Shape readPly(const std::string& path) {
+Shape readPly(const std::string& path, RecordLayout* layout) {
   InputFile in(path);
   std::string line;
   if (!in.readLine(&line, 64) || splitWords(line).size() != 1 || splitWords(line)[0] != "ply")
@@ -210,6 +210,21 @@ Shape readPly(const std::string& path) {
   if (vel.count > std::numeric_limits<std::uint32_t>::max())
     fail(path, "unsupported: " + num(vel.count) + " vertices (at most 4294967295)");
 
+  if (layout) {  // the vertex records placed, not read: they must be records of one size, first
+    const auto cannot = [&](const std::string& why) {
+      fail(path, "cannot read the points in place (" + why + "); read the whole file instead");
+    };
+    if (format == PlyFormat::Ascii) cannot("ascii PLY");
+    if ((format == PlyFormat::BinaryBE) != kHostBigEndian) cannot("big-endian PLY");
+    if (!vel.allScalar()) cannot("the vertex element has list properties");
+    for (int e = 0; e < vertex_el; ++e)
+      if (elements[static_cast<std::size_t>(e)].count > 0 &&
+          !elements[static_cast<std::size_t>(e)].props.empty())
+        cannot("element '" + elements[static_cast<std::size_t>(e)].name + "' comes before the vertices");
+    for (const auto& el : elements)
+      if (el.name == "range_grid") cannot("an organized PLY (range_grid)");
+  }
+
   Shape shape;
   pcl::PCLPointCloud2& cloud = shape.cloud;
   // Everything not held in the cloud's fields or the polygons is kept aside (FileExtras).
@@ -249,7 +264,7 @@ Shape readPly(const std::string& path) {
   cloud.point_step = step;
   cloud.row_step = step * nverts;
   cloud.is_bigendian = false;
-  cloud.data.resize(static_cast<std::size_t>(nverts) * step);
+  if (!layout) cloud.data.resize(static_cast<std::size_t>(nverts) * step);
 
   if (binary) {
     const bool swap = (format == PlyFormat::BinaryBE) != kHostBigEndian;
@@ -259,7 +274,12 @@ Shape readPly(const std::string& path) {
       const bool is_vertex = static_cast<int>(e) == vertex_el;
       std::vector<double>& kept_values = extra[e].values;
       if (el.allScalar()) {
-        if (is_vertex) {
+        if (is_vertex && layout) {
+          layout->offset = in.offset();
+          layout->count = nverts;
+          layout->bytes = step;
+          in.skip(static_cast<std::uint64_t>(nverts) * step, "vertex data");
+        } else if (is_vertex) {
           in.read(cloud.data.data(), cloud.data.size(), "vertex data");
         } else {
           const std::uint8_t* d = in.take(el.count * el.minBytes(), "element data");
@@ -419,11 +439,11 @@ Shape readPly(const std::string& path) {
     decimals.store(shape.extras, vertex_names);
   }
 
-  cloud.is_dense = computeDense(cloud);
+  cloud.is_dense = layout ? false : computeDense(cloud);
   shape.extras.ply_comments = std::move(comments);
   shape.extras.ply_big_endian = format == PlyFormat::BinaryBE;
   if (any_extra) shape.extras.ply_elements = std::move(extra);
-  organizeRangeGrid(shape);
+  if (!layout) organizeRangeGrid(shape);
   return shape;
 }
 

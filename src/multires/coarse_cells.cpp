@@ -8,7 +8,7 @@
 namespace hgd::coarse {
 
 Cells findCells(const pcl::PointCloud<pcl::PointXYZ>& points, const UninitVector<std::uint16_t>& cls,
-                const Grid& grid, std::uint64_t max_key) {
+                const Grid& grid, std::uint64_t max_key, const int* file_index) {
   Cells out;
   const long long n = static_cast<long long>(points.size());
   const int blocks = chunkCount(n);
@@ -36,7 +36,7 @@ Cells findCells(const pcl::PointCloud<pcl::PointXYZ>& points, const UninitVector
     // distance so far is all ones, above every distance. No key is all ones (at most 63 bits).
     std::size_t r = ~std::size_t{0};
     std::uint64_t key = ~std::uint64_t{0};
-    std::uint32_t start = 0, best = 0, best_d = 0;
+    std::uint32_t start = 0, best = 0, best_d = 0, best_f = 0;
     for (auto i = static_cast<std::uint32_t>(begin); i < static_cast<std::uint32_t>(end); ++i) {
       float d = 0;
       const std::uint64_t k = grid.key(points[i].getVector3fMap(), cls[i], d);
@@ -48,8 +48,12 @@ Cells findCells(const pcl::PointCloud<pcl::PointXYZ>& points, const UninitVector
       key = k;
       start = (i & all) | (start & ~all);
       const std::uint32_t so_far = best_d | all;
-      const std::uint32_t nearer = 0u - static_cast<std::uint32_t>(bits < so_far);
+      // Nearer, or as near and earlier in the file (a new run's first point is always nearer).
+      const std::uint32_t f = fileOf(file_index, i);
+      const std::uint32_t nearer =
+          0u - static_cast<std::uint32_t>((bits < so_far) | ((bits == so_far) & (f < best_f)));
       best = (i & nearer) | (best & ~nearer);
+      best_f = (f & nearer) | (best_f & ~nearer);
       best_d = (bits & nearer) | (so_far & ~nearer);
       p_start[r] = start;
       p_key[r] = key;

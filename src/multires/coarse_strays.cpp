@@ -9,7 +9,8 @@
 namespace hgd::coarse {
 
 UninitVector<char> findStrays(const pcl::PointCloud<pcl::PointXYZ>& points, const Grid& grid,
-                              std::size_t classes, const Cells& cell_points) {
+                              std::size_t classes, const Cells& cell_points, const int* file_index,
+                              std::size_t records) {
   const std::size_t n = points.size(), cells = cell_points.count();
   UninitVector<char> stray = zeros<char>(n);
   const std::vector<std::uint64_t>& cell_key = cell_points.key;
@@ -68,23 +69,17 @@ UninitVector<char> findStrays(const pcl::PointCloud<pcl::PointXYZ>& points, cons
         }
       }
   };
-  // The typical distance to the second nearest point, over about 2,000 points of full cells
-  // (on every thread, kept in sample order): every stride-th point, the cells in key order.
-  const std::size_t stride = std::max<std::size_t>(1, n / 2000);
-  const long long samples = static_cast<long long>((n + stride - 1) / stride);
-  std::vector<std::size_t> cell_at(cells + 1, 0);  // where each cell's points start in that order
-  for (std::size_t c = 0; c < cells; ++c) cell_at[c + 1] = cell_at[c] + cell_points.size[c];
-  std::vector<float> second(static_cast<std::size_t>(samples), INFINITY);
+  // The typical distance to the second nearest point, over about 2,000 points: those whose index
+  // in the file is a multiple of the stride (on every thread, kept in the points' order; the
+  // limit below is the same whatever the order).
+  const std::size_t stride = straySampleStride(std::max(records, n));
+  const std::vector<int> sampled = indicesWhere(
+      static_cast<long long>(n), [&](std::size_t i) { return fileOf(file_index, i) % stride == 0; });
+  const long long samples = static_cast<long long>(sampled.size());
+  std::vector<float> second(sampled.size(), INFINITY);
 #pragma omp parallel for schedule(dynamic, 16) if (samples > 256 && n > kParallelMin)
   for (long long s = 0; s < samples; ++s) {
-    const std::size_t at = static_cast<std::size_t>(s) * stride;
-    const auto c =
-        static_cast<std::size_t>(std::upper_bound(cell_at.begin(), cell_at.end(), at) - cell_at.begin()) - 1;
-    std::size_t i = 0, k = cell_at[c];
-    cell_points.eachPoint(c, [&](std::size_t j) {
-      i = j;
-      return k++ < at;
-    });
+    const auto i = static_cast<std::size_t>(sampled[static_cast<std::size_t>(s)]);
     float d1 = INFINITY, d2 = INFINITY;
     around(
         i, [&] { return d2; },

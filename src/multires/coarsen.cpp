@@ -26,10 +26,46 @@ using coarse::findStrays;
 using coarse::Grid;
 using coarse::zeros;
 
+namespace coarse {
+
+Grid sizeGrid(const Eigen::Vector3f& lo, const Eigen::Vector3f& hi, std::size_t target, int class_bits,
+              const std::vector<Eigen::Vector3f>& sample_at, const std::vector<std::uint16_t>& sample_cls) {
+  const Eigen::Vector3f extent = hi - lo;
+  const float diag = std::max(extent.norm(), 1e-12f);
+  Grid grid;
+  grid.lo = lo;
+  // At most 2^17 cells along an axis, so that a key fits 64 bits with the class.
+  const float min_h = std::max(extent.maxCoeff(), 1e-12f) / static_cast<float>((1 << kMaxAxisBits) - 2);
+  auto setH = [&](float h) {
+    grid.h = std::max(h, min_h);
+    const auto dims = static_cast<std::uint64_t>(std::floor(extent.maxCoeff() / grid.h)) + 1;
+    grid.axis_bits = std::max(1, bitsFor(dims));
+  };
+  // A surface's cells grow as 1/h^2: start from the diagonal and correct a few times, counting
+  // on the subset (about four points per wanted cell; a cell the subset misses is rare).
+  setH(diag / std::sqrt(static_cast<float>(target)));
+  for (int round = 0; round < 8; ++round) {
+    const double ratio =
+        static_cast<double>(countCells(sample_at, sample_cls, grid, grid.maxKey(class_bits))) / target;
+    if (ratio > 0.85 && ratio < 1.15) break;
+    const float before = grid.h;
+    // Curves grow as 1/h, volumes as 1/h^3; the square root is a safe middle.
+    setH(grid.h * static_cast<float>(std::clamp(std::sqrt(ratio), 0.25, 4.0)));
+    if (grid.h == before) break;  // at the finest grid allowed
+  }
+  return grid;
+}
+
+}  // namespace coarse
+
 CoarseLevel coarsen(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles& handles, std::size_t target,
-                    bool find_strays) {
+                    bool find_strays, const std::vector<int>* file_index, std::size_t records) {
   CoarseLevel out;
   const std::size_t n = points.size();
+  if (file_index && file_index->size() != n)
+    throw std::invalid_argument("coarsen: the file indices and the points differ in size");
+  const int* const fidx = file_index ? file_index->data() : nullptr;
+  records = std::max(records, n);
   if (n == 0 || target == 0) return out;
   // Points are indexed by int here, as everywhere in the library (handles, coarse points).
   if (n > static_cast<std::size_t>(std::numeric_limits<int>::max()))
@@ -40,8 +76,7 @@ CoarseLevel coarsen(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles&
   // its own points and a joint smaller than a cell keeps one.
   const std::size_t classes = 2 + handles.fixed.size() + handles.joints.size();
   const int class_bits = bitsFor(classes - 1);
-  constexpr int kMaxAxisBits = 17;
-  if (3 * kMaxAxisBits + class_bits >= 64 || classes > 65535) return out;
+  if (3 * coarse::kMaxAxisBits + class_bits >= 64 || classes > 65535) return out;
   // (Each list on every thread, the lists in this order: a later class wins, as before.)
   UninitVector<std::uint16_t> cls = zeros<std::uint16_t>(n);
   const auto mark = [&cls](const std::vector<int>& list, std::size_t value) {
@@ -56,51 +91,32 @@ CoarseLevel coarsen(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles&
   mark(handles.manipulated, 1);
 
   const Eigen::AlignedBox3f box = boundingBox(points);
-  const Eigen::Vector3f lo = box.min(), hi = box.max();
-  const Eigen::Vector3f extent = hi - lo;
-  const float diag = std::max(extent.norm(), 1e-12f);
-  Grid grid;
-  grid.lo = lo;
-  // At most 2^17 cells along an axis, so that a key fits 64 bits with the class.
-  const float min_h = std::max(extent.maxCoeff(), 1e-12f) / static_cast<float>((1 << kMaxAxisBits) - 2);
-  auto setH = [&](float h) {
-    grid.h = std::max(h, min_h);
-    const auto dims = static_cast<std::uint64_t>(std::floor(extent.maxCoeff() / grid.h)) + 1;
-    grid.axis_bits = std::max(1, bitsFor(dims));
-  };
-  auto maxKey = [&] { return (std::uint64_t{1} << (3 * grid.axis_bits + class_bits)) - 1; };
-  // A surface's cells grow as 1/h^2: start from the diagonal and correct a few times, counting on
-  // a strided subset of about four points per wanted cell (a cell the subset misses is rare).
-  setH(diag / std::sqrt(static_cast<float>(target)));
-  const std::size_t stride = std::max<std::size_t>(1, n / (4 * target));
+  // The grid's sizing subset (see sizeGrid): the points whose index in the file is a multiple
+  // of a stride, a set that does not depend on the order the points come in here.
+  const std::size_t stride = coarse::gridSampleStride(records, target);
+  const std::vector<int> picked = indicesWhere(
+      static_cast<long long>(n), [&](std::size_t i) { return coarse::fileOf(fidx, i) % stride == 0; });
   // Gathered once (a strided read of every round's subset cost a cache miss a point).
-  const std::size_t sampled = (n + stride - 1) / stride;
+  const std::size_t sampled = picked.size();
   std::vector<Eigen::Vector3f> sample_at(sampled);
   std::vector<std::uint16_t> sample_cls(sampled);
   const long long ns = static_cast<long long>(sampled);
 #pragma omp parallel for schedule(static) if (ns > kParallelMin)
   for (long long k = 0; k < ns; ++k) {
-    const std::size_t i = static_cast<std::size_t>(k) * stride;
+    const auto i = static_cast<std::size_t>(picked[static_cast<std::size_t>(k)]);
     sample_at[static_cast<std::size_t>(k)] = points[i].getVector3fMap();
     sample_cls[static_cast<std::size_t>(k)] = cls[i];
   }
-  for (int round = 0; round < 8; ++round) {
-    const double ratio = static_cast<double>(countCells(sample_at, sample_cls, grid, maxKey())) / target;
-    if (ratio > 0.85 && ratio < 1.15) break;
-    const float before = grid.h;
-    // Curves grow as 1/h, volumes as 1/h^3; the square root is a safe middle.
-    setH(grid.h * static_cast<float>(std::clamp(std::sqrt(ratio), 0.25, 4.0)));
-    if (grid.h == before) break;  // at the finest grid allowed
-  }
-
+  const Grid grid = coarse::sizeGrid(box.min(), box.max(), target, class_bits, sample_at, sample_cls);
+  const auto maxKey = [&] { return grid.maxKey(class_bits); };
   clock.lap("coarsen.grid");
   // Every point's cell, as runs of points; the cells in key order (neighbouring cells stay near
   // in memory).
-  Cells cell_points = findCells(points, cls, grid, maxKey());
+  Cells cell_points = findCells(points, cls, grid, maxKey(), fidx);
   clock.lap("coarsen.cells");
   out.cell = grid.h;
   const UninitVector<char> stray =
-      find_strays ? findStrays(points, grid, classes, cell_points) : zeros<char>(n);
+      find_strays ? findStrays(points, grid, classes, cell_points, fidx, records) : zeros<char>(n);
   clock.lap("coarsen.strays");
   // The strays in order, listed on every thread (a serial pass over every point before).
   out.strays = indicesWhere(static_cast<long long>(n), [&stray](std::size_t i) { return stray[i] != 0; });
@@ -115,8 +131,12 @@ CoarseLevel coarsen(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles&
     has_stray[cell_points.run_cell[r]] = 1;
   }
 
-  // The point nearest its cell's centre stands for the cell; every point of the cell (but its
-  // strays) is anchored there. (A cell without strays: the nearest of its runs' nearest.)
+  // The point nearest its cell's centre stands for the cell (of equals, the first in the file);
+  // every point of the cell (but its strays) is anchored there. (A cell without strays: the
+  // nearest of its runs' nearest.)
+  const auto earlier = [fidx](std::size_t i, int than) {
+    return coarse::fileOf(fidx, i) < coarse::fileOf(fidx, static_cast<std::size_t>(than));
+  };
   const long long cc_count = static_cast<long long>(cells);
   std::vector<int> best(cells, -1);
   std::vector<std::uint32_t> count(cells, 0);
@@ -127,7 +147,8 @@ CoarseLevel coarsen(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles&
     if (!has_stray[c]) {
       for (std::uint32_t s = cell_points.first[c]; s < cell_points.first[c + 1]; ++s) {
         const std::uint32_t r = cell_points.runs[s];
-        if (cell_points.run_best_d[r] < best_d || best[c] < 0) {
+        if (best[c] < 0 || cell_points.run_best_d[r] < best_d ||
+            (cell_points.run_best_d[r] == best_d && earlier(cell_points.run_best[r], best[c]))) {
           best_d = cell_points.run_best_d[r];
           best[c] = static_cast<int>(cell_points.run_best[r]);
         }
@@ -139,7 +160,7 @@ CoarseLevel coarsen(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles&
       if (stray[i]) return true;
       float d = 0;
       grid.key(points[i].getVector3fMap(), 0, d);  // (the distance to the centre alone)
-      if (d < best_d || best[c] < 0) {
+      if (best[c] < 0 || d < best_d || (d == best_d && earlier(i, best[c]))) {
         best_d = d;
         best[c] = static_cast<int>(i);
       }

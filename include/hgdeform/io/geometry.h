@@ -10,6 +10,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <Eigen/SVD>
+#include <cstddef>
 #include <string>
 #include <vector>
 
@@ -46,6 +47,13 @@ struct Geometry {
   /// World coordinates of finite point i.
   Eigen::Vector3d world(std::size_t i) const { return (*points)[i].getVector3fMap().cast<double>() + origin; }
 };
+
+/// The local frame's sample: the records whose index in the file is a multiple of this (at most
+/// about 65,536 of a file's `records`; those that are finite), so that a pass over a file can
+/// take it without knowing first which records are finite.
+inline std::size_t frameSampleStep(std::size_t records) {
+  return records > 65536 ? records / 65536 : 1;
+}
 
 /// Extracts the finite points (and normals, faces) of a shape. Throws IoError naming the file
 /// when it has no x/y/z fields or no finite point, or when its points span more than 1e11 units

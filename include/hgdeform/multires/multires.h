@@ -32,8 +32,15 @@ struct CoarseLevel {
 /// About `target` coarse points (within ±15% where the cloud allows). Empty when the handles
 /// are too many to key the cells by (thousands): the caller stays at full resolution. Handle
 /// indices must be valid. `find_strays`: a cloud's (a mesh has none).
+/// `file_index`: each point's index in the file (Geometry::raw_index; null: its index here), and
+/// `records` the file's record count (at least the points'): the grid's sizing subset and the
+/// strays' typical-distance sample are the points at file indices on a stride, and of points as
+/// near their cell's centre the first in the file stands for it. The level so depends on the
+/// points and their indices in the file, not on the order they come in here (the Morton order),
+/// which a build that streams the file can reproduce.
 CoarseLevel coarsen(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles& handles, std::size_t target,
-                    bool find_strays = true);
+                    bool find_strays = true, const std::vector<int>* file_index = nullptr,
+                    std::size_t records = 0);
 
 /// The handles (and joints) of the coarse level: the anchors of their points.
 Handles coarseHandles(const Handles& handles, const CoarseLevel& level);

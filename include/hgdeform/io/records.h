@@ -1,0 +1,52 @@
+// Shape files whose points are records of one size, one after another at a known place (binary
+// PLY, binary PCD): read in blocks, in place, without holding every point. What a streamed
+// build (a scan larger than memory) reads.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "hgdeform/io/shape.h"
+
+namespace hgd {
+
+/// A file's points as fixed-size records at `offset` (readRecordLayout).
+struct RecordLayout {
+  /// The file as read without its points' data: its fields (`cloud.fields`, `point_step`,
+  /// `width` x `height`), the sensor pose, its extras (PLY elements after the vertices,
+  /// comments); `cloud.data` is empty.
+  Shape shape;
+  std::uint64_t offset = 0;  ///< where the first record starts in the file
+  std::uint64_t count = 0;   ///< records
+  std::uint32_t bytes = 0;   ///< a record's size (the cloud's point_step)
+};
+
+/// Reads a file's header, and whatever of it is not the points' records, as readShape would.
+/// Throws IoError naming the file and the problem when it is malformed (as readShape says) or
+/// when its points are not fixed-size records in the host's byte order that can be read in
+/// place: ascii, binary_compressed PCD, big-endian PLY, a vertex element with list properties or
+/// after another element with data, PCL's organized PLY (range_grid), other formats.
+RecordLayout readRecordLayout(const std::string& path);
+
+/// Reads blocks of a layout's records (pread: one reader may serve threads reading apart).
+class RecordReader {
+ public:
+  explicit RecordReader(const RecordLayout& layout);
+  ~RecordReader();
+  RecordReader(const RecordReader&) = delete;
+  RecordReader& operator=(const RecordReader&) = delete;
+
+  /// Records [first, first + count) into `out` (count x bytes). Throws IoError naming the file
+  /// when it cannot be read (it shrank since its header was read).
+  void read(std::uint64_t first, std::size_t count, std::uint8_t* out) const;
+  const RecordLayout& layout() const { return layout_; }
+
+ private:
+  const RecordLayout& layout_;
+  int fd_ = -1;
+};
+
+}  // namespace hgd

@@ -1,0 +1,35 @@
+// The local frame of a shape's points (internal; Geometry and the streamed build): its centre and
+// size from an even sample, and which points lie so far from it that they are set apart.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstddef>
+#include <vector>
+
+namespace hgd::frame {
+
+constexpr double kFarFactor = 1e6;    // a point this many times the shape's size away is set apart
+constexpr double kStrayFactor = 16;   // and one this many times, when such points are few:
+constexpr double kStrayShare = 0.01;  // at most this share of the points
+constexpr double kMaxOffset = 1e12;   // and any point this far from the shape's centre
+constexpr double kMaxExtent = 1e11;   // a shape larger than this is refused
+
+struct RobustFrame {
+  Eigen::Vector3d centre;  ///< the per-axis median
+  double extent = 0;       ///< the shape's size: twice the largest per-axis interquartile range
+};
+
+/// The median and spread of an even sample of the points: those whose index in the file
+/// (`file_index`, parallel to `world`) is a multiple of `step` (frameSampleStep). Far strays,
+/// however many digits they have, cannot move either. A choice by file index, not by rank among
+/// the finite points, is one a pass over the file can make without counting first. A sample the
+/// strided records leave empty (every one NaN) is every point.
+RobustFrame robustFrame(const std::vector<Eigen::Vector3d>& world, const std::vector<int>& file_index,
+                        std::size_t step);
+
+/// Of points beyond 16 sizes (`at`), those alone: no other of them within one size `r` (`centre`:
+/// the frame's). Their positions in `at`, ascending.
+std::vector<std::size_t> aloneAmong(const std::vector<Eigen::Vector3d>& at, const Eigen::Vector3d& centre,
+                                    double r);
+
+}  // namespace hgd::frame

@@ -1,0 +1,555 @@
+// The coarse level by passes over a file's records (hgdeform/multires/streamed.h): the rules of
+// extractGeometry (io/geometry.cpp, io/frame.h) and coarsen (multires/coarsen.cpp,
+// coarse_cells.cpp, coarse_strays.cpp) applied as records stream by. Every choice those rules
+// make depends on the points and their file indices, not on their order in memory, so the level
+// is theirs, point for point (tests/test_stream.cpp).
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <numeric>
+#include <unordered_map>
+#include <unordered_set>
+
+#include "graph/nearest.h"
+#include "graph/stray_rule.h"
+#include "hgdeform/io/fields.h"
+#include "hgdeform/io/geometry.h"
+#include "hgdeform/io/io.h"
+#include "hgdeform/multires/streamed.h"
+#include "io/frame.h"
+#include "multires/coarse_grid.h"
+#include "multires/record_blocks.h"
+
+namespace hgd {
+
+namespace {
+
+using coarse::Grid;
+using stream::Blocks;
+
+bool isZero(const Eigen::Vector3d& w) {
+  return w.x() == 0 && w.y() == 0 && w.z() == 0;
+}
+
+/// Walks ascending record lists alongside a pass over ascending records.
+class SortedCursor {
+ public:
+  explicit SortedCursor(const std::vector<std::uint64_t>& v) : v_(v) {}
+  bool has(std::uint64_t record) {
+    while (at_ < v_.size() && v_[at_] < record) ++at_;
+    return at_ < v_.size() && v_[at_] == record;
+  }
+
+ private:
+  const std::vector<std::uint64_t>& v_;
+  std::size_t at_ = 0;
+};
+
+struct CellAcc {
+  std::uint32_t count = 0;
+  float best_d = 0;
+  std::uint64_t best = std::numeric_limits<std::uint64_t>::max();
+  Eigen::Vector3f p = Eigen::Vector3f::Zero();
+  Eigen::Vector3d w = Eigen::Vector3d::Zero();
+  Eigen::Vector3f n = Eigen::Vector3f::Zero();
+  /// Takes the point if nearer the centre, or as near and earlier in the file (coarsen's rule).
+  void offer(std::uint64_t record, float d, const Eigen::Vector3f& at, const Eigen::Vector3d& world,
+             const Eigen::Vector3f& normal) {
+    if (best == std::numeric_limits<std::uint64_t>::max() || d < best_d || (d == best_d && record < best)) {
+      best = record;
+      best_d = d;
+      p = at;
+      w = world;
+      n = normal;
+    }
+  }
+};
+
+/// A point the stray rule looks at.
+struct Near {
+  std::uint64_t record;
+  Eigen::Vector3f p;
+  Eigen::Vector3d w;
+  Eigen::Vector3f n;
+};
+
+}  // namespace
+
+std::uint32_t StreamedLevel::mortonKey(const Eigen::Vector3d& w) const {
+  // Geometry's (io/geometry.cpp): 10 bits an axis of the body's bounding cube.
+  auto spread = [](std::uint32_t v) {
+    std::uint32_t x = v & 0x3ffu;
+    x = (x | (x << 16)) & 0x030000ffu;
+    x = (x | (x << 8)) & 0x0300f00fu;
+    x = (x | (x << 4)) & 0x030c30c3u;
+    x = (x | (x << 2)) & 0x09249249u;
+    return x;
+  };
+  const Eigen::Vector3d q = ((w - morton_lo) * morton_scale).cwiseMax(0.0).cwiseMin(1023.0);
+  return spread(static_cast<std::uint32_t>(q.x())) | (spread(static_cast<std::uint32_t>(q.y())) << 1) |
+         (spread(static_cast<std::uint32_t>(q.z())) << 2);
+}
+
+int StreamedLevel::classOf(std::uint64_t record) const {
+  const auto it = std::lower_bound(record_class.begin(), record_class.end(), std::make_pair(record, -1));
+  return it != record_class.end() && it->first == record ? it->second : 0;
+}
+
+bool StreamedLevel::kept(std::uint64_t record, const Eigen::Vector3d& world) const {
+  if (zeros_apart && isZero(world)) return false;
+  const double d = (world - frame_centre).cwiseAbs().maxCoeff();
+  if (d > far) return false;
+  return !(d > stray_distance && std::binary_search(far_strays.begin(), far_strays.end(), record));
+}
+
+std::uint32_t StreamedLevel::anchorOf(std::uint64_t record, const Eigen::Vector3f& p, int cls) const {
+  const auto s = std::lower_bound(strays.begin(), strays.end(), record);
+  if (s != strays.end() && *s == record) return stray_anchor[static_cast<std::size_t>(s - strays.begin())];
+  Grid grid;
+  grid.lo = grid_lo;
+  grid.h = cell;
+  grid.axis_bits = axis_bits;
+  const std::uint64_t key = grid.key(p, cls);
+  const auto it = std::lower_bound(cell_key.begin(), cell_key.end(), key);
+  if (it == cell_key.end() || *it != key) return 0;  // (not a kept point of the file)
+  return cell_id[static_cast<std::size_t>(it - cell_key.begin())];
+}
+
+StreamedLevel streamCoarseLevel(const RecordLayout& layout, const RecordHandles& handles,
+                                const StreamedLevelOptions& options) {
+  using namespace frame;
+  const std::string& path = layout.shape.path;
+  const std::string prefix = path.empty() ? std::string() : path + ": ";
+  StreamedLevel out;
+  const std::uint64_t n_records = layout.count;
+  out.records = n_records;
+  if (n_records == 0) throw IoError(path + ": no points");
+  if (n_records > static_cast<std::uint64_t>(std::numeric_limits<int>::max()))
+    throw IoError(path + ": " + std::to_string(n_records) + " points, more than 2,147,483,647");
+  Blocks blocks(layout, options.block);
+
+  // The frame's sample: the finite records at file indices on a stride (Geometry's).
+  const std::size_t step = frameSampleStep(n_records);
+  std::vector<Eigen::Vector3d> sample, sample_nz;
+  std::vector<int> sample_index, sample_nz_index;
+  blocks.strided(step, [&](std::uint64_t i, std::size_t k) {
+    const Eigen::Vector3d w = blocks.world(k);
+    if (!w.allFinite()) return;
+    sample.push_back(w);
+    sample_index.push_back(static_cast<int>(i));
+    if (!isZero(w)) {
+      sample_nz.push_back(w);
+      sample_nz_index.push_back(static_cast<int>(i));
+    }
+  });
+  const auto unreproducible = [&] {
+    throw IoError(path +
+                  ": cannot build the coarse level by passes: no finite point of the frame's sample "
+                  "(every record at a multiple of " +
+                  std::to_string(step) + "); read the whole file instead");
+  };
+  // A scanner's 'no return' points at (0, 0, 0), set apart when the shape lies far from them.
+  RobustFrame nz;
+  double nz_distance = 0;
+  if (!sample_nz.empty()) {
+    nz = robustFrame(sample_nz, sample_nz_index, step);
+    nz_distance = nz.centre.cwiseAbs().maxCoeff();
+    out.zeros_apart = nz_distance > 1000 * nz.extent;
+  }
+  if (sample.empty()) unreproducible();
+  const RobustFrame fr = out.zeros_apart ? nz : robustFrame(sample, sample_index, step);
+  if (fr.extent > kMaxExtent) {
+    char buf[200];
+    std::snprintf(buf, sizeof buf,
+                  ": the points span %.3g units (the middle half of them, doubled): more than hgdeform can "
+                  "deform (%.0e); are the coordinates corrupt?",
+                  fr.extent, kMaxExtent);
+    throw IoError(path + buf);
+  }
+  out.frame_centre = fr.centre;
+  out.far = fr.extent > 0 ? std::min(kFarFactor * fr.extent, kMaxOffset) : kMaxOffset;
+  out.stray_distance = fr.extent > 0 ? std::min(kStrayFactor * fr.extent, out.far) : out.far;
+  const double body = fr.extent > 0 ? 4 * fr.extent : INFINITY;
+
+  // The strays' typical-distance sample: the kept points at file indices on a stride.
+  const std::size_t stray_stride = coarse::straySampleStride(n_records);
+
+  // Pass 1: what is set apart, the body, the bounds, whether every kept normal is usable.
+  struct Beyond {
+    std::uint64_t record;
+    Eigen::Vector3d w;
+  };
+  std::vector<Beyond> beyond;
+  const std::uint64_t beyond_cap = n_records / 100 + 1;
+  bool beyond_overflow = false;
+  std::uint64_t finite = 0, zeros = 0, far_count = 0, beyond_count = 0;
+  double farthest = 0;
+  Eigen::Vector3d body_lo = Eigen::Vector3d::Constant(INFINITY), body_hi = -body_lo;
+  Eigen::Vector3d lo = body_lo, hi = body_hi, beyond_lo = body_lo, beyond_hi = body_hi;
+  bool normals_ok = blocks.hasNormals(), beyond_normals_ok = true;
+  blocks.each([&](std::uint64_t i, std::size_t k) {
+    const Eigen::Vector3d w = blocks.world(k);
+    if (!w.allFinite()) return;
+    ++finite;
+    if (out.zeros_apart && isZero(w)) {
+      ++zeros;
+      return;
+    }
+    const double d = (w - fr.centre).cwiseAbs().maxCoeff();
+    if (d > out.far) {
+      ++far_count;
+      farthest = std::max(farthest, d);
+      return;
+    }
+    Eigen::Vector3f nv;
+    const bool has_normal = blocks.normal(k, nv);
+    if (d > out.stray_distance && fr.extent > 0) {  // a stray, if few and alone
+      ++beyond_count;
+      if (beyond.size() < beyond_cap)
+        beyond.push_back({i, w});
+      else
+        beyond_overflow = true;
+      beyond_lo = beyond_lo.cwiseMin(w);
+      beyond_hi = beyond_hi.cwiseMax(w);
+      beyond_normals_ok = beyond_normals_ok && has_normal;
+      return;
+    }
+    if (d <= body) {
+      body_lo = body_lo.cwiseMin(w);
+      body_hi = body_hi.cwiseMax(w);
+    }
+    lo = lo.cwiseMin(w);
+    hi = hi.cwiseMax(w);
+    normals_ok = normals_ok && has_normal;
+  });
+  if (finite == 0)
+    throw IoError(path + ": no finite points (all " + std::to_string(n_records) + " are NaN/inf)");
+  if (sample_nz.empty() && finite > 0) {
+    // Every sampled record is at (0, 0, 0): Geometry's frame of the others would be a sample of
+    // every one of them, which needs another pass; only a shape of nothing but zeros is this.
+    std::uint64_t nonzero = 0;
+    blocks.each([&](std::uint64_t, std::size_t k) {
+      const Eigen::Vector3d w = blocks.world(k);
+      nonzero += w.allFinite() && !isZero(w);
+    });
+    if (nonzero > 0) unreproducible();
+  }
+  const std::uint64_t m = finite - zeros;  // Geometry's world after the zeros
+  if (!beyond_overflow && !beyond.empty() &&
+      static_cast<double>(beyond.size()) <= kStrayShare * static_cast<double>(m)) {
+    std::vector<Eigen::Vector3d> at;
+    for (const Beyond& b : beyond) at.push_back(b.w);
+    for (const std::size_t k : aloneAmong(at, fr.centre, fr.extent)) {
+      out.far_strays.push_back(beyond[k].record);
+      ++far_count;
+      farthest = std::max(farthest, (beyond[k].w - fr.centre).cwiseAbs().maxCoeff());
+    }
+  }
+  // The beyond points kept: all of them, or all but the strays.
+  if (out.far_strays.empty()) {
+    lo = lo.cwiseMin(beyond_lo);
+    hi = hi.cwiseMax(beyond_hi);
+    normals_ok = normals_ok && beyond_normals_ok;
+  } else {
+    Blocks one(layout, 1);
+    for (const Beyond& b : beyond) {
+      if (std::binary_search(out.far_strays.begin(), out.far_strays.end(), b.record)) continue;
+      lo = lo.cwiseMin(b.w);
+      hi = hi.cwiseMax(b.w);
+      Eigen::Vector3f nv;
+      one.load(b.record, 1);
+      normals_ok = normals_ok && one.normal(0, nv);
+    }
+  }
+  out.points = m - far_count;
+  if (zeros > 0) {
+    char buf[300];
+    std::snprintf(buf, sizeof buf,
+                  "%llu %s at exactly (0, 0, 0), %.3g units from the shape (whose size is %.3g): a "
+                  "scanner's 'no return' points, left where they are, untouched",
+                  static_cast<unsigned long long>(zeros), zeros == 1 ? "point lies" : "points lie",
+                  nz_distance, nz.extent);
+    out.warnings.push_back(prefix + buf);
+  }
+  out.far_points = far_count + zeros;
+  if (far_count > 0) {
+    char buf[300];
+    std::snprintf(buf, sizeof buf,
+                  "%llu %s more than %.3g units from the shape (whose size is %.3g; the farthest "
+                  "%.3g away): left where they are, untouched",
+                  static_cast<unsigned long long>(far_count), far_count == 1 ? "point lies" : "points lie",
+                  out.far_strays.empty() ? out.far : out.stray_distance, fr.extent, farthest);
+    out.warnings.push_back(prefix + buf);
+  }
+  if (out.points == 0) throw IoError(path + ": no finite points");
+  out.origin = (0.5 * (body_lo + body_hi)).array().round().matrix();
+  out.body = Eigen::AlignedBox3f((body_lo - out.origin).cast<float>(), (body_hi - out.origin).cast<float>());
+  out.file_normals = normals_ok;
+  const double morton_extent = (body_hi - body_lo).maxCoeff();
+  out.morton_lo = body_lo;
+  out.morton_scale = morton_extent > 0 ? 1023.0 / morton_extent : 0.0;
+
+  // The coarse level's size and classes (coarsen's).
+  const std::size_t target =
+      options.points_per_coarse > 0
+          ? std::min<std::size_t>(options.coarse_points,
+                                  static_cast<std::size_t>(out.points / options.points_per_coarse))
+          : options.coarse_points;
+  const std::size_t classes = 2 + handles.fixed.size() + handles.joints.size();
+  const int class_bits = coarse::bitsFor(classes - 1);
+  if (target == 0 || 3 * coarse::kMaxAxisBits + class_bits >= 64 || classes > 65535) return out;
+  {
+    std::vector<std::pair<std::uint64_t, int>> all;  // a later class wins: joints, fixed, manipulated
+    for (std::size_t k = 0; k < handles.joints.size(); ++k)
+      for (const std::uint64_t i : handles.joints[k])
+        all.emplace_back(i, static_cast<int>(2 + handles.fixed.size() + k));
+    for (std::size_t k = 0; k < handles.fixed.size(); ++k)
+      for (const std::uint64_t i : handles.fixed[k]) all.emplace_back(i, static_cast<int>(2 + k));
+    for (const std::uint64_t i : handles.manipulated) all.emplace_back(i, 1);
+    std::stable_sort(all.begin(), all.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    for (std::size_t k = 0; k < all.size(); ++k)
+      if (k + 1 == all.size() || all[k + 1].first != all[k].first) out.record_class.push_back(all[k]);
+  }
+  // A pass's class of each record, in order.
+  struct ClassCursor {
+    const std::vector<std::pair<std::uint64_t, int>>& v;
+    std::size_t at = 0;
+    int of(std::uint64_t record) {
+      while (at < v.size() && v[at].first < record) ++at;
+      return at < v.size() && v[at].first == record ? v[at].second : 0;
+    }
+  };
+
+  // The grid's sizing subset (the grid must be known before the cells): the kept points at file
+  // indices on a stride.
+  const std::size_t grid_stride = coarse::gridSampleStride(n_records, target);
+  std::vector<Eigen::Vector3f> grid_at;
+  std::vector<std::uint16_t> grid_cls;
+  blocks.strided(grid_stride, [&](std::uint64_t i, std::size_t k) {
+    const Eigen::Vector3d w = blocks.world(k);
+    if (!w.allFinite() || !out.kept(i, w)) return;
+    grid_at.push_back(out.local(w));
+    grid_cls.push_back(static_cast<std::uint16_t>(out.classOf(i)));
+  });
+  const Grid grid = coarse::sizeGrid(out.local(lo), out.local(hi), target, class_bits, grid_at, grid_cls);
+  out.cell = grid.h;
+  out.grid_lo = grid.lo;
+  out.axis_bits = grid.axis_bits;
+
+  // Pass 2: every kept point's cell: its count and its point nearest the centre; the cells of
+  // each handle's points.
+  std::unordered_map<std::uint64_t, CellAcc> cells;
+  std::vector<Near> typical_at;                          // the strays' typical-distance sample
+  std::vector<const std::vector<std::uint64_t>*> lists;  // fixed, manipulated, joints
+  for (const auto& f : handles.fixed) lists.push_back(&f);
+  lists.push_back(&handles.manipulated);
+  for (const auto& j : handles.joints) lists.push_back(&j);
+  std::vector<std::unordered_set<std::uint64_t>> list_cells(lists.size());
+  {
+    ClassCursor cc{out.record_class};
+    SortedCursor stray_far(out.far_strays);
+    std::vector<SortedCursor> in_list;
+    for (const auto* l : lists) in_list.emplace_back(*l);
+    blocks.each([&](std::uint64_t i, std::size_t k) {
+      const Eigen::Vector3d w = blocks.world(k);
+      if (!w.allFinite() || (out.zeros_apart && isZero(w))) return;
+      const double d = (w - fr.centre).cwiseAbs().maxCoeff();
+      if (d > out.far || (d > out.stray_distance && stray_far.has(i))) return;
+      const Eigen::Vector3f p = out.local(w);
+      const int cls = cc.of(i);
+      float centre2 = 0;
+      const std::uint64_t key = grid.key(p, cls, centre2);
+      Eigen::Vector3f nv = Eigen::Vector3f::Zero();
+      if (out.file_normals) blocks.normal(k, nv);
+      for (std::size_t l = 0; l < lists.size(); ++l)
+        if (in_list[l].has(i)) list_cells[l].insert(key);
+      CellAcc& cell = cells[key];
+      ++cell.count;
+      cell.offer(i, centre2, p, w, nv);
+      if (i % stray_stride == 0) typical_at.push_back({i, p, w, nv});
+    });
+  }
+  std::vector<std::uint64_t> keys;
+  keys.reserve(cells.size());
+  for (const auto& c : cells) keys.push_back(c.first);
+  std::sort(keys.begin(), keys.end());
+
+  // The strays of sparse cells (coarse_strays.cpp's rule, without its search's shortcuts).
+  std::vector<std::uint64_t> level_strays;
+  std::unordered_map<std::uint64_t, std::vector<Near>> gathered;
+  std::unordered_set<std::uint64_t> stray_set;
+  const int ab = grid.axis_bits;
+  const std::uint64_t axis_mask = (std::uint64_t{1} << ab) - 1;
+  const auto around = [&](std::uint64_t key, auto&& fn) {  // the 27 cells of every class
+    const auto x = static_cast<long long>(key & axis_mask),
+               y = static_cast<long long>((key >> ab) & axis_mask),
+               z = static_cast<long long>((key >> (2 * ab)) & axis_mask);
+    const auto top = static_cast<long long>(axis_mask);
+    for (std::size_t c = 0; c < classes; ++c)
+      for (long long dz = -1; dz <= 1; ++dz)
+        for (long long dy = -1; dy <= 1; ++dy)
+          for (long long dx = -1; dx <= 1; ++dx) {
+            if (x + dx < 0 || y + dy < 0 || z + dz < 0 || x + dx > top || y + dy > top || z + dz > top)
+              continue;
+            fn((static_cast<std::uint64_t>(c) << (3 * ab)) |
+               (static_cast<std::uint64_t>(z + dz) << (2 * ab)) | (static_cast<std::uint64_t>(y + dy) << ab) |
+               static_cast<std::uint64_t>(x + dx));
+          }
+  };
+  if (options.find_strays && !keys.empty()) {
+    std::vector<std::uint32_t> sizes;
+    for (const std::uint64_t key : keys) sizes.push_back(cells[key].count);
+    std::nth_element(sizes.begin(), sizes.begin() + static_cast<long>(sizes.size() / 2), sizes.end());
+    const std::size_t median = sizes[sizes.size() / 2];
+    const std::size_t few = std::max<std::size_t>(2, median / 4);
+    std::vector<std::uint64_t> sparse;
+    if (median >= 4)
+      for (const std::uint64_t key : keys)
+        if (cells[key].count <= few && (key >> (3 * ab)) == 0) sparse.push_back(key);
+    if (!sparse.empty()) {
+      std::unordered_set<std::uint64_t> wanted;
+      const auto want = [&](std::uint64_t key) {
+        if (cells.count(key)) wanted.insert(key);
+      };
+      for (const std::uint64_t key : sparse) around(key, want);
+      for (const Near& s : typical_at) around(grid.key(s.p, 0), want);
+      // Pass 3: the points of those cells.
+      ClassCursor cc{out.record_class};
+      SortedCursor stray_far(out.far_strays);
+      blocks.each([&](std::uint64_t i, std::size_t k) {
+        const Eigen::Vector3d w = blocks.world(k);
+        if (!w.allFinite() || (out.zeros_apart && isZero(w))) return;
+        const double d = (w - fr.centre).cwiseAbs().maxCoeff();
+        if (d > out.far || (d > out.stray_distance && stray_far.has(i))) return;
+        const Eigen::Vector3f p = out.local(w);
+        const std::uint64_t key = grid.key(p, cc.of(i));
+        if (!wanted.count(key)) return;
+        Eigen::Vector3f nv = Eigen::Vector3f::Zero();
+        if (out.file_normals) blocks.normal(k, nv);
+        gathered[key].push_back({i, p, w, nv});
+      });
+      std::vector<float> typical;
+      for (const Near& s : typical_at) {
+        float d1 = INFINITY, d2 = INFINITY;
+        around(grid.key(s.p, 0), [&](std::uint64_t key) {
+          const auto it = gathered.find(key);
+          if (it == gathered.end()) return;
+          for (const Near& o : it->second) {
+            if (o.record == s.record) continue;
+            const float d = (o.p - s.p).squaredNorm();
+            if (d < d1) {
+              d2 = d1;
+              d1 = d;
+            } else if (d < d2) {
+              d2 = d;
+            }
+          }
+        });
+        if (std::isfinite(d2) && d2 > 0) typical.push_back(d2);
+      }
+      const float limit2 = typical.empty() ? 0.0f : std::min(grid.h * grid.h, strayLimit2(typical));
+      if (limit2 > 0)
+        for (const std::uint64_t key : sparse)
+          for (const Near& q : gathered[key]) {
+            int near = 0;
+            around(key, [&](std::uint64_t other) {
+              const auto it = gathered.find(other);
+              if (it == gathered.end()) return;
+              for (const Near& o : it->second)
+                near += o.record != q.record && (o.p - q.p).squaredNorm() <= limit2;
+            });
+            if (near < 2) {
+              level_strays.push_back(q.record);
+              stray_set.insert(q.record);
+            }
+          }
+      // A cell with strays stands by its nearest point that is not one.
+      for (const std::uint64_t key : sparse) {
+        CellAcc fresh;
+        for (const Near& q : gathered[key]) {
+          if (stray_set.count(q.record)) continue;
+          float centre2 = 0;
+          grid.key(q.p, 0, centre2);
+          ++fresh.count;
+          fresh.offer(q.record, centre2, q.p, q.w, q.n);
+        }
+        if (fresh.count != cells[key].count) cells[key] = fresh;
+      }
+    }
+  }
+  std::sort(level_strays.begin(), level_strays.end());
+
+  // The coarse points, cells in key order.
+  std::vector<std::uint32_t> morton;
+  for (const std::uint64_t key : keys) {
+    const CellAcc& c = cells[key];
+    if (c.count == 0) continue;
+    out.cell_key.push_back(key);
+    out.cell_id.push_back(static_cast<std::uint32_t>(out.coarse.size()));
+    out.coarse.push_back(pcl::PointXYZ(c.p.x(), c.p.y(), c.p.z()));
+    pcl::Normal nn;
+    nn.getNormalVector3fMap() = c.n;
+    out.normals.push_back(nn);
+    out.coarse_record.push_back(c.best);
+    out.weight.push_back(c.count);
+    morton.push_back(out.mortonKey(c.w));
+  }
+  if (out.coarse.empty()) return out;
+  if (!out.file_normals) out.normals.clear();
+  // The handles on the coarse level: their points' cells (no handle point is a stray: strays are
+  // free points).
+  for (std::size_t l = 0; l < lists.size(); ++l) {
+    std::vector<int> ids;
+    for (const std::uint64_t key : list_cells[l]) {
+      const auto it = std::lower_bound(out.cell_key.begin(), out.cell_key.end(), key);
+      if (it != out.cell_key.end() && *it == key)
+        ids.push_back(static_cast<int>(out.cell_id[static_cast<std::size_t>(it - out.cell_key.begin())]));
+    }
+    std::sort(ids.begin(), ids.end());
+    if (l < handles.fixed.size())
+      out.coarse_fixed.push_back(std::move(ids));
+    else if (l == handles.fixed.size())
+      out.coarse_manipulated = std::move(ids);
+    else
+      out.coarse_joints.push_back(std::move(ids));
+  }
+  // Their ranks in Geometry's order: by Morton key, then file order.
+  std::vector<std::uint32_t> order(out.coarse.size());
+  std::iota(order.begin(), order.end(), 0u);
+  std::sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) {
+    return morton[a] != morton[b] ? morton[a] < morton[b] : out.coarse_record[a] < out.coarse_record[b];
+  });
+  out.morton_rank.resize(order.size());
+  for (std::size_t r = 0; r < order.size(); ++r) out.morton_rank[order[r]] = static_cast<std::uint32_t>(r);
+  // A stray hangs from the nearest coarse point (as coarsen's: the targets in the same order).
+  if (!level_strays.empty()) {
+    pcl::PointCloud<pcl::PointXYZ> both = out.coarse;
+    std::vector<int> targets(out.coarse.size()), queries;
+    std::iota(targets.begin(), targets.end(), 0);
+    for (const auto& [key, list] : gathered)
+      for (const Near& q : list)
+        if (stray_set.count(q.record)) {
+          (void)key;
+          queries.push_back(static_cast<int>(both.size()));
+          both.push_back(pcl::PointXYZ(q.p.x(), q.p.y(), q.p.z()));
+          out.strays.push_back(q.record);
+        }
+    const std::vector<int> nearest = nearestAmong(both, targets, queries);
+    std::vector<std::size_t> by_record(out.strays.size());
+    std::iota(by_record.begin(), by_record.end(), std::size_t{0});
+    std::sort(by_record.begin(), by_record.end(),
+              [&](std::size_t a, std::size_t b) { return out.strays[a] < out.strays[b]; });
+    std::vector<std::uint64_t> sorted;
+    for (const std::size_t s : by_record) {
+      const auto a = static_cast<std::size_t>(std::max(0, nearest[s]));
+      sorted.push_back(out.strays[s]);
+      out.stray_anchor.push_back(static_cast<std::uint32_t>(a));
+      ++out.weight[a];
+    }
+    out.strays = std::move(sorted);
+  }
+  return out;
+}
+
+}  // namespace hgd

@@ -1,0 +1,315 @@
+// Scans larger than memory: a file's points read in place as records (readRecordLayout,
+// RecordReader), and the coarse level built by passes over them (streamCoarseLevel), which
+// must be the one extractGeometry and coarsen build in memory, point for point.
+#include <gtest/gtest.h>
+#include <pcl/io/pcd_io.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <limits>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "hgdeform/io/fields.h"
+#include "hgdeform/io/geometry.h"
+#include "hgdeform/io/io.h"
+#include "hgdeform/io/records.h"
+#include "hgdeform/multires/multires.h"
+#include "hgdeform/multires/streamed.h"
+#include "support/shapes.h"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+struct TempDir {
+  fs::path dir;
+  TempDir() {
+    dir = fs::temp_directory_path() /
+          ("hgd_stream_" + std::to_string(::getpid()) + "_" + std::to_string(std::random_device{}()));
+    fs::create_directories(dir);
+  }
+  ~TempDir() { fs::remove_all(dir); }
+  std::string operator/(const std::string& name) const { return (dir / name).string(); }
+};
+
+/// A scan as users' files hold it: a bumpy sphere's points with noise, 1% strays about it,
+/// dense pieces, repeated points (merged scans), NaN records, a few points far away (a bad return
+/// at 10^4 sizes) and, when `zeros`, 'no return' records at (0, 0, 0) while the shape lies at
+/// `offset`; normals of random signs; shuffled. x, y, z in double (offset: georeferenced), an
+/// intensity, normals in float.
+hgd::Shape userScan(std::size_t n, unsigned seed, const Eigen::Vector3d& offset, bool zeros) {
+  std::mt19937 rng(seed);
+  std::vector<Eigen::Vector3f> p, none;
+  {
+    const hgd::Geometry s = hgd::extractGeometry(hgd::shapes::bumpySphere(n));
+    for (std::size_t i = 0; i < s.size(); ++i) p.push_back(s.world(i).cast<float>());
+  }
+  std::uniform_real_distribution<float> u(-1.4f, 1.4f), noise(-0.004f, 0.004f);
+  for (std::size_t k = 0; k < p.size() / 100; ++k) p.emplace_back(u(rng), u(rng), u(rng));
+  p = hgd::shapes::withDensePieces(std::move(p), 12, 800, 0.01f, 5);
+  for (auto& x : p) x += Eigen::Vector3f(noise(rng), noise(rng), noise(rng));
+  std::uniform_int_distribution<std::size_t> any(0, p.size() - 1);
+  for (std::size_t k = 0; k < p.size() / 20; ++k) p.push_back(p[any(rng)]);
+  std::vector<Eigen::Vector3d> w;
+  for (const auto& x : p) w.push_back(x.cast<double>() + offset);
+  w.push_back(offset + Eigen::Vector3d(3e4, 0, 0));
+  w.push_back(offset + Eigen::Vector3d(0, -5e4, 2e4));
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  for (int k = 0; k < 500; ++k) w.emplace_back(nan, nan, nan);
+  if (zeros)
+    for (int k = 0; k < 700; ++k) w.emplace_back(0, 0, 0);
+  std::shuffle(w.begin(), w.end(), rng);
+
+  hgd::Shape shape;
+  pcl::PCLPointCloud2& c = shape.cloud;
+  const auto field = [&](const char* name, std::uint32_t offset_bytes, std::uint8_t type) {
+    pcl::PCLPointField f;
+    f.name = name;
+    f.offset = offset_bytes;
+    f.datatype = type;
+    f.count = 1;
+    c.fields.push_back(f);
+  };
+  field("x", 0, pcl::PCLPointField::FLOAT64);
+  field("y", 8, pcl::PCLPointField::FLOAT64);
+  field("z", 16, pcl::PCLPointField::FLOAT64);
+  field("nx", 24, pcl::PCLPointField::FLOAT32);
+  field("ny", 28, pcl::PCLPointField::FLOAT32);
+  field("nz", 32, pcl::PCLPointField::FLOAT32);
+  field("intensity", 36, pcl::PCLPointField::UINT16);
+  c.point_step = 38;
+  c.width = static_cast<std::uint32_t>(w.size());
+  c.height = 1;
+  c.row_step = c.point_step * c.width;
+  c.data.resize(c.row_step);
+  std::uniform_real_distribution<float> dir(-1, 1);
+  std::uniform_int_distribution<int> level(0, 65535);
+  for (std::size_t i = 0; i < w.size(); ++i) {
+    std::uint8_t* r = c.data.data() + i * c.point_step;
+    std::memcpy(r, w[i].data(), 24);
+    Eigen::Vector3f nv(dir(rng), dir(rng), dir(rng));
+    nv = nv.normalized() * (rng() % 2 ? 1.0f : -1.0f);
+    std::memcpy(r + 24, nv.data(), 12);
+    const auto v = static_cast<std::uint16_t>(level(rng));
+    std::memcpy(r + 36, &v, 2);
+  }
+  return shape;
+}
+
+/// The handles of a file's records: below z -0.75 fixed, beyond x 0.8 the manipulated handle
+/// (of the shape's own coordinates: less its offset), in record indices.
+hgd::RecordHandles recordHandles(const hgd::Shape& shape, const Eigen::Vector3d& offset) {
+  hgd::RecordHandles h;
+  h.fixed.resize(1);
+  const hgd::XyzFields f = hgd::findXyzFields(shape.cloud);
+  for (std::size_t i = 0; i < shape.size(); ++i) {
+    const Eigen::Vector3d x =
+        Eigen::Vector3d(hgd::readValue(shape.cloud, i, shape.cloud.fields[static_cast<std::size_t>(f.x)]),
+                        hgd::readValue(shape.cloud, i, shape.cloud.fields[static_cast<std::size_t>(f.y)]),
+                        hgd::readValue(shape.cloud, i, shape.cloud.fields[static_cast<std::size_t>(f.z)])) -
+        offset;
+    if (!x.allFinite() || x.norm() > 10) continue;
+    if (x.z() < -0.75) h.fixed[0].push_back(i);
+    if (x.x() > 0.8) h.manipulated.push_back(i);
+  }
+  return h;
+}
+
+/// The same handles as geometry indices.
+hgd::Handles geometryHandles(const hgd::RecordHandles& r, const hgd::Geometry& g) {
+  const auto map = [&](const std::vector<std::uint64_t>& records) {
+    std::vector<int> out;
+    for (const std::uint64_t i : records) {
+      const int k = g.finite_index[static_cast<std::size_t>(i)];
+      if (k >= 0) out.push_back(k);
+    }
+    std::sort(out.begin(), out.end());
+    return out;
+  };
+  hgd::Handles h;
+  for (const auto& f : r.fixed) h.fixed.push_back(map(f));
+  h.manipulated = map(r.manipulated);
+  for (const auto& j : r.joints) h.joints.push_back(map(j));
+  return h;
+}
+
+/// Compares the streamed level of `path` with extractGeometry + coarsen of the file read whole.
+void expectSameLevel(const std::string& path, const hgd::RecordHandles& handles, std::size_t coarse_points) {
+  SCOPED_TRACE(path);
+  const hgd::Shape shape = hgd::readShape(path);
+  const hgd::Geometry g = hgd::extractGeometry(shape);
+  const std::size_t records = shape.size();
+  const std::size_t target = std::min(coarse_points, g.size() / 10);
+  const hgd::Handles gh = geometryHandles(handles, g);
+  const hgd::CoarseLevel level = hgd::coarsen(*g.points, gh, target, true, &g.raw_index, records);
+  ASSERT_FALSE(level.empty());
+
+  const hgd::RecordLayout layout = hgd::readRecordLayout(path);
+  hgd::StreamedLevelOptions options;
+  options.coarse_points = coarse_points;
+  options.block = 4096;  // many blocks
+  const hgd::StreamedLevel s = hgd::streamCoarseLevel(layout, handles, options);
+
+  // The frame.
+  EXPECT_EQ(s.origin, g.origin);
+  EXPECT_EQ(s.body.min(), g.body.min());
+  EXPECT_EQ(s.body.max(), g.body.max());
+  EXPECT_EQ(s.points, g.size());
+  EXPECT_EQ(s.far_points, g.far_points);
+  EXPECT_EQ(s.warnings, g.warnings);
+  EXPECT_EQ(s.warnings.size(), g.warnings.size());
+  EXPECT_FALSE(s.warnings.empty());  // far points (and zeros) were set apart
+  EXPECT_EQ(s.file_normals, g.hasFileNormals());
+  // The level: its cell, its points (their records, positions, normals, weights, order).
+  EXPECT_EQ(s.cell, level.cell);
+  ASSERT_EQ(s.coarse.size(), level.points.size());
+  std::size_t differ = 0;
+  for (std::size_t a = 0; a < level.points.size(); ++a) {
+    const auto k = static_cast<std::size_t>(level.points[a]);
+    differ += s.coarse_record[a] != static_cast<std::uint64_t>(g.raw_index[k]);
+    differ += s.coarse[a].getVector3fMap() != (*g.points)[k].getVector3fMap();
+    if (g.hasFileNormals())
+      differ += s.normals[a].getNormalVector3fMap() != (*g.file_normals)[k].getNormalVector3fMap();
+  }
+  EXPECT_EQ(differ, 0u) << "coarse points that differ";
+  EXPECT_EQ(s.weight, level.weight);
+  const hgd::Handles ch = hgd::coarseHandles(gh, level);
+  EXPECT_EQ(s.coarse_fixed, ch.fixed);
+  EXPECT_EQ(s.coarse_manipulated, ch.manipulated);
+  EXPECT_EQ(s.coarse_joints, ch.joints);
+  EXPECT_FALSE(s.coarse_manipulated.empty());
+  std::size_t order_differs = 0;  // Geometry's order among the coarse points
+  for (std::size_t a = 0; a + 1 < level.points.size(); ++a)
+    order_differs += (s.morton_rank[a] < s.morton_rank[a + 1]) != (level.points[a] < level.points[a + 1]);
+  EXPECT_EQ(order_differs, 0u);
+  std::vector<std::uint64_t> strays;
+  for (const int i : level.strays)
+    strays.push_back(static_cast<std::uint64_t>(g.raw_index[static_cast<std::size_t>(i)]));
+  std::sort(strays.begin(), strays.end());
+  EXPECT_EQ(s.strays, strays);
+  EXPECT_FALSE(strays.empty());
+  // Every kept point's anchor, as the streamed level finds it from its record and position.
+  std::size_t anchors_differ = 0;
+  for (std::size_t k = 0; k < g.size(); ++k) {
+    const auto i = static_cast<std::uint64_t>(g.raw_index[k]);
+    anchors_differ += s.anchorOf(i, (*g.points)[k].getVector3fMap(), s.classOf(i)) != level.anchor[k];
+  }
+  EXPECT_EQ(anchors_differ, 0u);
+  // What Geometry set apart is what the streamed level does not keep.
+  std::size_t kept_differ = 0;
+  const hgd::XyzFields f = hgd::findXyzFields(shape.cloud);
+  for (std::size_t i = 0; i < records; ++i) {
+    const Eigen::Vector3d w(
+        hgd::readValue(shape.cloud, i, shape.cloud.fields[static_cast<std::size_t>(f.x)]),
+        hgd::readValue(shape.cloud, i, shape.cloud.fields[static_cast<std::size_t>(f.y)]),
+        hgd::readValue(shape.cloud, i, shape.cloud.fields[static_cast<std::size_t>(f.z)]));
+    const bool kept = w.allFinite() && s.kept(i, w);
+    kept_differ += kept != (g.finite_index[i] >= 0);
+  }
+  EXPECT_EQ(kept_differ, 0u);
+}
+
+}  // namespace
+
+// The records of a binary PLY (hgdeform's, with a comment and an element after the vertices)
+// and of PCL's binary PCD (page-padded) are where the layout says, byte for byte what readShape
+// reads; files whose points are not such records are refused, naming the file and why.
+TEST(Stream, LayoutPlacesTheRecordsOfBinaryPlyAndPclsPcd) {
+  TempDir tmp;
+  const hgd::Shape scan = userScan(3000, 3, Eigen::Vector3d(0, 0, 0), false);
+  const std::string ply = tmp / "scan.ply";
+  hgd::writeShape(ply, scan);
+  pcl::PointCloud<pcl::PointNormal> pn;
+  for (int i = 0; i < 1234; ++i) {
+    pcl::PointNormal q;
+    q.x = static_cast<float>(i) * 0.5f;
+    q.y = static_cast<float>(i % 7);
+    q.z = -static_cast<float>(i % 13);
+    q.normal_x = 1;
+    q.normal_y = q.normal_z = 0;
+    pn.push_back(q);
+  }
+  const std::string pcd = tmp / "pcl.pcd";
+  ASSERT_EQ(pcl::io::savePCDFileBinary(pcd, pn), 0);
+  for (const std::string& path : {ply, pcd}) {
+    SCOPED_TRACE(path);
+    const hgd::Shape whole = hgd::readShape(path);
+    const hgd::RecordLayout layout = hgd::readRecordLayout(path);
+    EXPECT_EQ(layout.count, whole.size());
+    EXPECT_EQ(layout.bytes, whole.cloud.point_step);
+    EXPECT_TRUE(layout.shape.cloud.data.empty());
+    EXPECT_EQ(layout.shape.cloud.fields.size(), whole.cloud.fields.size());
+    EXPECT_GT(layout.offset, 100u);  // after the header
+    const hgd::RecordReader reader(layout);
+    std::vector<std::uint8_t> all(whole.cloud.data.size());
+    const std::size_t half = whole.size() / 2;
+    reader.read(0, half, all.data());
+    reader.read(half, whole.size() - half, all.data() + half * layout.bytes);
+    EXPECT_TRUE(all == whole.cloud.data);
+    std::vector<std::uint8_t> one(layout.bytes);
+    EXPECT_THROW(reader.read(whole.size(), 1, one.data()), hgd::IoError);
+  }
+  // Not records in place: ascii PLY, compressed PCD, a text format.
+  const std::string ascii = tmp / "ascii.ply", compressed = tmp / "c.pcd", xyz = tmp / "s.xyz";
+  hgd::WriteOptions text;
+  text.encoding = hgd::Encoding::Ascii;
+  hgd::writeShape(ascii, scan, text);
+  ASSERT_EQ(pcl::io::savePCDFileBinaryCompressed(compressed, pn), 0);
+  hgd::writeShape(xyz, scan);
+  for (const std::string& path : {ascii, compressed, xyz}) {
+    try {
+      hgd::readRecordLayout(path);
+      ADD_FAILURE() << path << " was not refused";
+    } catch (const hgd::IoError& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find(path), std::string::npos) << what;
+      EXPECT_NE(what.find("cannot read the points in place"), std::string::npos) << what;
+    }
+  }
+}
+
+// The streamed level of a scan as users' files hold it is the one built in memory: the frame
+// (origin, body, what is set apart and the warnings), the coarse points (records, positions,
+// normals, weights, Geometry's order among them), the strays and every point's anchor. In a
+// binary PLY of double coordinates at a georeferenced offset with 'no return' zeros, and in
+// PCL's binary PCD of floats.
+TEST(Stream, CoarseLevelIsTheOneBuiltInMemory) {
+  TempDir tmp;
+  {
+    const Eigen::Vector3d offset(512345.25, 4187654.5, 312.0);
+    const hgd::Shape scan = userScan(60000, 5, offset, true);
+    const std::string ply = tmp / "survey.ply";
+    hgd::writeShape(ply, scan);
+    expectSameLevel(ply, recordHandles(scan, offset), 3000);
+  }
+  {
+    const hgd::Shape scan = userScan(60000, 7, Eigen::Vector3d::Zero(), false);
+    pcl::PointCloud<pcl::PointNormal> pn;
+    const hgd::XyzFields f = hgd::findXyzFields(scan.cloud);
+    for (std::size_t i = 0; i < scan.size(); ++i) {
+      pcl::PointNormal q;
+      q.x =
+          static_cast<float>(hgd::readValue(scan.cloud, i, scan.cloud.fields[static_cast<std::size_t>(f.x)]));
+      q.y =
+          static_cast<float>(hgd::readValue(scan.cloud, i, scan.cloud.fields[static_cast<std::size_t>(f.y)]));
+      q.z =
+          static_cast<float>(hgd::readValue(scan.cloud, i, scan.cloud.fields[static_cast<std::size_t>(f.z)]));
+      q.normal_x = static_cast<float>(
+          hgd::readValue(scan.cloud, i, scan.cloud.fields[static_cast<std::size_t>(f.nx)]));
+      q.normal_y = static_cast<float>(
+          hgd::readValue(scan.cloud, i, scan.cloud.fields[static_cast<std::size_t>(f.ny)]));
+      q.normal_z = static_cast<float>(
+          hgd::readValue(scan.cloud, i, scan.cloud.fields[static_cast<std::size_t>(f.nz)]));
+      pn.push_back(q);
+    }
+    pn.is_dense = false;
+    const std::string pcd = tmp / "pcl.pcd";
+    ASSERT_EQ(pcl::io::savePCDFileBinary(pcd, pn), 0);
+    const hgd::Shape read = hgd::readShape(pcd);
+    expectSameLevel(pcd, recordHandles(read, Eigen::Vector3d::Zero()), 6000);
+  }
+}
