@@ -13,6 +13,8 @@
 #include <string>
 #include <vector>
 
+#include "hgdeform/deformer/deformer.h"
+#include "hgdeform/deformer/streamed.h"
 #include "hgdeform/io/fields.h"
 #include "hgdeform/io/geometry.h"
 #include "hgdeform/io/io.h"
@@ -312,4 +314,75 @@ TEST(Stream, CoarseLevelIsTheOneBuiltInMemory) {
     const hgd::Shape read = hgd::readShape(pcd);
     expectSameLevel(pcd, recordHandles(read, Eigen::Vector3d::Zero()), 6000);
   }
+}
+
+// The Deformer on the streamed level (holding the coarse points and the manipulated handle's,
+// a fraction of the scan) solves what the Deformer on the whole file read into memory solves at
+// the same resolution, bit for bit: the same clusters, the same field and handle centre, and
+// after a frame move (a turn about the handle's centre and a shift) the same transforms and
+// positions. On the georeferenced scan of doubles with NaN records, zeros and far strays.
+TEST(Stream, DeformerOnTheStreamedLevelSolvesAsInMemory) {
+  TempDir tmp;
+  const Eigen::Vector3d offset(512345.25, 4187654.5, 312.0);
+  const hgd::Shape scan = userScan(60000, 11, offset, true);
+  const std::string ply = tmp / "survey.ply";
+  hgd::writeShape(ply, scan);
+  const hgd::RecordHandles rh = recordHandles(scan, offset);
+  hgd::DeformOptions options;
+  options.multires_above = 1;
+  options.coarse_points = 3000;
+  options.points_per_coarse = 10;
+
+  auto g = std::make_shared<const hgd::Geometry>(hgd::extractGeometry(hgd::readShape(ply)));
+  hgd::Deformer whole(g, geometryHandles(rh, *g), options);
+  ASSERT_FALSE(whole.coarseLevel().empty());
+
+  const hgd::RecordLayout layout = hgd::readRecordLayout(ply);
+  hgd::StreamedLevelOptions level_options;
+  level_options.coarse_points = options.coarse_points;
+  level_options.points_per_coarse = options.points_per_coarse;
+  const hgd::StreamedLevel level = hgd::streamCoarseLevel(layout, rh, level_options);
+  hgd::StreamedDeformer s = hgd::streamedDeformer(layout, level, rh, options);
+  hgd::Deformer& d = *s.deformer;
+  EXPECT_LT(s.geometry->size(), g->size() / 5);
+
+  // The build: clusters (kinds, barycentres), the field at the held points.
+  const auto& ca = whole.clustering().clusters;
+  const auto& cb = d.clustering().clusters;
+  ASSERT_EQ(ca.size(), cb.size());
+  for (std::size_t k = 0; k < ca.size(); ++k) {
+    EXPECT_EQ(ca[k].kind, cb[k].kind) << "cluster " << k;
+    EXPECT_EQ(ca[k].barycentre, cb[k].barycentre) << "cluster " << k;
+  }
+  const auto wholeIndex = [&](std::size_t k) {
+    return static_cast<std::size_t>(g->finite_index[static_cast<std::size_t>(s.geometry->raw_index[k])]);
+  };
+  std::size_t phi_differ = 0;
+  for (std::size_t k = 0; k < s.geometry->size(); ++k)
+    phi_differ += d.field()[k] != whole.field()[wholeIndex(k)];
+  EXPECT_EQ(phi_differ, 0u);
+  EXPECT_EQ(d.unreachablePoints(), whole.unreachablePoints());
+  const Eigen::Vector3d centre = whole.handleCentre();
+  EXPECT_EQ(d.handleCentre(), centre);
+
+  // A frame move.
+  const Eigen::Affine3d motion =
+      Eigen::Translation3d(Eigen::Vector3d(0.3, -0.1, 0.25)) * Eigen::Translation3d(centre) *
+      Eigen::AngleAxisd(0.6, Eigen::Vector3d(0.2, 1, 0.3).normalized()) * Eigen::Translation3d(-centre);
+  const hgd::SolveStats sa = whole.moveHandle(motion), sb = d.moveHandle(motion);
+  EXPECT_EQ(sa.iterations, sb.iterations);
+  EXPECT_EQ(sa.energy.total(), sb.energy.total());
+  const std::vector<Eigen::Affine3d> ta = whole.worldTransforms(), tb = d.worldTransforms();
+  ASSERT_EQ(ta.size(), tb.size());
+  std::size_t transforms_differ = 0;
+  for (std::size_t k = 0; k < ta.size(); ++k) transforms_differ += ta[k].matrix() != tb[k].matrix();
+  EXPECT_EQ(transforms_differ, 0u);
+  EXPECT_GT(
+      (ta[static_cast<std::size_t>(whole.clustering().manipulated)].matrix() - Eigen::Matrix4d::Identity())
+          .norm(),
+      0.1);  // it moved
+  std::size_t points_differ = 0;
+  for (std::size_t k = 0; k < s.geometry->size(); ++k)
+    points_differ += d.deformedPoints()[k] != whole.deformedPoints()[wholeIndex(k)];
+  EXPECT_EQ(points_differ, 0u);
 }

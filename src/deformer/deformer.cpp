@@ -21,9 +21,10 @@ constexpr double kPinWeight = 1e4;           // relative weight of the barycentr
 }  // namespace
 
 Deformer::Impl::Impl(std::shared_ptr<const Geometry> geometry, const Handles& handles,
-                     const DeformOptions& options)
+                     const DeformOptions& options, std::shared_ptr<const PrebuiltLevel> level)
     : geometry_(std::move(geometry)), handles_(handles), options_(options) {
   if (!geometry_) throw std::invalid_argument("Deformer: no geometry");
+  data_.prebuilt = std::move(level);
   if (geometry_->hasFileNormals() && geometry_->file_normals->size() != geometry_->size())
     throw std::invalid_argument("Deformer: the geometry has " +
                                 std::to_string(geometry_->file_normals->size()) + " normals for " +
@@ -446,6 +447,9 @@ Deformer::Deformer(const Geometry& geometry, const Handles& handles, const Defor
 Deformer::Deformer(std::shared_ptr<const Geometry> geometry, const Handles& handles,
                    const DeformOptions& options)
     : impl_(std::make_unique<Impl>(std::move(geometry), handles, options)) {}
+Deformer::Deformer(std::shared_ptr<const Geometry> geometry, const Handles& handles,
+                   const DeformOptions& options, std::shared_ptr<const PrebuiltLevel> level)
+    : impl_(std::make_unique<Impl>(std::move(geometry), handles, options, std::move(level))) {}
 Deformer::~Deformer() = default;
 
 SolveStats Deformer::drag(const Eigen::Vector3d& from, const Eigen::Vector3d& to) {

@@ -14,7 +14,8 @@ class Deformer::Impl {
  public:
   // The Deformer's API, each the implementation of the call of that name (deformer.h documents
   // them).
-  Impl(std::shared_ptr<const Geometry> geometry, const Handles& handles, const DeformOptions& options);
+  Impl(std::shared_ptr<const Geometry> geometry, const Handles& handles, const DeformOptions& options,
+       std::shared_ptr<const PrebuiltLevel> level = nullptr);
   Impl(const Impl&) = delete;
   Impl& operator=(const Impl&) = delete;
   SolveStats drag(const Eigen::Vector3d& from, const Eigen::Vector3d& to);

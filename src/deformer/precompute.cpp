@@ -102,6 +102,7 @@ pcl::PointCloud<pcl::Normal>::Ptr coarseNormals(const Geometry& geometry, const 
 
 void coarseResolution(const Geometry& geometry, const Handles& handles, const DeformOptions& options,
                       DeformationData& data, Stopwatch& sw) {
+  // A prebuilt level brings the whole shape's handles on it (the geometry holds some points).
   PhaseClock clock;
   const auto& pts = *geometry.points;
   const CoarseLevel& coarse = data.coarse;
@@ -111,7 +112,7 @@ void coarseResolution(const Geometry& geometry, const Handles& handles, const De
   for (std::size_t a = 0; a < m; ++a) (*cloud)[a] = pts[static_cast<std::size_t>(coarse.points[a])];
   data.graph->setInputCloud(cloud);
   data.graph->setInputNormals(coarseNormals(geometry, coarse));
-  const Handles coarse_handles = coarseHandles(handles, coarse);
+  const Handles coarse_handles = data.prebuilt ? data.prebuilt->handles : coarseHandles(handles, coarse);
   data.field.setHandles(coarse_handles.fixed, coarse_handles.manipulated);
   const double coarse_ms = sw.lap();
   clock.lap("multires.coarse_input");
@@ -186,13 +187,17 @@ void precompute(const Geometry& geometry, const Handles& handles, const DeformOp
     data.graph = std::make_shared<SurfaceGraph>();
     data.field.setSurfaceGraph(data.graph);
     // The mesh's 1-ring, when asked for, is a graph over every vertex: full resolution.
-    data.multires = options.multires_above > 0 && geometry.size() > options.multires_above &&
-                    options.coarse_points > 0 && options.coarse_points < geometry.size() &&
-                    !(options.field.mesh_ring && !geometry.faces.empty());
+    data.multires =
+        data.prebuilt || (options.multires_above > 0 && geometry.size() > options.multires_above &&
+                          options.coarse_points > 0 && options.coarse_points < geometry.size() &&
+                          !(options.field.mesh_ring && !geometry.faces.empty()));
     if (!data.multires) setGraphInput(*data.graph, geometry);  // else the handles' coarse level
     data.field.setOptions(options.field);
   }
-  if (data.multires) {
+  if (data.prebuilt) {
+    checkHandles(geometry, handles);
+    data.coarse = data.prebuilt->level;
+  } else if (data.multires) {
     checkHandles(geometry, handles);
     const std::size_t target =
         options.points_per_coarse > 0

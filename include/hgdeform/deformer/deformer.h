@@ -45,6 +45,11 @@ class Deformer {
   /// held once). Neither it nor its clouds may change while the Deformer lives.
   Deformer(std::shared_ptr<const Geometry> geometry, const Handles& handles,
            const DeformOptions& options = {});
+  /// On a coarse level built elsewhere (a scan streamed from its file: streamedDeformer() in
+  /// <hgdeform/multires/streamed.h> makes both): `geometry` holds the shape's coarse points and
+  /// its manipulated handle's points, `handles` index it, and `level` maps it.
+  Deformer(std::shared_ptr<const Geometry> geometry, const Handles& handles, const DeformOptions& options,
+           std::shared_ptr<const PrebuiltLevel> level);
   Deformer(const Deformer&) = delete;
   Deformer& operator=(const Deformer&) = delete;
   ~Deformer();

@@ -62,8 +62,19 @@ struct BuildTimings {
   double total() const { return field_ms + sampling_ms + clusters_ms + setup_ms; }
 };
 
+/// A coarse level built elsewhere (streamCoarseLevel: a scan streamed from its file) for a
+/// geometry that holds only some of the shape's points (the coarse points and the manipulated
+/// handle's): `level` maps those points (its anchors are theirs; its weights count every point
+/// of the shape), `handles` are the whole shape's handles on the coarse level.
+struct PrebuiltLevel {
+  CoarseLevel level;
+  Handles handles;
+};
+
 /// What precompute() builds, for the resolution it chose.
 struct DeformationData {
+  /// Set before the first precompute(): the coarse level to build on, not coarsened here.
+  std::shared_ptr<const PrebuiltLevel> prebuilt;
   /// The graph stage and the field on it: over every point, or over coarse.points' positions
   /// on a multi-resolution build. Kept across precompute() calls on the same geometry (new
   /// handles at full resolution only re-solve).

@@ -1,0 +1,102 @@
+// A Deformer on a streamed coarse level (hgdeform/deformer/streamed.h).
+#include <algorithm>
+#include <numeric>
+#include <stdexcept>
+
+#include "hgdeform/deformer/streamed.h"
+#include "multires/record_blocks.h"
+
+namespace hgd {
+
+StreamedDeformer streamedDeformer(const RecordLayout& layout, const StreamedLevel& level,
+                                  const RecordHandles& handles, const DeformOptions& options) {
+  if (level.coarse.empty()) throw std::invalid_argument("streamedDeformer: the coarse level is empty");
+  // The points held: the coarse points and the manipulated handle's, as Geometry has them.
+  struct Held {
+    std::uint64_t record;
+    Eigen::Vector3f p;
+    Eigen::Vector3f n;
+    std::uint32_t key;  // Morton
+  };
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> reps;  // (record, coarse point), by record
+  for (std::size_t a = 0; a < level.coarse_record.size(); ++a)
+    reps.emplace_back(level.coarse_record[a], static_cast<std::uint32_t>(a));
+  std::sort(reps.begin(), reps.end());
+  std::vector<Held> held;
+  {
+    stream::Blocks blocks(layout, 1 << 16);
+    std::size_t r = 0, m = 0;
+    const std::vector<std::uint64_t>& manip = handles.manipulated;
+    blocks.each([&](std::uint64_t i, std::size_t k) {
+      while (r < reps.size() && reps[r].first < i) ++r;
+      while (m < manip.size() && manip[m] < i) ++m;
+      const bool is_rep = r < reps.size() && reps[r].first == i, is_manip = m < manip.size() && manip[m] == i;
+      if (!is_rep && !is_manip) return;
+      const Eigen::Vector3d w = blocks.world(k);
+      if (!w.allFinite() || !level.kept(i, w)) return;
+      Held h{i, level.local(w), Eigen::Vector3f::Zero(), level.mortonKey(w)};
+      if (level.file_normals) blocks.normal(k, h.n);
+      held.push_back(h);
+    });
+  }
+  std::sort(held.begin(), held.end(), [](const Held& a, const Held& b) {
+    return a.key != b.key ? a.key < b.key : a.record < b.record;
+  });
+  auto g = std::make_shared<Geometry>();
+  g->origin = level.origin;
+  g->body = level.body;
+  g->far_points = level.far_points;
+  g->warnings = level.warnings;
+  g->points->resize(held.size());
+  if (level.file_normals) g->file_normals->resize(held.size());
+  g->raw_index.resize(held.size());
+  for (std::size_t k = 0; k < held.size(); ++k) {
+    (*g->points)[k].getVector3fMap() = held[k].p;
+    if (level.file_normals) (*g->file_normals)[k].getNormalVector3fMap() = held[k].n;
+    g->raw_index[k] = static_cast<int>(held[k].record);
+  }
+  g->points->width = static_cast<std::uint32_t>(held.size());
+  g->points->height = 1;
+  g->points->is_dense = true;
+
+  StreamedDeformer out;
+  // The handles among the held points.
+  const auto among = [&](const std::vector<std::uint64_t>& records) {
+    std::vector<int> idx;
+    for (std::size_t k = 0; k < held.size(); ++k)
+      if (std::binary_search(records.begin(), records.end(), held[k].record))
+        idx.push_back(static_cast<int>(k));
+    return idx;
+  };
+  for (const auto& f : handles.fixed) out.handles.fixed.push_back(among(f));
+  out.handles.manipulated = among(handles.manipulated);
+  for (const auto& j : handles.joints) out.handles.joints.push_back(among(j));
+  // The level on them.
+  auto pre = std::make_shared<PrebuiltLevel>();
+  CoarseLevel& c = pre->level;
+  c.cell = level.cell;
+  c.weight = level.weight;
+  c.points.assign(level.coarse.size(), -1);
+  c.anchor.resize(held.size());
+  for (std::size_t k = 0; k < held.size(); ++k) {
+    const auto it =
+        std::lower_bound(reps.begin(), reps.end(), std::make_pair(held[k].record, std::uint32_t{0}));
+    if (it != reps.end() && it->first == held[k].record) {
+      c.points[it->second] = static_cast<int>(k);
+      c.anchor[k] = it->second;
+    } else {
+      c.anchor[k] = level.anchorOf(held[k].record, held[k].p, level.classOf(held[k].record));
+    }
+  }
+  if (std::find(c.points.begin(), c.points.end(), -1) != c.points.end())
+    throw std::logic_error("streamedDeformer: a coarse point was not found in the file");
+  pre->handles.fixed = level.coarse_fixed;
+  pre->handles.manipulated = level.coarse_manipulated;
+  pre->handles.joints = level.coarse_joints;
+  out.geometry = g;
+  out.level = pre;
+  out.deformer = std::make_unique<Deformer>(out.geometry, out.handles, options, out.level);
+  return out;
+}
+
+}  // namespace hgd
