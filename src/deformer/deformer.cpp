@@ -509,6 +509,12 @@ std::vector<std::string> Deformer::writeDeformed(Shape& shape) const {
 ExactInterpolation Deformer::exactInterpolation() const {
   return impl_->exactInterpolation();
 }
+ExactInterpolation Deformer::exactInterpolation(const InterpolationTable& table) const {
+  return impl_->exactInterpolation(table);
+}
+std::shared_ptr<const BlockProlongation> Deformer::blockProlongation() const {
+  return impl_->blockProlongation();
+}
 std::vector<Eigen::Affine3d> Deformer::worldTransforms() const {
   return impl_->worldTransforms();
 }

@@ -42,7 +42,9 @@ class Deformer::Impl {
     return positions_[i].cast<double>() + geometry_->origin;
   }
   std::vector<std::string> writeDeformed(Shape& shape) const;
-  ExactInterpolation exactInterpolation() const;
+  ExactInterpolation exactInterpolation() const { return exactInterpolation(data_.table); }
+  ExactInterpolation exactInterpolation(const InterpolationTable& table) const;
+  std::shared_ptr<const BlockProlongation> blockProlongation() const { return data_.blocks; }
   std::vector<Eigen::Affine3d> worldTransforms() const;
   const Geometry& geometry() const { return *geometry_; }
   const Handles& handles() const { return handles_; }

@@ -140,6 +140,10 @@ void coarseResolution(const Geometry& geometry, const Handles& handles, const De
       clusterField(*cloud, coarse_phi, coarse_handles, &coarse.weight, options, data, sw);
   clock.skip();
   data.pieces.follow.clear();  // the coarse points' (each point takes its anchor's clusters)
+  if (data.prebuilt)
+    data.blocks = std::make_shared<const BlockProlongation>(
+        coarse_clusters, *cloud, coarse_phi,
+        coarseLinearModels(*cloud, data.graph->graph(), coarse_phi, constrained), handles.fixed.size());
   data.table = prolongInterpolation(coarse_clusters, coarse, coarse_phi, data.phi, handles, pts);
   clock.skip();  // (the table's own phases)
   data.clustering = prolongClusters(std::move(coarse_clusters), coarse);

@@ -11,11 +11,11 @@
 
 namespace hgd {
 
-ExactInterpolation Deformer::Impl::exactInterpolation() const {
+ExactInterpolation Deformer::Impl::exactInterpolation(const InterpolationTable& table) const {
   std::vector<Eigen::Vector3d> barycentres;
   barycentres.reserve(data_.clustering.clusters.size());
   for (const Cluster& cl : data_.clustering.clusters) barycentres.push_back(cl.barycentre);
-  return ExactInterpolation(data_.table, exact_, barycentres, options_.blend);
+  return ExactInterpolation(table, exact_, barycentres, options_.blend);
 }
 
 namespace {

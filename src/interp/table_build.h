@@ -31,11 +31,14 @@ inline std::vector<std::pair<int, int>> labelPairs(const Clustering& c) {
 /// allowed. `bracket(i, lower, upper, alpha)` gives point i's; it is called in parallel. Then
 /// `adjust(table)` may change records, before handle points are pinned to their handle's cluster
 /// (so that the pins hold whatever it does). Normals are left to the caller.
+/// (`pin_fixed`, `pin_manipulated`: when given, the points pinned, in place of the handles',
+/// whose lists then only say which handles have points.)
 template <class Bracket, class Adjust>
 InterpolationTable buildTable(const Handles& handles, const Clustering& c,
                               const pcl::PointCloud<pcl::PointXYZ>& points,
-                              std::vector<std::pair<int, int>> candidates, Bracket&& bracket,
-                              Adjust&& adjust) {
+                              std::vector<std::pair<int, int>> candidates, Bracket&& bracket, Adjust&& adjust,
+                              const std::vector<std::vector<int>>* pin_fixed = nullptr,
+                              const std::vector<int>* pin_manipulated = nullptr) {
   const std::size_t n = points.size();
   PhaseClock clock;
   InterpolationTable t;
@@ -87,8 +90,10 @@ InterpolationTable buildTable(const Handles& handles, const Clustering& c,
       t.points[i].alpha = 0.0f;
     }
   };
-  for (std::size_t k = 0; k < handles.fixed.size(); ++k) pin(handles.fixed[k], fixed_cluster[k]);
-  pin(handles.manipulated, c.manipulated);  // last: a point in both keeps the manipulated one
+  for (std::size_t k = 0; k < handles.fixed.size(); ++k)
+    pin(pin_fixed ? (*pin_fixed)[k] : handles.fixed[k], fixed_cluster[k]);
+  pin(pin_manipulated ? *pin_manipulated : handles.manipulated,
+      c.manipulated);  // last: a point in both keeps the manipulated one
   for (const auto& [a, b] : t.pairs)
     t.pair_centre.push_back((0.5 * (c.clusters[static_cast<std::size_t>(a)].barycentre +
                                     c.clusters[static_cast<std::size_t>(b)].barycentre))

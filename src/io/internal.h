@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <functional>
 #include <limits>
 #include <memory>
 #include <string>
@@ -355,6 +356,7 @@ class AtomicWriter {
   void write(const void* p, std::size_t n);
   void write(std::string_view s) { write(s.data(), s.size()); }
   void commit();
+  const std::string& path() const { return target_; }
   /// Whether what was written so far has a binary STL's size (84 + 50 n bytes, n in bytes
   /// 80-83), which makes a reader that knows formats by their content take it for one.
   bool hasBinaryStlSize() const;
@@ -393,6 +395,9 @@ void flushIfFull(AtomicWriter& w, Buffer& buf) {
 /// Appends faces as text lines "count i j k ..." (ascii PLY, OFF), flushing through `w`.
 void appendFaceLines(AtomicWriter& w, std::string& buf, const std::vector<pcl::Vertices>& polygons);
 
+/// While set (writeRecords), the binary writers take the points' records from here instead of
+/// the cloud's data (which is empty).
+extern thread_local const std::function<void(AtomicWriter&)>* t_streamed_records;
 /// Writes the points' values of `fields` in binary, packed in field order.
 void writePackedBinary(AtomicWriter& w, const pcl::PCLPointCloud2& c, std::size_t n,
                        const std::vector<const Field*>& fields);

@@ -353,4 +353,40 @@ void writeShape(const std::string& path, const Shape& shape, const WriteOptions&
   }
 }
 
+void writeRecords(const std::string& path, const RecordLayout& layout,
+                  const std::function<void(RecordSink&)>& records) {
+  refuseNul(path);
+  const FileFormat format = formatFromPath(path);
+  refuseInputs(path, {layout.shape.path});
+  const Shape& shape = layout.shape;
+  if (format != shape.format || (format != FileFormat::Ply && format != FileFormat::Pcd) ||
+      shape.extras.pcd_compressed || shape.extras.ply_big_endian || !shape.polygons.empty())
+    fail(path, std::string("cannot write the records as they come: the output must be a binary ") +
+                   formatName(shape.format) + " as the input is");
+  struct Sink : RecordSink {
+    AtomicWriter* w = nullptr;
+    std::uint64_t bytes = 0;
+    void write(const std::uint8_t* p, std::size_t n) override {
+      w->write(p, n);
+      bytes += n;
+    }
+  };
+  const std::function<void(AtomicWriter&)> hook = [&](AtomicWriter& w) {
+    Sink sink;
+    sink.w = &w;
+    records(sink);
+    if (sink.bytes != layout.count * layout.bytes)
+      fail(path, "cannot write: " + num(sink.bytes) + " bytes of records given for " + num(layout.count) +
+                     " records of " + num(layout.bytes) + " bytes");
+  };
+  struct Restore {
+    ~Restore() { t_streamed_records = nullptr; }
+  } restore;
+  t_streamed_records = &hook;
+  if (format == FileFormat::Ply)
+    writePly(path, shape, false);
+  else
+    writePcd(path, shape, false);
+}
+
 }  // namespace hgd

@@ -13,7 +13,7 @@ std::vector<const Field*> checkShape(const std::string& path, const Shape& shape
   const pcl::PCLPointCloud2& c = shape.cloud;
   const std::size_t n = shape.size();
   std::uint64_t need = 0;
-  if (!mulOk(n, c.point_step, &need) || c.data.size() < need)
+  if (!mulOk(n, c.point_step, &need) || (c.data.size() < need && !t_streamed_records))
     fail(path, "cannot write: invalid shape: " + num(c.data.size()) + " data bytes for " + num(n) +
                    " points of " + num(c.point_step) + " bytes");
   std::vector<const Field*> out;
@@ -45,8 +45,16 @@ bool isPacked(const std::vector<const Field*>& fields, std::uint32_t point_step)
   return off == point_step;
 }
 
+thread_local const std::function<void(AtomicWriter&)>* t_streamed_records = nullptr;
+
 void writePackedBinary(AtomicWriter& w, const pcl::PCLPointCloud2& c, std::size_t n,
                        const std::vector<const Field*>& fields) {
+  if (t_streamed_records) {
+    if (!isPacked(fields, c.point_step))
+      fail(w.path(), "cannot write the records as they come: the points' fields are not written as read");
+    (*t_streamed_records)(w);
+    return;
+  }
   if (isPacked(fields, c.point_step)) {
     w.write(c.data.data(), n * c.point_step);
     return;

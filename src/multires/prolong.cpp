@@ -12,33 +12,26 @@
 
 namespace hgd {
 
-std::vector<float> prolongField(const pcl::PointCloud<pcl::PointXYZ>& points, const CoarseLevel& level,
-                                const NeighborGraph& graph, const std::vector<float>& coarse_phi,
-                                const std::vector<char>& constrained) {
-  // Each coarse point's linear model: its value, its gradient and the range of values around it.
-  struct Linear {
-    Eigen::Vector3f grad = Eigen::Vector3f::Zero();
-    float lo = 0, hi = 0;
-  };
-  const std::size_t m = level.points.size();
-  std::vector<Linear> model(m);
+std::vector<CoarseLinear> coarseLinearModels(const pcl::PointCloud<pcl::PointXYZ>& coarse,
+                                             const NeighborGraph& graph, const std::vector<float>& coarse_phi,
+                                             const std::vector<char>& constrained) {
+  const std::size_t m = coarse.size();
+  std::vector<CoarseLinear> model(m);
   const long long mm = static_cast<long long>(m);
 #pragma omp parallel for schedule(dynamic, kDynamicChunkCostly) if (mm > kParallelMinCostly)
   for (long long aa = 0; aa < mm; ++aa) {
     const auto a = static_cast<std::size_t>(aa);
-    Linear& l = model[a];
+    CoarseLinear& l = model[a];
     const float va = coarse_phi[a];
     l.lo = l.hi = va;
     if (constrained[a]) continue;  // a handle's cell keeps the handle's value
-    const Eigen::Vector3d xa =
-        points[static_cast<std::size_t>(level.points[a])].getVector3fMap().cast<double>();
+    const Eigen::Vector3d xa = coarse[a].getVector3fMap().cast<double>();
     Eigen::Matrix3d mat = Eigen::Matrix3d::Zero();
     Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
     int count = 0;
     for (const int* j = graph.begin(a); j != graph.end(a); ++j) {
       const auto u = static_cast<std::size_t>(*j);
-      const Eigen::Vector3d d =
-          points[static_cast<std::size_t>(level.points[u])].getVector3fMap().cast<double>() - xa;
+      const Eigen::Vector3d d = coarse[u].getVector3fMap().cast<double>() - xa;
       mat += d * d.transpose();
       rhs += d * static_cast<double>(coarse_phi[u] - va);
       l.lo = std::min(l.lo, coarse_phi[u]);
@@ -52,6 +45,18 @@ std::vector<float> prolongField(const pcl::PointCloud<pcl::PointXYZ>& points, co
     l.grad = (mat + 1e-3 * trace / 3 * Eigen::Matrix3d::Identity()).ldlt().solve(rhs).cast<float>();
     if (!l.grad.allFinite()) l.grad.setZero();
   }
+  return model;
+}
+
+std::vector<float> prolongField(const pcl::PointCloud<pcl::PointXYZ>& points, const CoarseLevel& level,
+                                const NeighborGraph& graph, const std::vector<float>& coarse_phi,
+                                const std::vector<char>& constrained) {
+  // Each coarse point's linear model: its value, its gradient and the range of values around it.
+  pcl::PointCloud<pcl::PointXYZ> coarse;
+  coarse.resize(level.points.size());
+  for (std::size_t a = 0; a < level.points.size(); ++a)
+    coarse[a] = points[static_cast<std::size_t>(level.points[a])];
+  const std::vector<CoarseLinear> model = coarseLinearModels(coarse, graph, coarse_phi, constrained);
   const std::size_t n = level.anchor.size();
   std::vector<float> phi(n);
   const long long nn = static_cast<long long>(n);
@@ -59,10 +64,7 @@ std::vector<float> prolongField(const pcl::PointCloud<pcl::PointXYZ>& points, co
   for (long long ii = 0; ii < nn; ++ii) {
     const auto i = static_cast<std::size_t>(ii);
     const std::uint32_t a = level.anchor[i];
-    const Linear& l = model[a];
-    const Eigen::Vector3f d =
-        points[i].getVector3fMap() - points[static_cast<std::size_t>(level.points[a])].getVector3fMap();
-    phi[i] = std::clamp(coarse_phi[a] + l.grad.dot(d), l.lo, l.hi);
+    phi[i] = model[a].at(coarse_phi[a], points[i].getVector3fMap() - coarse[a].getVector3fMap());
   }
   for (const int i : level.strays)
     phi[static_cast<std::size_t>(i)] = coarse_phi[level.anchor[static_cast<std::size_t>(i)]];
@@ -186,6 +188,78 @@ InterpolationTable prolongInterpolation(const Clustering& c, const CoarseLevel& 
           table.points[static_cast<std::size_t>(x)].alpha =
               c.alpha[level.anchor[static_cast<std::size_t>(x)]];
       });
+  return t;
+}
+
+struct BlockProlongation::Rule {
+  Rule(const Clustering& c, const std::vector<float>& coarse_phi) : alpha(c, coarse_phi) {}
+  AlphaRule alpha;
+};
+
+BlockProlongation::BlockProlongation(const Clustering& coarse, pcl::PointCloud<pcl::PointXYZ> points,
+                                     std::vector<float> coarse_phi, std::vector<CoarseLinear> models,
+                                     std::size_t fixed_handles)
+    : labels_(coarse),
+      points_(std::move(points)),
+      phi_(std::move(coarse_phi)),
+      models_(std::move(models)),
+      fixed_handles_(fixed_handles) {
+  const std::size_t m = points_.size();
+  if (labels_.lower.size() != m || labels_.upper.size() != m || labels_.alpha.size() != m ||
+      phi_.size() != m || models_.size() != m)
+    throw std::invalid_argument("BlockProlongation: the coarse clustering, field and points differ in size");
+  rule_ = std::make_unique<Rule>(labels_, phi_);
+}
+
+BlockProlongation::~BlockProlongation() = default;
+
+float BlockProlongation::phi(std::uint32_t a, const Eigen::Vector3f& p, bool stray) const {
+  if (stray) return phi_[a];
+  return models_[a].at(phi_[a], p - points_[a].getVector3fMap());
+}
+
+InterpolationTable BlockProlongation::table(const pcl::PointCloud<pcl::PointXYZ>& points,
+                                            const std::vector<std::uint32_t>& anchor,
+                                            const std::vector<char>& stray,
+                                            const std::vector<int>& cls) const {
+  // prolongInterpolation's table (buildTable with its bracket, stray and pin rules), for these
+  // points: the pins of the shape's handles by class (a point in two lists has the class that
+  // pins last: the manipulated handle, else the last fixed one).
+  Handles handles;
+  handles.fixed.resize(fixed_handles_);
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (cls[i] == 1) handles.manipulated.push_back(static_cast<int>(i));
+    if (cls[i] >= 2 && static_cast<std::size_t>(cls[i] - 2) < fixed_handles_)
+      handles.fixed[static_cast<std::size_t>(cls[i] - 2)].push_back(static_cast<int>(i));
+  }
+  // Every fixed handle and the manipulated one have points in the shape: their pairs are in the
+  // table whether or not this block holds any.
+  const int none = -1;
+  for (auto& f : handles.fixed)
+    if (f.empty()) f.push_back(none);
+  if (handles.manipulated.empty()) handles.manipulated.push_back(none);
+  std::vector<std::vector<int>> pins_fixed(handles.fixed.size());
+  std::vector<int> pins_manipulated;
+  for (std::size_t k = 0; k < handles.fixed.size(); ++k)
+    for (const int i : handles.fixed[k])
+      if (i != none) pins_fixed[k].push_back(i);
+  for (const int i : handles.manipulated)
+    if (i != none) pins_manipulated.push_back(i);
+  const Clustering& c = labels_;
+  const AlphaRule& rule = rule_->alpha;
+  InterpolationTable t = detail::buildTable(
+      handles, c, points, detail::labelPairs(c),
+      [&](std::size_t i, int& lo, int& hi, float& alpha) {
+        const std::uint32_t a = anchor[i];
+        lo = c.lower[a];
+        hi = c.upper[a];
+        alpha = rule(a, phi(a, points[i].getVector3fMap(), false));
+      },
+      [&](InterpolationTable& table) {  // a stray moves as the point it hangs from
+        for (std::size_t i = 0; i < points.size(); ++i)
+          if (stray[i]) table.points[i].alpha = c.alpha[anchor[i]];
+      },
+      &pins_fixed, &pins_manipulated);
   return t;
 }
 

@@ -127,6 +127,12 @@ class Deformer {
   std::vector<std::string> writeDeformed(Shape& shape) const;
   /// The current deformation evaluated in double (see writeDeformed()).
   ExactInterpolation exactInterpolation() const;
+  /// The same on another table of the shape's points (a block of a streamed shape's:
+  /// blockProlongation()), which must outlive it.
+  ExactInterpolation exactInterpolation(const InterpolationTable& table) const;
+  /// On a coarse level built elsewhere (the constructor with a PrebuiltLevel): what the table of
+  /// any of the shape's points needs; else null.
+  std::shared_ptr<const BlockProlongation> blockProlongation() const;
   /// Each cluster's current transform in world coordinates, x -> A x + b, in double: what
   /// writeDeformed() blends (bones already projected onto rotations).
   std::vector<Eigen::Affine3d> worldTransforms() const;

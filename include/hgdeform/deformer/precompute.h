@@ -89,6 +89,9 @@ struct DeformationData {
   /// factor are table.bracket(i).
   Clustering clustering;
   InterpolationTable table;
+  /// On a prebuilt level: what the table of any of the shape's points needs (the points the
+  /// geometry does not hold are tabled block by block as they stream by).
+  std::shared_ptr<const BlockProlongation> blocks;
   BuildTimings timings;  ///< field_ms, sampling_ms, coarse_ms, field; clusters_ms so far
 };
 

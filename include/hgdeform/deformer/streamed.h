@@ -4,6 +4,8 @@
 #pragma once
 
 #include <memory>
+#include <string>
+#include <vector>
 
 #include "hgdeform/deformer/deformer.h"
 #include "hgdeform/multires/streamed.h"
@@ -22,5 +24,16 @@ struct StreamedDeformer {
 /// empty). `options`: the deformation's; its multi-resolution sizes are the level's.
 StreamedDeformer streamedDeformer(const RecordLayout& layout, const StreamedLevel& level,
                                   const RecordHandles& handles, const DeformOptions& options);
+
+/// Writes the deformed file at `path`: every record of `layout`, block by block, as
+/// Deformer::writeDeformed and writeShape write the file read whole into memory, byte for byte:
+/// moved points' x, y, z (and normals, where the file's are all usable) computed in double from
+/// the record's own values, every other byte as it was, the same header and trailing elements.
+/// Returns what a front end should say (normals left as they were). Throws IoError naming the
+/// file for x, y, z stored as integers (the in-memory writer widens them: the records would
+/// change size) and for what writeRecords refuses; nothing is left at `path` then.
+std::vector<std::string> writeStreamedDeformed(const std::string& path, const RecordLayout& layout,
+                                               const StreamedLevel& level, const StreamedDeformer& deformer,
+                                               std::size_t block = 1 << 16);
 
 }  // namespace hgd

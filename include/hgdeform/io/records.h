@@ -5,6 +5,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -48,5 +49,20 @@ class RecordReader {
   const RecordLayout& layout_;
   int fd_ = -1;
 };
+
+/// Where writeRecords() sends the records, in order.
+class RecordSink {
+ public:
+  virtual ~RecordSink() = default;
+  virtual void write(const std::uint8_t* records, std::size_t bytes) = 0;
+};
+
+/// Writes `layout`'s shape as writeShape would write it holding the records that `records`
+/// gives (each record as the file's layout has it, `layout.count` of them in order): the same
+/// header, the same elements after the points, atomically (nothing at `path` unless complete).
+/// The format is `path`'s extension's and must be the file's own, binary; `path` must not be
+/// the file the layout was read from. Throws IoError naming the path otherwise.
+void writeRecords(const std::string& path, const RecordLayout& layout,
+                  const std::function<void(RecordSink&)>& records);
 
 }  // namespace hgd

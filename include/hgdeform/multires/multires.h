@@ -5,7 +5,10 @@
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
 
+#include <Eigen/Core>
+#include <algorithm>
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include "hgdeform/cluster/clustering.h"
@@ -45,6 +48,21 @@ CoarseLevel coarsen(const pcl::PointCloud<pcl::PointXYZ>& points, const Handles&
 /// The handles (and joints) of the coarse level: the anchors of their points.
 Handles coarseHandles(const Handles& handles, const CoarseLevel& level);
 
+/// A coarse point's linear model of φ: its gradient (least squares over its graph neighbours)
+/// and the range of values about it.
+struct CoarseLinear {
+  Eigen::Vector3f grad = Eigen::Vector3f::Zero();
+  float lo = 0, hi = 0;
+  /// φ at offset `d` from the coarse point whose value is `value`.
+  float at(float value, const Eigen::Vector3f& d) const { return std::clamp(value + grad.dot(d), lo, hi); }
+};
+
+/// The models of the coarse points (`coarse`, their positions; `graph` on them; `constrained`:
+/// handle points, whose models are their value alone).
+std::vector<CoarseLinear> coarseLinearModels(const pcl::PointCloud<pcl::PointXYZ>& coarse,
+                                             const NeighborGraph& graph, const std::vector<float>& coarse_phi,
+                                             const std::vector<char>& constrained);
+
 /// φ at every shape point from φ at the coarse points (`coarse_phi`, solved on `graph`, the
 /// coarse points' neighbour graph; `constrained`: coarse handle points). A point takes its
 /// anchor's value moved along the anchor's gradient (least squares over its graph neighbours),
@@ -61,6 +79,39 @@ std::vector<float> prolongField(const pcl::PointCloud<pcl::PointXYZ>& points, co
 InterpolationTable prolongInterpolation(const Clustering& coarse, const CoarseLevel& level,
                                         const std::vector<float>& coarse_phi, const std::vector<float>& phi,
                                         const Handles& handles, const pcl::PointCloud<pcl::PointXYZ>& points);
+
+/// What the interpolation table of any shape point needs of the coarse level, kept so that a
+/// streamed build makes its table block by block (prolongInterpolation's rows, point for point).
+class BlockProlongation {
+ public:
+  /// `coarse`: the coarse clustering with its per-point labels; `points`: the coarse points'
+  /// positions; `models`: coarseLinearModels; `fixed_handles`: the shape's fixed handle count
+  /// (every one with points).
+  BlockProlongation(const Clustering& coarse, pcl::PointCloud<pcl::PointXYZ> points,
+                    std::vector<float> coarse_phi, std::vector<CoarseLinear> models,
+                    std::size_t fixed_handles);
+  ~BlockProlongation();
+  BlockProlongation(const BlockProlongation&) = delete;
+  BlockProlongation& operator=(const BlockProlongation&) = delete;
+
+  /// The table of `points` (local positions): each with its anchor, whether it is a stray (it
+  /// takes its anchor's factor) and its class (coarsen's: 1 the manipulated handle, 2 + k fixed
+  /// handle k, pinned to their clusters; other classes not). Normals are left to the caller.
+  InterpolationTable table(const pcl::PointCloud<pcl::PointXYZ>& points,
+                           const std::vector<std::uint32_t>& anchor, const std::vector<char>& stray,
+                           const std::vector<int>& cls) const;
+  /// φ of a point at `p` anchored at coarse point a (a stray: the anchor's).
+  float phi(std::uint32_t a, const Eigen::Vector3f& p, bool stray) const;
+
+ private:
+  struct Rule;
+  std::unique_ptr<Rule> rule_;
+  Clustering labels_;  // the coarse clustering (bands, clusters, labels)
+  pcl::PointCloud<pcl::PointXYZ> points_;
+  std::vector<float> phi_;
+  std::vector<CoarseLinear> models_;
+  std::size_t fixed_handles_;
+};
 
 /// The clusters of the shape from the coarse level's: member and sample indices become shape
 /// indices; no per-point labels (lower, upper, alpha and nearest are left empty).

@@ -1,0 +1,147 @@
+// The deformed file written block by block from a streamed build (hgdeform/deformer/streamed.h):
+// Deformer::writeDeformed's rules (write_deformed.cpp) on each block's records.
+#include <algorithm>
+#include <cstring>
+
+#include "hgdeform/deformer/streamed.h"
+#include "hgdeform/io/fields.h"
+#include "hgdeform/io/io.h"
+
+namespace hgd {
+
+std::vector<std::string> writeStreamedDeformed(const std::string& path, const RecordLayout& layout,
+                                               const StreamedLevel& level, const StreamedDeformer& s,
+                                               std::size_t block) {
+  std::vector<std::string> warnings;
+  const Shape& shape = layout.shape;
+  const XyzFields f = findXyzFields(shape.cloud);
+  const std::string name = shape.path.empty() ? std::string("the shape") : shape.path;
+  if (!f.hasXyz()) throw IoError(name + ": no x/y/z fields");
+  for (const int idx : {f.x, f.y, f.z}) {
+    const std::uint8_t t = shape.cloud.fields[static_cast<std::size_t>(idx)].datatype;
+    if (t != pcl::PCLPointField::FLOAT32 && t != pcl::PCLPointField::FLOAT64)
+      throw IoError(
+          name +
+          ": x/y/z are stored as integers, which cannot hold the deformed positions: a streamed run "
+          "cannot widen them (the records would change size); read the whole file instead");
+  }
+  const Deformer& d = *s.deformer;
+  const std::shared_ptr<const BlockProlongation> prolong = d.blockProlongation();
+  if (!prolong)
+    throw std::logic_error("writeStreamedDeformed: the deformer was not built on a streamed level");
+  const std::vector<Eigen::Affine3d> moved = d.worldTransforms();
+  const bool any_move = std::any_of(moved.begin(), moved.end(), [](const Eigen::Affine3d& t) {
+    return !t.isApprox(Eigen::Affine3d::Identity(), 0);
+  });
+  const bool write_normals = f.hasNormals() && level.file_normals;
+  if (f.hasNormals() && !write_normals)
+    warnings.push_back(name +
+                       ": its normals were not usable (some are zero or not finite): they are written back "
+                       "as they were, not turned with the shape");
+  const auto& coarse_normals = d.surfaceGraph().normals();
+  const pcl::PCLPointField &fx = shape.cloud.fields[static_cast<std::size_t>(f.x)],
+                           &fy = shape.cloud.fields[static_cast<std::size_t>(f.y)],
+                           &fz = shape.cloud.fields[static_cast<std::size_t>(f.z)];
+  const bool is_double = fx.datatype == pcl::PCLPointField::FLOAT64;
+  const bool same_type = fy.datatype == fx.datatype && fz.datatype == fx.datatype;
+
+  writeRecords(path, layout, [&](RecordSink& sink) {
+    const RecordReader reader(layout);
+    pcl::PCLPointCloud2 c;
+    c.fields = shape.cloud.fields;
+    c.point_step = layout.bytes;
+    c.height = 1;
+    std::size_t stray_at = 0, class_at = 0;
+    const auto classOf = [&](std::uint64_t record) {  // records ascend: a cursor
+      const auto& rc = level.record_class;
+      while (class_at < rc.size() && rc[class_at].first < record) ++class_at;
+      return class_at < rc.size() && rc[class_at].first == record ? rc[class_at].second : 0;
+    };
+    pcl::PointCloud<pcl::PointXYZ> pts;
+    pcl::PointCloud<pcl::Normal>::Ptr normals(new pcl::PointCloud<pcl::Normal>);
+    std::vector<std::uint32_t> anchor;
+    std::vector<char> stray;
+    std::vector<int> cls;
+    std::vector<std::size_t> row;
+    for (std::uint64_t first = 0; first < layout.count; first += block) {
+      const auto count = static_cast<std::size_t>(std::min<std::uint64_t>(block, layout.count - first));
+      c.width = static_cast<std::uint32_t>(count);
+      c.row_step = c.point_step * c.width;
+      c.data.resize(count * c.point_step);
+      reader.read(first, count, c.data.data());
+      if (any_move) {
+        pts.clear();
+        normals->clear();
+        anchor.clear();
+        stray.clear();
+        cls.clear();
+        row.clear();
+        for (std::size_t k = 0; k < count; ++k) {
+          const std::uint64_t i = first + k;
+          const Eigen::Vector3d w(readValue(c, k, fx), readValue(c, k, fy), readValue(c, k, fz));
+          if (!w.allFinite() || !level.kept(i, w)) continue;
+          const Eigen::Vector3f p = level.local(w);
+          while (stray_at < level.strays.size() && level.strays[stray_at] < i) ++stray_at;
+          const bool is_stray = stray_at < level.strays.size() && level.strays[stray_at] == i;
+          const int cl = classOf(i);
+          pts.push_back(pcl::PointXYZ(p.x(), p.y(), p.z()));
+          stray.push_back(is_stray);
+          cls.push_back(cl);
+          anchor.push_back(is_stray ? level.stray_anchor[stray_at] : level.anchorOf(i, p, cl));
+          row.push_back(k);
+          if (write_normals) {
+            const Eigen::Vector3f nv(
+                static_cast<float>(readValue(c, k, c.fields[static_cast<std::size_t>(f.nx)])),
+                static_cast<float>(readValue(c, k, c.fields[static_cast<std::size_t>(f.ny)])),
+                static_cast<float>(readValue(c, k, c.fields[static_cast<std::size_t>(f.nz)])));
+            pcl::Normal n;
+            n.getNormalVector3fMap() = nv / nv.norm();
+            normals->push_back(n);
+          }
+        }
+        InterpolationTable table = prolong->table(pts, anchor, stray, cls);
+        if (level.file_normals) {  // shared, as the in-memory table shares the file's
+          table.normal_cloud = normals;
+        } else {  // a point's rest normal: its anchor's
+          table.normals.resize(pts.size());
+          for (std::size_t k = 0; k < pts.size(); ++k)
+            table.normals[k] = coarse_normals[anchor[k]].getNormalVector3fMap();
+        }
+        table.has_normals = true;
+        const ExactInterpolation exact = d.exactInterpolation(table);
+        for (std::size_t k = 0; k < pts.size(); ++k) {
+          if (!exact.moves(k)) continue;  // left as the file had it
+          const std::size_t r = row[k];
+          const Eigen::Vector3d at(readValue(c, r, fx), readValue(c, r, fy), readValue(c, r, fz));
+          const Eigen::Vector3d q = exact.apply(k, at - level.origin) + level.origin;
+          std::uint8_t* rec = c.data.data() + r * c.point_step;
+          if (same_type && is_double) {
+            std::memcpy(rec + fx.offset, &q.x(), 8);
+            std::memcpy(rec + fy.offset, &q.y(), 8);
+            std::memcpy(rec + fz.offset, &q.z(), 8);
+          } else if (same_type) {
+            const float v[3] = {static_cast<float>(q.x()), static_cast<float>(q.y()),
+                                static_cast<float>(q.z())};
+            std::memcpy(rec + fx.offset, &v[0], 4);
+            std::memcpy(rec + fy.offset, &v[1], 4);
+            std::memcpy(rec + fz.offset, &v[2], 4);
+          } else {
+            writeValue(c, r, fx, q.x());
+            writeValue(c, r, fy, q.y());
+            writeValue(c, r, fz, q.z());
+          }
+          if (write_normals) {
+            const Eigen::Vector3d nv = exact.applyNormal(k, table.restNormal(k).cast<double>());
+            writeValue(c, r, c.fields[static_cast<std::size_t>(f.nx)], nv.x());
+            writeValue(c, r, c.fields[static_cast<std::size_t>(f.ny)], nv.y());
+            writeValue(c, r, c.fields[static_cast<std::size_t>(f.nz)], nv.z());
+          }
+        }
+      }
+      sink.write(c.data.data(), c.data.size());
+    }
+  });
+  return warnings;
+}
+
+}  // namespace hgd
