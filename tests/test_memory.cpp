@@ -197,12 +197,18 @@ TEST(Memory, TheEstimateIsNearTheMeasuredPeak) {
   }
 }
 
+// A shape over the memory is refused before it is read when its file cannot be streamed (an
+// ascii PLY), and streamed when it can (the same scan in binary): the output then is the one the
+// run in memory writes, byte for byte.
 TEST(Memory, DeformRefusesAShapeOverItsMemoryBeforeReadingIt) {
   TempDir dir;
   const std::string scenario = dir.file("s.json");
   hgdtest::writeText(scenario, kScenario);
   const std::string in = dir.file("scan.ply"), out = dir.file("out.ply");
-  hgd::writeShape(in, shuffledSphere(300000));
+  hgd::WriteOptions ascii;
+  ascii.encoding = hgd::Encoding::Ascii;
+  const hgd::Shape sphere = shuffledSphere(300000);
+  hgd::writeShape(in, sphere, ascii);
   const std::string base =
       quote(kTool) + " deform " + quote(in) + " -s " + quote(scenario) + " -o " + quote(out);
   // About 75 MB for 300,000 points of 24 bytes: refused under 40 MB, with the reason.
@@ -224,6 +230,17 @@ TEST(Memory, DeformRefusesAShapeOverItsMemoryBeforeReadingIt) {
   r = shell(base + " --memory 12X");
   EXPECT_EQ(r.code, 2) << r.err;
   EXPECT_TRUE(contains(r.err, "--memory")) << r.err;
+  // In binary: streamed under 40 MB, said, and the output the run in memory writes.
+  const std::string bin = dir.file("scan_binary.ply"), out_memory = dir.file("memory.ply"),
+                    out_streamed = dir.file("streamed.ply");
+  hgd::writeShape(bin, sphere);
+  const std::string bin_base = quote(kTool) + " deform " + quote(bin) + " -s " + quote(scenario) + " -q -o ";
+  r = shell(bin_base + quote(out_memory));
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = shell(bin_base + quote(out_streamed) + " --memory 40M");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(contains(r.err, "streamed")) << r.err;
+  EXPECT_TRUE(hgdtest::slurp(out_memory) == hgdtest::slurp(out_streamed));
 }
 
 TEST(Memory, BatchFailsTheScanOverItsMemoryAndDeformsTheOthers) {

@@ -477,3 +477,45 @@ TEST(Stream, StreamedRunWritesTheInMemoryRunsBytes) {
                      tmp / "streamed.pcd");
   }
 }
+
+// `hgdeform deform --stream` writes what `hgdeform deform` writes, byte for byte, on a scan of
+// 170,000 points (above the multi-resolution threshold: both build on a coarse level) with a
+// scenario of a box fixed, a sphere dragged and a frame move; the report says it streamed.
+TEST(Stream, CliStreamWritesTheInMemoryRunsBytes) {
+  TempDir tmp;
+  const Eigen::Vector3d offset(512345.25, 4187654.5, 312.0);
+  const hgd::Shape scan = userScan(140000, 19, offset, true);
+  ASSERT_GT(scan.size(), 131072u);
+  const std::string in = tmp / "survey.ply", scenario = tmp / "s.json";
+  hgd::writeShape(in, scan);
+  {
+    std::ofstream s(scenario);
+    char buf[1024];
+    std::snprintf(buf, sizeof buf,
+                  R"({"fixed": [{"box": {"min": [%.3f, %.3f, %.3f], "max": [%.3f, %.3f, %.3f]}}],
+                      "manipulated": {"sphere": {"center": [%.3f, %.3f, %.3f], "radius": 0.35}},
+                      "move": [{"drag": {"from": [%.3f, %.3f, %.3f], "to": [%.3f, %.3f, %.3f]}},
+                               {"frame": {"translate": [0.05, 0, 0.1], "rotate": {"axis": [0, 0, 1], "degrees": 20}}}]})",
+                  offset.x() - 2, offset.y() - 2, offset.z() - 2, offset.x() + 2, offset.y() + 2,
+                  offset.z() - 0.7, offset.x() + 1, offset.y(), offset.z(), offset.x() + 1, offset.y(),
+                  offset.z(), offset.x() + 1.2, offset.y() + 0.1, offset.z() + 0.3);
+    s << buf;
+  }
+  const std::string tool = HGD_TOOL;
+  const std::string a = tmp / "memory.ply", b = tmp / "streamed.ply", report = tmp / "r.json";
+  ASSERT_EQ(std::system((tool + " deform " + in + " -s " + scenario + " -o " + a + " -q").c_str()), 0);
+  ASSERT_EQ(std::system(
+                (tool + " deform --stream " + in + " -s " + scenario + " -o " + b + " -q --report " + report)
+                    .c_str()),
+            0);
+  const std::string x = fileBytes(a), y = fileBytes(b), input = fileBytes(in);
+  ASSERT_EQ(x.size(), y.size());
+  std::size_t differ = 0, moved = 0;
+  for (std::size_t k = 0; k < x.size(); ++k) {
+    differ += x[k] != y[k];
+    moved += k < input.size() && x[k] != input[k];
+  }
+  EXPECT_EQ(differ, 0u) << "bytes that differ";
+  EXPECT_GT(moved, x.size() / 50);
+  EXPECT_NE(fileBytes(report).find("streamed"), std::string::npos);
+}

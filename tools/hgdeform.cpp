@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -18,12 +19,14 @@
 #include "hgdeform/app/report.h"
 #include "hgdeform/app/runner.h"
 #include "hgdeform/app/scenario.h"
+#include "hgdeform/app/stream.h"
 #include "hgdeform/deformer/deformer.h"
 #include "hgdeform/field/harmonic_field.h"
 #include "hgdeform/io/cleanup.h"
 #include "hgdeform/io/fields.h"
 #include "hgdeform/io/geometry.h"
 #include "hgdeform/io/io.h"
+#include "hgdeform/io/records.h"
 #include "huge_pages.h"
 
 namespace hgdcli {
@@ -73,8 +76,9 @@ struct DeformArgs {
   int k = hgd::FieldOptions().k_neighbors;
   int samples = hgd::DeformOptions().clusters.samples;
   int joint_clusters = hgd::DeformOptions().clusters.joint_isovalues;
-  int reweight = 0;   // GaussNewtonOptions::reweight_rounds
-  std::string blend;  // empty: the scenario's
+  int reweight = 0;     // GaussNewtonOptions::reweight_rounds
+  bool stream = false;  // --stream
+  std::string blend;    // empty: the scenario's
   std::string solver = "auto";
   std::string memory;  // --memory: empty for the memory the machine has available
   bool mesh_ring = false, full_field = false, ascii = false, quiet = false;
@@ -156,6 +160,10 @@ int parseDeform(int argc, const char* const* argv, DeformArgs& a) {
   app.add_flag("--full-field", a.full_field,
                "the field, pieces and clusters over every point, however many (default: above 131,072\n"
                "points, on a subsample of about 65,536 or a tenth of the points, prolonged to every point)");
+  app.add_flag("--stream", a.stream,
+               "stream the scan: read and write its points block by block, in memory bounded by the coarse\n"
+               "level, not by the points (binary PLY or PCD, written in the input's format; the same bytes\n"
+               "as a run in memory). Chosen by itself when a shape does not fit in memory");
   app.add_option("--memory", a.memory,
                  "the memory the run may take (e.g. 1.5G, 800M; default: what the machine has\n"
                  "available): a shape estimated to need more is refused before it is read")
@@ -279,20 +287,45 @@ int runDeform(const DeformArgs& a) {
   }
   const std::uint64_t memory = hgdcli::memoryOption(a.memory);
   const hgd::Scenario scenario = hgd::readScenario(scenario_path);
+  // A shape that does not fit in memory is streamed when its file allows (binary PLY or PCD)
+  // and its build is on a coarse level; --stream asks for it whatever the size.
   // (The scenario's "resolution": "full" keeps every point in the graph, as --full-field.)
-  hgd::checkDeformMemory(input, memory, scenario.full_resolution.value_or(false) ? 0 : opt.multires_above);
-  hgd::ScenarioRunner run = hgd::ScenarioRunner::read(input, ro);
-  run.setScenario(scenario);
-  run.applyMoves();
-  hgd::WriteOptions wo;
-  if (a.ascii) wo.encoding = hgd::Encoding::Ascii;
-  hgd::PreviousOutput previous(output);              // what a failed run leaves at `output`
-  run.writeAndRelease(output, wo, {scenario_path});  // the shape held once, not copied to write
+  const bool full = a.full_field || scenario.full_resolution.value_or(false);
+  bool stream = a.stream;
+  if (!stream) {
+    try {
+      hgd::checkDeformMemory(input, memory, full ? 0 : opt.multires_above);
+    } catch (const hgd::IoError& too_big) {
+      if (full || a.ascii) throw;
+      try {
+        hgd::readRecordLayout(input);
+      } catch (const hgd::IoError&) {
+        throw too_big;  // not records in place: the reason stands
+      }
+      std::fprintf(stderr, "hgdeform: note: %s: streamed (%s)\n", input.c_str(), too_big.what());
+      stream = true;
+    }
+  }
+  if (stream && a.ascii)
+    throw hgdcli::UsageError("--stream writes the input's binary format: not with --ascii");
+  if (stream && full)
+    throw hgdcli::UsageError(
+        "--stream builds on a coarse level: not with --full-field or \"resolution\": \"full\"");
+  hgd::PreviousOutput previous(output);  // what a failed run leaves at `output`
+  std::optional<hgd::ScenarioRunner> run;
+  if (!stream) {
+    run.emplace(hgd::ScenarioRunner::read(input, ro));
+    run->setScenario(scenario);
+    run->applyMoves();
+    hgd::WriteOptions wo;
+    if (a.ascii) wo.encoding = hgd::Encoding::Ascii;
+    run->writeAndRelease(output, wo, {scenario_path});  // the shape held once, not copied to write
+  }
   // A failed run leaves no output: when the report cannot be made or written, the shape goes
   // too, and a file that was there before is put back.
   hgd::DeformReport report;
   try {
-    report = run.report();
+    report = stream ? hgd::streamDeform(input, scenario, ro, output) : run->report();
     report.peak_rss_mb = hgdcli::peakResidentMb();
     report.huge_page_malloc = hgdcli::hugePageMallocOn();
     if (report_path == "-") {

@@ -8,6 +8,7 @@
 
 #include "deformer/precompute_internal.h"
 #include "hgdeform/app/regions.h"
+#include "hgdeform/app/report.h"
 #include "util/phases.h"
 #include "util/timer.h"
 
@@ -251,43 +252,9 @@ DeformReport ScenarioRunner::report() const {
   rep.write_ms = write_ms_;
   if (const std::shared_ptr<const Deformer> shared = session_.sharedDeformer()) {
     const Deformer& d = *shared;
-    const BuildTimings& b = d.buildTimings();
-    rep.build = b;
+    describeRun(d, moves_, results_, session_.mergedOptions().clusters.isovalues, rep);
     // The runner's own phases (the geometry, the handles) before the Deformer's.
     rep.build.phases.insert(rep.build.phases.begin(), session_.phases().begin(), session_.phases().end());
-    rep.field_ms = b.field_ms;
-    rep.sampling_ms = b.sampling_ms;
-    rep.clusters_ms = b.clusters_ms;
-    rep.sample = d.clustering().sample.size();
-    rep.clusters = d.clustering().clusters.size();
-    rep.isovalues = session_.mergedOptions().clusters.isovalues;
-    rep.unreachable = d.unreachablePoints();
-    rep.notes = d.clustering().notes;
-    if (d.surfaceGraph().normalsReoriented())
-      rep.notes.emplace_back(
-          "the file's normals are not consistently oriented: the neighbour filter used re-oriented copies "
-          "(the output keeps the file's signs)");
-    if (!d.surfaceGraph().rejoinedPairs().empty())
-      rep.notes.push_back("the normal filter would have cut pieces without a handle off the surface: " +
-                          std::to_string(d.surfaceGraph().rejoinedPairs().size()) +
-                          " neighbour pairs across thin gaps were kept to join them back");
-    rep.pieces = d.pieces().report;
-    rep.warnings = rep.pieces.warnings();
-    for (std::size_t i = 0; i < results_.size(); ++i) {
-      const MoveResult& r = results_[i];
-      if (!r.warning.empty()) rep.warnings.push_back(r.warning);
-      rep.frames += r.frames;
-      rep.iterations += r.iterations;
-      rep.max_frame_iterations = std::max(rep.max_frame_iterations, r.max_frame_iterations);
-      rep.solve_ms += r.solve_ms;
-      rep.interpolation_ms += r.interpolation_ms;
-      if (moves_[i].kind == Move::Kind::Drag) {
-        rep.handle_error = r.handle_error;
-        rep.reached = rep.reached && r.reached;
-      }
-    }
-    rep.energy = d.energies();
-    rep.solve_per_iteration_ms = rep.iterations > 0 ? rep.solve_ms / rep.iterations : 0;
     rep.surface = d.surfaceStretch();
     if (const std::string w = stretchWarning(rep.surface); !w.empty()) rep.warnings.push_back(w);
   }
@@ -367,6 +334,45 @@ DeformReport deformShape(Shape& shape, const Scenario& scenario, const DeformOpt
     throw;
   }
   return run.report();  // with what writing the shape said
+}
+
+void describeRun(const Deformer& d, const std::vector<Move>& moves, const std::vector<MoveResult>& results,
+                 int isovalues, DeformReport& rep) {
+  const BuildTimings& b = d.buildTimings();
+  rep.build = b;
+  rep.field_ms = b.field_ms;
+  rep.sampling_ms = b.sampling_ms;
+  rep.clusters_ms = b.clusters_ms;
+  rep.sample = d.clustering().sample.size();
+  rep.clusters = d.clustering().clusters.size();
+  rep.isovalues = isovalues;
+  rep.unreachable = d.unreachablePoints();
+  rep.notes = d.clustering().notes;
+  if (d.surfaceGraph().normalsReoriented())
+    rep.notes.emplace_back(
+        "the file's normals are not consistently oriented: the neighbour filter used re-oriented copies "
+        "(the output keeps the file's signs)");
+  if (!d.surfaceGraph().rejoinedPairs().empty())
+    rep.notes.push_back("the normal filter would have cut pieces without a handle off the surface: " +
+                        std::to_string(d.surfaceGraph().rejoinedPairs().size()) +
+                        " neighbour pairs across thin gaps were kept to join them back");
+  rep.pieces = d.pieces().report;
+  rep.warnings = rep.pieces.warnings();
+  for (std::size_t i = 0; i < results.size(); ++i) {
+    const MoveResult& r = results[i];
+    if (!r.warning.empty()) rep.warnings.push_back(r.warning);
+    rep.frames += r.frames;
+    rep.iterations += r.iterations;
+    rep.max_frame_iterations = std::max(rep.max_frame_iterations, r.max_frame_iterations);
+    rep.solve_ms += r.solve_ms;
+    rep.interpolation_ms += r.interpolation_ms;
+    if (moves[i].kind == Move::Kind::Drag) {
+      rep.handle_error = r.handle_error;
+      rep.reached = rep.reached && r.reached;
+    }
+  }
+  rep.energy = d.energies();
+  rep.solve_per_iteration_ms = rep.iterations > 0 ? rep.solve_ms / rep.iterations : 0;
 }
 
 }  // namespace hgd

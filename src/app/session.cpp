@@ -133,17 +133,22 @@ std::string Session::missingHandle() const {
   return {};
 }
 
-DeformOptions Session::mergedOptions(const Scenario& scenario) const {
-  DeformOptions opt = options_.deform;
-  if (options_.clusters)
-    opt.clusters.isovalues = *options_.clusters;
+DeformOptions mergedOptions(const RunOptions& options, const Scenario& scenario) {
+  DeformOptions opt = options.deform;
+  if (options.clusters)
+    opt.clusters.isovalues = *options.clusters;
   else if (scenario.clusters)
     opt.clusters.isovalues = *scenario.clusters;
-  if (options_.blend)
-    opt.blend = *options_.blend;
+  if (options.blend)
+    opt.blend = *options.blend;
   else if (scenario.blend)
     opt.blend = *scenario.blend;
   if (scenario.full_resolution && *scenario.full_resolution) opt.multires_above = 0;
+  return opt;
+}
+
+DeformOptions Session::mergedOptions(const Scenario& scenario) const {
+  DeformOptions opt = hgd::mergedOptions(options_, scenario);
   if (shape_.isOrganized() && geometry_) {
     opt.field.orient_to_viewpoint = true;
     opt.field.viewpoint = (shape_.sensor_origin.head<3>().cast<double>() - geometry_->origin).cast<float>();
@@ -190,7 +195,10 @@ bool Session::ensureBuilt() {
 }
 
 MoveResult Session::applyMove(const Move& move, int number) {
-  Deformer& d = deformer();
+  return hgd::applyMove(deformer(), move, number);
+}
+
+MoveResult applyMove(Deformer& d, const Move& move, int number) {
   MoveResult r;
   if (move.kind == Move::Kind::Drag && !move.drag.keep_orientation) {
     const DragResult dr = d.dragTo(move.drag.from, move.drag.to);

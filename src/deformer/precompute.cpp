@@ -152,7 +152,8 @@ void coarseResolution(const Geometry& geometry, const Handles& handles, const De
   std::snprintf(note, sizeof note,
                 "multi-resolution: field, pieces and clusters on %zu of %zu points (voxel side %.3g); "
                 "full resolution on request",
-                m, pts.size(), static_cast<double>(coarse.cell));
+                m, data.prebuilt ? data.prebuilt->shape_points : pts.size(),
+                static_cast<double>(coarse.cell));
   data.clustering.notes.emplace_back(note);
   InterpolationTable& table = data.table;
   if (geometry.hasFileNormals()) {  // shared, not copied

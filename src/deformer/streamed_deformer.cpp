@@ -93,6 +93,7 @@ StreamedDeformer streamedDeformer(const RecordLayout& layout, const StreamedLeve
   pre->handles.fixed = level.coarse_fixed;
   pre->handles.manipulated = level.coarse_manipulated;
   pre->handles.joints = level.coarse_joints;
+  pre->shape_points = static_cast<std::size_t>(level.points);
   out.geometry = g;
   out.level = pre;
   out.deformer = std::make_unique<Deformer>(out.geometry, out.handles, options, out.level);

@@ -359,8 +359,10 @@ void writeRecords(const std::string& path, const RecordLayout& layout,
   const FileFormat format = formatFromPath(path);
   refuseInputs(path, {layout.shape.path});
   const Shape& shape = layout.shape;
+  if (!shape.polygons.empty())
+    fail(path, "cannot write the records as they come: a mesh's faces are not streamed");
   if (format != shape.format || (format != FileFormat::Ply && format != FileFormat::Pcd) ||
-      shape.extras.pcd_compressed || shape.extras.ply_big_endian || !shape.polygons.empty())
+      shape.extras.pcd_compressed || shape.extras.ply_big_endian)
     fail(path, std::string("cannot write the records as they come: the output must be a binary ") +
                    formatName(shape.format) + " as the input is");
   struct Sink : RecordSink {

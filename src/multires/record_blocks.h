@@ -77,6 +77,8 @@ class Blocks {
     return true;
   }
   bool hasNormals() const { return xyz_.hasNormals(); }
+  /// The block last loaded, as a cloud of the file's fields.
+  const pcl::PCLPointCloud2& cloud() const { return cloud_; }
 
  private:
   RecordReader reader_;

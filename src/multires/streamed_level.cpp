@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <limits>
 #include <numeric>
 #include <unordered_map>
@@ -72,6 +73,7 @@ struct Near {
   Eigen::Vector3f p;
   Eigen::Vector3d w;
   Eigen::Vector3f n;
+  std::uint64_t key = 0;  ///< its cell
 };
 
 }  // namespace
@@ -117,6 +119,13 @@ std::uint32_t StreamedLevel::anchorOf(std::uint64_t record, const Eigen::Vector3
 }
 
 StreamedLevel streamCoarseLevel(const RecordLayout& layout, const RecordHandles& handles,
+                                const StreamedLevelOptions& options) {
+  return streamCoarseLevel(
+      layout, [&](const StreamedLevel&) { return handles; }, options);
+}
+
+StreamedLevel streamCoarseLevel(const RecordLayout& layout,
+                                const std::function<RecordHandles(const StreamedLevel&)>& handles_of,
                                 const StreamedLevelOptions& options) {
   using namespace frame;
   const std::string& path = layout.shape.path;
@@ -290,6 +299,8 @@ StreamedLevel streamCoarseLevel(const RecordLayout& layout, const RecordHandles&
   out.morton_lo = body_lo;
   out.morton_scale = morton_extent > 0 ? 1023.0 / morton_extent : 0.0;
 
+  // The handles, now that what is kept is known.
+  const RecordHandles handles = handles_of(out);
   // The coarse level's size and classes (coarsen's).
   const std::size_t target =
       options.points_per_coarse > 0
@@ -367,7 +378,7 @@ StreamedLevel streamCoarseLevel(const RecordLayout& layout, const RecordHandles&
       CellAcc& cell = cells[key];
       ++cell.count;
       cell.offer(i, centre2, p, w, nv);
-      if (i % stray_stride == 0) typical_at.push_back({i, p, w, nv});
+      if (i % stray_stride == 0) typical_at.push_back({i, p, w, nv, key});
     });
   }
   std::vector<std::uint64_t> keys;
@@ -408,62 +419,99 @@ StreamedLevel streamCoarseLevel(const RecordLayout& layout, const RecordHandles&
       for (const std::uint64_t key : keys)
         if (cells[key].count <= few && (key >> (3 * ab)) == 0) sparse.push_back(key);
     if (!sparse.empty()) {
-      std::unordered_set<std::uint64_t> wanted;
-      const auto want = [&](std::uint64_t key) {
-        if (cells.count(key)) wanted.insert(key);
-      };
-      for (const std::uint64_t key : sparse) around(key, want);
-      for (const Near& s : typical_at) around(grid.key(s.p, 0), want);
-      // Pass 3: the points of those cells.
-      ClassCursor cc{out.record_class};
-      SortedCursor stray_far(out.far_strays);
-      blocks.each([&](std::uint64_t i, std::size_t k) {
-        const Eigen::Vector3d w = blocks.world(k);
-        if (!w.allFinite() || (out.zeros_apart && isZero(w))) return;
-        const double d = (w - fr.centre).cwiseAbs().maxCoeff();
-        if (d > out.far || (d > out.stray_distance && stray_far.has(i))) return;
-        const Eigen::Vector3f p = out.local(w);
-        const std::uint64_t key = grid.key(p, cc.of(i));
-        if (!wanted.count(key)) return;
-        Eigen::Vector3f nv = Eigen::Vector3f::Zero();
-        if (out.file_normals) blocks.normal(k, nv);
-        gathered[key].push_back({i, p, w, nv});
-      });
-      std::vector<float> typical;
-      for (const Near& s : typical_at) {
+      // Without holding the points around them: the sample's second-nearest distances are
+      // kept up to date as the points near them stream by (pass 3, which also gathers the
+      // sparse cells' own points), and then each sparse cell's point counts the points near it
+      // as they stream by (pass 4). What a point meets is order-free: the two smallest distances,
+      // a count.
+      struct Typical {
+        std::uint64_t record;
+        Eigen::Vector3f p;
         float d1 = INFINITY, d2 = INFINITY;
-        around(grid.key(s.p, 0), [&](std::uint64_t key) {
-          const auto it = gathered.find(key);
-          if (it == gathered.end()) return;
-          for (const Near& o : it->second) {
-            if (o.record == s.record) continue;
-            const float d = (o.p - s.p).squaredNorm();
-            if (d < d1) {
-              d2 = d1;
-              d1 = d;
-            } else if (d < d2) {
-              d2 = d;
-            }
+      };
+      std::vector<Typical> typ;
+      std::unordered_map<std::uint64_t, std::vector<std::size_t>> sample_in;  // cell -> sample points
+      for (const Near& t : typical_at) typ.push_back({t.record, t.p});
+      std::unordered_set<std::uint64_t> sparse_set(sparse.begin(), sparse.end());
+      std::unordered_set<std::uint64_t> near_sample, near_sparse;  // cells around them that exist
+      const auto into = [&](std::unordered_set<std::uint64_t>& set) {
+        return [&](std::uint64_t key) {
+          if (cells.count(key)) set.insert(key);
+        };
+      };
+      for (std::size_t k = 0; k < typ.size(); ++k) {
+        const std::uint64_t key = typical_at[k].key;  // its cell (with its class)
+        sample_in[key].push_back(k);
+        around(key, into(near_sample));
+      }
+      for (const std::uint64_t key : sparse) around(key, into(near_sparse));
+      // Pass 3.
+      {
+        ClassCursor cc{out.record_class};
+        SortedCursor stray_far(out.far_strays);
+        blocks.each([&](std::uint64_t i, std::size_t k) {
+          const Eigen::Vector3d w = blocks.world(k);
+          if (!w.allFinite() || (out.zeros_apart && isZero(w))) return;
+          const double d = (w - fr.centre).cwiseAbs().maxCoeff();
+          if (d > out.far || (d > out.stray_distance && stray_far.has(i))) return;
+          const Eigen::Vector3f p = out.local(w);
+          const std::uint64_t key = grid.key(p, cc.of(i));
+          if (near_sample.count(key))
+            around(key, [&](std::uint64_t other) {
+              const auto it = sample_in.find(other);
+              if (it == sample_in.end()) return;
+              for (const std::size_t t : it->second) {
+                Typical& s = typ[t];
+                if (s.record == i) continue;
+                const float dd = (p - s.p).squaredNorm();
+                if (dd < s.d1) {
+                  s.d2 = s.d1;
+                  s.d1 = dd;
+                } else if (dd < s.d2) {
+                  s.d2 = dd;
+                }
+              }
+            });
+          if (sparse_set.count(key)) {
+            Eigen::Vector3f nv = Eigen::Vector3f::Zero();
+            if (out.file_normals) blocks.normal(k, nv);
+            gathered[key].push_back({i, p, w, nv});
           }
         });
-        if (std::isfinite(d2) && d2 > 0) typical.push_back(d2);
       }
+      std::vector<float> typical;
+      for (const Typical& t : typ)
+        if (std::isfinite(t.d2) && t.d2 > 0) typical.push_back(t.d2);
       const float limit2 = typical.empty() ? 0.0f : std::min(grid.h * grid.h, strayLimit2(typical));
-      if (limit2 > 0)
+      if (limit2 > 0) {
+        // Pass 4: the near points of every sparse cell's point.
+        std::unordered_map<std::uint64_t, std::vector<int>> near_count;  // per sparse cell, per point
+        for (const std::uint64_t key : sparse) near_count[key].assign(gathered[key].size(), 0);
+        ClassCursor cc{out.record_class};
+        SortedCursor stray_far(out.far_strays);
+        blocks.each([&](std::uint64_t i, std::size_t k) {
+          const Eigen::Vector3d w = blocks.world(k);
+          if (!w.allFinite() || (out.zeros_apart && isZero(w))) return;
+          const double d = (w - fr.centre).cwiseAbs().maxCoeff();
+          if (d > out.far || (d > out.stray_distance && stray_far.has(i))) return;
+          const Eigen::Vector3f p = out.local(w);
+          const std::uint64_t key = grid.key(p, cc.of(i));
+          if (!near_sparse.count(key)) return;
+          around(key, [&](std::uint64_t other) {
+            const auto it = gathered.find(other);
+            if (it == gathered.end()) return;
+            std::vector<int>& count = near_count[other];
+            for (std::size_t q = 0; q < it->second.size(); ++q)
+              count[q] += it->second[q].record != i && (p - it->second[q].p).squaredNorm() <= limit2;
+          });
+        });
         for (const std::uint64_t key : sparse)
-          for (const Near& q : gathered[key]) {
-            int near = 0;
-            around(key, [&](std::uint64_t other) {
-              const auto it = gathered.find(other);
-              if (it == gathered.end()) return;
-              for (const Near& o : it->second)
-                near += o.record != q.record && (o.p - q.p).squaredNorm() <= limit2;
-            });
-            if (near < 2) {
-              level_strays.push_back(q.record);
-              stray_set.insert(q.record);
+          for (std::size_t q = 0; q < gathered[key].size(); ++q)
+            if (near_count[key][q] < 2) {
+              level_strays.push_back(gathered[key][q].record);
+              stray_set.insert(gathered[key][q].record);
             }
-          }
+      }
       // A cell with strays stands by its nearest point that is not one.
       for (const std::uint64_t key : sparse) {
         CellAcc fresh;

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "hgdeform/app/runner.h"
 
@@ -19,5 +20,11 @@ void writeReportJson(const std::string& path, const DeformReport& report);
 
 /// One line for the terminal.
 std::string summaryLine(const DeformReport& report);
+
+/// What a report says of a deformer's build and moves (every front end's): its timings,
+/// clusters, notes, pieces and their warnings, each move's figures and warning, the energy.
+/// `moves` and `results`: the moves applied and what each did; `isovalues`: the run's.
+void describeRun(const Deformer& deformer, const std::vector<Move>& moves,
+                 const std::vector<MoveResult>& results, int isovalues, DeformReport& report);
 
 }  // namespace hgd

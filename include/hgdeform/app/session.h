@@ -56,6 +56,15 @@ struct MoveResult {
 /// one, else `handle_centre`), then the translation; world coordinates.
 Eigen::Affine3d frameMotion(const FrameMove& move, const Eigen::Vector3d& handle_centre);
 
+/// Applies one move to a deformer as every front end does (Session::applyMove; `number`: the
+/// move's, for messages).
+MoveResult applyMove(Deformer& deformer, const Move& move, int number = 1);
+
+/// The deformation options of a run of `scenario`: the run's, its isovalue count and blend
+/// winning over the scenario's, the scenario's "resolution" (Session::mergedOptions but for an
+/// organized shape's viewpoint).
+DeformOptions mergedOptions(const RunOptions& options, const Scenario& scenario);
+
 class Session {
  public:
   /// A session without a shape yet (setShape()); handles and options may be set already.

@@ -69,6 +69,7 @@ struct BuildTimings {
 struct PrebuiltLevel {
   CoarseLevel level;
   Handles handles;
+  std::size_t shape_points = 0;  ///< the whole shape's (for what the build says of itself)
 };
 
 /// What precompute() builds, for the resolution it chose.

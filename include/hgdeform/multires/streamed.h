@@ -11,6 +11,7 @@
 #include <Eigen/Geometry>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <unordered_map>
 #include <vector>
@@ -91,6 +92,11 @@ struct StreamedLevel {
 /// rule looks at when a cell is sparse. Throws IoError naming the file when it cannot be read,
 /// or when its shape is one this build cannot reproduce (a sample that holds no finite record).
 StreamedLevel streamCoarseLevel(const RecordLayout& layout, const RecordHandles& handles,
+                                const StreamedLevelOptions& options);
+/// The same with the handles found once the frame is (`handles_of` is given the level with its
+/// frame set: kept() answers; it may read the file).
+StreamedLevel streamCoarseLevel(const RecordLayout& layout,
+                                const std::function<RecordHandles(const StreamedLevel&)>& handles_of,
                                 const StreamedLevelOptions& options);
 
 }  // namespace hgd

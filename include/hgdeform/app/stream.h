@@ -1,0 +1,32 @@
+// A scenario run on a scan streamed from its file (`hgdeform deform --stream`): the coarse
+// level by passes, the build and the moves on it, the deformed file written block by block.
+// What it writes is what the run on the file read whole writes, byte for byte.
+#pragma once
+
+#include <string>
+
+#include "hgdeform/app/report.h"
+#include "hgdeform/app/scenario.h"
+#include "hgdeform/app/session.h"
+#include "hgdeform/io/records.h"
+#include "hgdeform/multires/streamed.h"
+
+namespace hgd {
+
+/// The scenario's regions over the file's records (as resolveHandles resolves them over the
+/// shape read whole: the file's own values, the points `level` keeps). Throws ScenarioError as
+/// resolveHandles does.
+RecordHandles streamHandles(const Scenario& scenario, const RecordLayout& layout, const StreamedLevel& level);
+
+/// Whether a run of `options` on `layout`'s file can be streamed: the build the file read whole
+/// would make is on a coarse level (more points than multires_above, which is not 0). The points
+/// are the file's records (an upper bound of the points kept).
+bool streamable(const RecordLayout& layout, const DeformOptions& options);
+
+/// Runs `scenario` on `input` streamed and writes the deformed file at `output` (binary, the
+/// input's format). Throws IoError or ScenarioError naming the problem; nothing is left at
+/// `output` then.
+DeformReport streamDeform(const std::string& input, const Scenario& scenario, const RunOptions& options,
+                          const std::string& output);
+
+}  // namespace hgd
