@@ -4,6 +4,7 @@
 
 #include <Eigen/Core>
 #include <cstddef>
+#include <cstdint>
 #include <vector>
 
 namespace hgd::frame {
@@ -31,5 +32,21 @@ RobustFrame robustFrame(const std::vector<Eigen::Vector3d>& world, const std::ve
 /// the frame's). Their positions in `at`, ascending.
 std::vector<std::size_t> aloneAmong(const std::vector<Eigen::Vector3d>& at, const Eigen::Vector3d& centre,
                                     double r);
+
+/// A position's Morton key (10 bits an axis, x in the lowest) in the cube from `lo` whose side
+/// `scale` maps to 1023 (Geometry's space-filling order; beyond it, the edge cells).
+inline std::uint32_t mortonKey(const Eigen::Vector3d& w, const Eigen::Vector3d& lo, double scale) {
+  auto spread = [](std::uint32_t v) {  // 10 bits -> every third of 30
+    std::uint32_t x = v & 0x3ffu;
+    x = (x | (x << 16)) & 0x030000ffu;
+    x = (x | (x << 8)) & 0x0300f00fu;
+    x = (x | (x << 4)) & 0x030c30c3u;
+    x = (x | (x << 2)) & 0x09249249u;
+    return x;
+  };
+  const Eigen::Vector3d q = ((w - lo) * scale).cwiseMax(0.0).cwiseMin(1023.0);
+  return spread(static_cast<std::uint32_t>(q.x())) | (spread(static_cast<std::uint32_t>(q.y())) << 1) |
+         (spread(static_cast<std::uint32_t>(q.z())) << 2);
+}
 
 }  // namespace hgd::frame

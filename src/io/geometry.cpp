@@ -263,22 +263,12 @@ Geometry extractGeometry(const Shape& shape) {
     // body a single cell.
     const double extent = (body_hi - body_lo).maxCoeff();
     const double scale = extent > 0 ? 1023.0 / extent : 0.0;
-    auto spread = [](std::uint32_t v) {  // 10 bits -> every third of 30
-      std::uint32_t x = v & 0x3ffu;
-      x = (x | (x << 16)) & 0x030000ffu;
-      x = (x | (x << 8)) & 0x0300f00fu;
-      x = (x | (x << 4)) & 0x030c30c3u;
-      x = (x | (x << 2)) & 0x09249249u;
-      return x;
-    };
     std::vector<std::uint32_t> key(m);
     const long long mm = static_cast<long long>(m);
 #pragma omp parallel for schedule(static) if (mm > kParallelMin)
     for (long long kk = 0; kk < mm; ++kk) {
       const auto k = static_cast<std::size_t>(kk);
-      const Eigen::Vector3d q = ((world[k] - body_lo) * scale).cwiseMax(0.0).cwiseMin(1023.0);
-      key[k] = spread(static_cast<std::uint32_t>(q.x())) | (spread(static_cast<std::uint32_t>(q.y())) << 1) |
-               (spread(static_cast<std::uint32_t>(q.z())) << 2);
+      key[k] = mortonKey(world[k], body_lo, scale);
       perm[k] = static_cast<std::uint32_t>(k);
     }
     clock.lap("geometry.morton_keys");

@@ -78,46 +78,6 @@ struct Near {
 
 }  // namespace
 
-std::uint32_t StreamedLevel::mortonKey(const Eigen::Vector3d& w) const {
-  // Geometry's (io/geometry.cpp): 10 bits an axis of the body's bounding cube.
-  auto spread = [](std::uint32_t v) {
-    std::uint32_t x = v & 0x3ffu;
-    x = (x | (x << 16)) & 0x030000ffu;
-    x = (x | (x << 8)) & 0x0300f00fu;
-    x = (x | (x << 4)) & 0x030c30c3u;
-    x = (x | (x << 2)) & 0x09249249u;
-    return x;
-  };
-  const Eigen::Vector3d q = ((w - morton_lo) * morton_scale).cwiseMax(0.0).cwiseMin(1023.0);
-  return spread(static_cast<std::uint32_t>(q.x())) | (spread(static_cast<std::uint32_t>(q.y())) << 1) |
-         (spread(static_cast<std::uint32_t>(q.z())) << 2);
-}
-
-int StreamedLevel::classOf(std::uint64_t record) const {
-  const auto it = std::lower_bound(record_class.begin(), record_class.end(), std::make_pair(record, -1));
-  return it != record_class.end() && it->first == record ? it->second : 0;
-}
-
-bool StreamedLevel::kept(std::uint64_t record, const Eigen::Vector3d& world) const {
-  if (zeros_apart && isZero(world)) return false;
-  const double d = (world - frame_centre).cwiseAbs().maxCoeff();
-  if (d > far) return false;
-  return !(d > stray_distance && std::binary_search(far_strays.begin(), far_strays.end(), record));
-}
-
-std::uint32_t StreamedLevel::anchorOf(std::uint64_t record, const Eigen::Vector3f& p, int cls) const {
-  const auto s = std::lower_bound(strays.begin(), strays.end(), record);
-  if (s != strays.end() && *s == record) return stray_anchor[static_cast<std::size_t>(s - strays.begin())];
-  Grid grid;
-  grid.lo = grid_lo;
-  grid.h = cell;
-  grid.axis_bits = axis_bits;
-  const std::uint64_t key = grid.key(p, cls);
-  const auto it = std::lower_bound(cell_key.begin(), cell_key.end(), key);
-  if (it == cell_key.end() || *it != key) return 0;  // (not a kept point of the file)
-  return cell_id[static_cast<std::size_t>(it - cell_key.begin())];
-}
-
 StreamedLevel streamCoarseLevel(const RecordLayout& layout, const RecordHandles& handles,
                                 const StreamedLevelOptions& options) {
   return streamCoarseLevel(
@@ -332,6 +292,19 @@ StreamedLevel streamCoarseLevel(const RecordLayout& layout,
     }
   };
 
+  // A pass over the points Geometry keeps: fn(record, row, world, local position, class).
+  const auto eachKept = [&](auto&& fn) {
+    ClassCursor cc{out.record_class};
+    SortedCursor stray_far(out.far_strays);
+    blocks.each([&](std::uint64_t i, std::size_t k) {
+      const Eigen::Vector3d w = blocks.world(k);
+      if (!w.allFinite() || (out.zeros_apart && isZero(w))) return;
+      const double d = (w - fr.centre).cwiseAbs().maxCoeff();
+      if (d > out.far || (d > out.stray_distance && stray_far.has(i))) return;
+      fn(i, k, w, out.local(w), cc.of(i));
+    });
+  };
+
   // The grid's sizing subset (the grid must be known before the cells): the kept points at file
   // indices on a stride.
   const std::size_t grid_stride = coarse::gridSampleStride(n_records, target);
@@ -358,28 +331,21 @@ StreamedLevel streamCoarseLevel(const RecordLayout& layout,
   for (const auto& j : handles.joints) lists.push_back(&j);
   std::vector<std::unordered_set<std::uint64_t>> list_cells(lists.size());
   {
-    ClassCursor cc{out.record_class};
-    SortedCursor stray_far(out.far_strays);
     std::vector<SortedCursor> in_list;
     for (const auto* l : lists) in_list.emplace_back(*l);
-    blocks.each([&](std::uint64_t i, std::size_t k) {
-      const Eigen::Vector3d w = blocks.world(k);
-      if (!w.allFinite() || (out.zeros_apart && isZero(w))) return;
-      const double d = (w - fr.centre).cwiseAbs().maxCoeff();
-      if (d > out.far || (d > out.stray_distance && stray_far.has(i))) return;
-      const Eigen::Vector3f p = out.local(w);
-      const int cls = cc.of(i);
-      float centre2 = 0;
-      const std::uint64_t key = grid.key(p, cls, centre2);
-      Eigen::Vector3f nv = Eigen::Vector3f::Zero();
-      if (out.file_normals) blocks.normal(k, nv);
-      for (std::size_t l = 0; l < lists.size(); ++l)
-        if (in_list[l].has(i)) list_cells[l].insert(key);
-      CellAcc& cell = cells[key];
-      ++cell.count;
-      cell.offer(i, centre2, p, w, nv);
-      if (i % stray_stride == 0) typical_at.push_back({i, p, w, nv, key});
-    });
+    eachKept(
+        [&](std::uint64_t i, std::size_t k, const Eigen::Vector3d& w, const Eigen::Vector3f& p, int cls) {
+          float centre2 = 0;
+          const std::uint64_t key = grid.key(p, cls, centre2);
+          Eigen::Vector3f nv = Eigen::Vector3f::Zero();
+          if (out.file_normals) blocks.normal(k, nv);
+          for (std::size_t l = 0; l < lists.size(); ++l)
+            if (in_list[l].has(i)) list_cells[l].insert(key);
+          CellAcc& cell = cells[key];
+          ++cell.count;
+          cell.offer(i, centre2, p, w, nv);
+          if (i % stray_stride == 0) typical_at.push_back({i, p, w, nv, key});
+        });
   }
   std::vector<std::uint64_t> keys;
   keys.reserve(cells.size());
@@ -447,37 +413,31 @@ StreamedLevel streamCoarseLevel(const RecordLayout& layout,
       for (const std::uint64_t key : sparse) around(key, into(near_sparse));
       // Pass 3.
       {
-        ClassCursor cc{out.record_class};
-        SortedCursor stray_far(out.far_strays);
-        blocks.each([&](std::uint64_t i, std::size_t k) {
-          const Eigen::Vector3d w = blocks.world(k);
-          if (!w.allFinite() || (out.zeros_apart && isZero(w))) return;
-          const double d = (w - fr.centre).cwiseAbs().maxCoeff();
-          if (d > out.far || (d > out.stray_distance && stray_far.has(i))) return;
-          const Eigen::Vector3f p = out.local(w);
-          const std::uint64_t key = grid.key(p, cc.of(i));
-          if (near_sample.count(key))
-            around(key, [&](std::uint64_t other) {
-              const auto it = sample_in.find(other);
-              if (it == sample_in.end()) return;
-              for (const std::size_t t : it->second) {
-                Typical& s = typ[t];
-                if (s.record == i) continue;
-                const float dd = (p - s.p).squaredNorm();
-                if (dd < s.d1) {
-                  s.d2 = s.d1;
-                  s.d1 = dd;
-                } else if (dd < s.d2) {
-                  s.d2 = dd;
-                }
+        eachKept(
+            [&](std::uint64_t i, std::size_t k, const Eigen::Vector3d& w, const Eigen::Vector3f& p, int cls) {
+              const std::uint64_t key = grid.key(p, cls);
+              if (near_sample.count(key))
+                around(key, [&](std::uint64_t other) {
+                  const auto it = sample_in.find(other);
+                  if (it == sample_in.end()) return;
+                  for (const std::size_t t : it->second) {
+                    Typical& s = typ[t];
+                    if (s.record == i) continue;
+                    const float dd = (p - s.p).squaredNorm();
+                    if (dd < s.d1) {
+                      s.d2 = s.d1;
+                      s.d1 = dd;
+                    } else if (dd < s.d2) {
+                      s.d2 = dd;
+                    }
+                  }
+                });
+              if (sparse_set.count(key)) {
+                Eigen::Vector3f nv = Eigen::Vector3f::Zero();
+                if (out.file_normals) blocks.normal(k, nv);
+                gathered[key].push_back({i, p, w, nv});
               }
             });
-          if (sparse_set.count(key)) {
-            Eigen::Vector3f nv = Eigen::Vector3f::Zero();
-            if (out.file_normals) blocks.normal(k, nv);
-            gathered[key].push_back({i, p, w, nv});
-          }
-        });
       }
       std::vector<float> typical;
       for (const Typical& t : typ)
@@ -487,24 +447,18 @@ StreamedLevel streamCoarseLevel(const RecordLayout& layout,
         // Pass 4: the near points of every sparse cell's point.
         std::unordered_map<std::uint64_t, std::vector<int>> near_count;  // per sparse cell, per point
         for (const std::uint64_t key : sparse) near_count[key].assign(gathered[key].size(), 0);
-        ClassCursor cc{out.record_class};
-        SortedCursor stray_far(out.far_strays);
-        blocks.each([&](std::uint64_t i, std::size_t k) {
-          const Eigen::Vector3d w = blocks.world(k);
-          if (!w.allFinite() || (out.zeros_apart && isZero(w))) return;
-          const double d = (w - fr.centre).cwiseAbs().maxCoeff();
-          if (d > out.far || (d > out.stray_distance && stray_far.has(i))) return;
-          const Eigen::Vector3f p = out.local(w);
-          const std::uint64_t key = grid.key(p, cc.of(i));
-          if (!near_sparse.count(key)) return;
-          around(key, [&](std::uint64_t other) {
-            const auto it = gathered.find(other);
-            if (it == gathered.end()) return;
-            std::vector<int>& count = near_count[other];
-            for (std::size_t q = 0; q < it->second.size(); ++q)
-              count[q] += it->second[q].record != i && (p - it->second[q].p).squaredNorm() <= limit2;
-          });
-        });
+        eachKept(
+            [&](std::uint64_t i, std::size_t, const Eigen::Vector3d&, const Eigen::Vector3f& p, int cls) {
+              const std::uint64_t key = grid.key(p, cls);
+              if (!near_sparse.count(key)) return;
+              around(key, [&](std::uint64_t other) {
+                const auto it = gathered.find(other);
+                if (it == gathered.end()) return;
+                std::vector<int>& count = near_count[other];
+                for (std::size_t q = 0; q < it->second.size(); ++q)
+                  count[q] += it->second[q].record != i && (p - it->second[q].p).squaredNorm() <= limit2;
+              });
+            });
         for (const std::uint64_t key : sparse)
           for (std::size_t q = 0; q < gathered[key].size(); ++q)
             if (near_count[key][q] < 2) {
