@@ -145,17 +145,18 @@ RecordHandles streamHandles(const Scenario& scenario, const RecordLayout& layout
   return h;
 }
 
-bool streamable(const RecordLayout& layout, const DeformOptions& options) {
-  return options.multires_above > 0 && options.coarse_points > 0 && layout.count > options.multires_above &&
-         !(options.field.mesh_ring && !layout.shape.polygons.empty());
-}
-
 DeformReport streamDeform(const std::string& input, const Scenario& scenario, const RunOptions& options,
                           const std::string& output) {
   Stopwatch sw;
   DeformReport rep;
   const RecordLayout layout = readRecordLayout(input);
+  if (!layout.shape.polygons.empty())
+    throw IoError(input + ": cannot stream: a mesh's faces are not streamed; read the whole file instead");
   DeformOptions opt = mergedOptions(options, scenario);
+  if (opt.multires_above == 0 || layout.count <= opt.multires_above)
+    throw IoError(input + ": cannot stream: " + std::to_string(layout.count) +
+                  " points are built at full resolution (a streamed run builds on a coarse level, above " +
+                  std::to_string(opt.multires_above) + " points); read the whole file instead");
   StreamedLevelOptions lo;
   lo.coarse_points = opt.coarse_points;
   lo.points_per_coarse = opt.points_per_coarse;

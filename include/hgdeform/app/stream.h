@@ -18,13 +18,9 @@ namespace hgd {
 /// resolveHandles does.
 RecordHandles streamHandles(const Scenario& scenario, const RecordLayout& layout, const StreamedLevel& level);
 
-/// Whether a run of `options` on `layout`'s file can be streamed: the build the file read whole
-/// would make is on a coarse level (more points than multires_above, which is not 0). The points
-/// are the file's records (an upper bound of the points kept).
-bool streamable(const RecordLayout& layout, const DeformOptions& options);
-
 /// Runs `scenario` on `input` streamed and writes the deformed file at `output` (binary, the
-/// input's format). Throws IoError or ScenarioError naming the problem; nothing is left at
+/// input's format). A mesh, or a shape whose build the file read whole would make at full
+/// resolution (not more points than multires_above), is refused before the build. Throws IoError or ScenarioError naming the problem; nothing is left at
 /// `output` then.
 DeformReport streamDeform(const std::string& input, const Scenario& scenario, const RunOptions& options,
                           const std::string& output);
