@@ -20,8 +20,8 @@ RecordHandles streamHandles(const Scenario& scenario, const RecordLayout& layout
 
 /// Runs `scenario` on `input` streamed and writes the deformed file at `output` (binary, the
 /// input's format). A mesh, or a shape whose build the file read whole would make at full
-/// resolution (not more points than multires_above), is refused before the build. Throws IoError or ScenarioError naming the problem; nothing is left at
-/// `output` then.
+/// resolution (not more points than multires_above), is refused before the build. Throws IoError or
+/// ScenarioError naming the problem; nothing is left at `output` then.
 DeformReport streamDeform(const std::string& input, const Scenario& scenario, const RunOptions& options,
                           const std::string& output);
 
