@@ -1,8 +1,8 @@
 // The deformed file written block by block from a streamed build (hgdeform/deformer/streamed.h):
 // Deformer::writeDeformed's rules (write_deformed.cpp) on each block's records.
 #include <algorithm>
-#include <cstring>
 
+#include "deformer/xyz_access.h"
 #include "hgdeform/deformer/streamed.h"
 #include "hgdeform/io/fields.h"
 #include "hgdeform/io/io.h"
@@ -39,12 +39,6 @@ std::vector<std::string> writeStreamedDeformed(const std::string& path, const Re
                        ": its normals were not usable (some are zero or not finite): they are written back "
                        "as they were, not turned with the shape");
   const auto& coarse_normals = d.surfaceGraph().normals();
-  const pcl::PCLPointField &fx = shape.cloud.fields[static_cast<std::size_t>(f.x)],
-                           &fy = shape.cloud.fields[static_cast<std::size_t>(f.y)],
-                           &fz = shape.cloud.fields[static_cast<std::size_t>(f.z)];
-  const bool is_double = fx.datatype == pcl::PCLPointField::FLOAT64;
-  const bool same_type = fy.datatype == fx.datatype && fz.datatype == fx.datatype;
-
   writeRecords(path, layout, [&](RecordSink& sink) {
     const RecordReader reader(layout);
     pcl::PCLPointCloud2 c;
@@ -69,6 +63,7 @@ std::vector<std::string> writeStreamedDeformed(const std::string& path, const Re
       c.row_step = c.point_step * c.width;
       c.data.resize(count * c.point_step);
       reader.read(first, count, c.data.data());
+      XyzAccess xyz(c, f);
       if (any_move) {
         pts.clear();
         normals->clear();
@@ -78,7 +73,7 @@ std::vector<std::string> writeStreamedDeformed(const std::string& path, const Re
         row.clear();
         for (std::size_t k = 0; k < count; ++k) {
           const std::uint64_t i = first + k;
-          const Eigen::Vector3d w(readValue(c, k, fx), readValue(c, k, fy), readValue(c, k, fz));
+          const Eigen::Vector3d w = xyz.get(k);
           if (!w.allFinite() || !level.kept(i, w)) continue;
           const Eigen::Vector3f p = level.local(w);
           while (stray_at < level.strays.size() && level.strays[stray_at] < i) ++stray_at;
@@ -112,24 +107,7 @@ std::vector<std::string> writeStreamedDeformed(const std::string& path, const Re
         for (std::size_t k = 0; k < pts.size(); ++k) {
           if (!exact.moves(k)) continue;  // left as the file had it
           const std::size_t r = row[k];
-          const Eigen::Vector3d at(readValue(c, r, fx), readValue(c, r, fy), readValue(c, r, fz));
-          const Eigen::Vector3d q = exact.apply(k, at - level.origin) + level.origin;
-          std::uint8_t* rec = c.data.data() + r * c.point_step;
-          if (same_type && is_double) {
-            std::memcpy(rec + fx.offset, &q.x(), 8);
-            std::memcpy(rec + fy.offset, &q.y(), 8);
-            std::memcpy(rec + fz.offset, &q.z(), 8);
-          } else if (same_type) {
-            const float v[3] = {static_cast<float>(q.x()), static_cast<float>(q.y()),
-                                static_cast<float>(q.z())};
-            std::memcpy(rec + fx.offset, &v[0], 4);
-            std::memcpy(rec + fy.offset, &v[1], 4);
-            std::memcpy(rec + fz.offset, &v[2], 4);
-          } else {
-            writeValue(c, r, fx, q.x());
-            writeValue(c, r, fy, q.y());
-            writeValue(c, r, fz, q.z());
-          }
+          xyz.set(r, exact.apply(k, xyz.get(r) - level.origin) + level.origin);
           if (write_normals) {
             const Eigen::Vector3d nv = exact.applyNormal(k, table.restNormal(k).cast<double>());
             writeValue(c, r, c.fields[static_cast<std::size_t>(f.nx)], nv.x());

@@ -4,7 +4,10 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <map>
+
+#include "hgdeform/io/io.h"
 
 namespace hgd::frame {
 
@@ -64,6 +67,44 @@ std::vector<std::size_t> aloneAmong(const std::vector<Eigen::Vector3d>& at, cons
     if (alone) out.push_back(j);
   }
   return out;
+}
+
+FrameLimits frameLimits(const RobustFrame& frame) {
+  FrameLimits l;
+  l.far = frame.extent > 0 ? std::min(kFarFactor * frame.extent, kMaxOffset) : kMaxOffset;
+  l.stray = frame.extent > 0 ? std::min(kStrayFactor * frame.extent, l.far) : l.far;
+  l.body = frame.extent > 0 ? 4 * frame.extent : INFINITY;
+  return l;
+}
+
+void refuseExtent(const std::string& path, const RobustFrame& frame) {
+  if (!(frame.extent > kMaxExtent)) return;
+  char buf[200];
+  std::snprintf(
+      buf, sizeof buf,
+      ": the points span %.3g units (the middle half of them, doubled): more than hgdeform can deform "
+      "(%.0e); are the coordinates corrupt?",
+      frame.extent, kMaxExtent);
+  throw IoError(path + buf);
+}
+
+std::string noReturnWarning(const std::string& path, std::size_t zeros, double distance, double extent) {
+  char buf[300];
+  std::snprintf(buf, sizeof buf,
+                "%zu %s at exactly (0, 0, 0), %.3g units from the shape (whose size is %.3g): a "
+                "scanner's 'no return' points, left where they are, untouched",
+                zeros, zeros == 1 ? "point lies" : "points lie", distance, extent);
+  return (path.empty() ? std::string() : path + ": ") + buf;
+}
+
+std::string farWarning(const std::string& path, std::size_t count, double beyond, double extent,
+                       double farthest) {
+  char buf[300];
+  std::snprintf(buf, sizeof buf,
+                "%zu %s more than %.3g units from the shape (whose size is %.3g; the farthest "
+                "%.3g away): left where they are, untouched",
+                count, count == 1 ? "point lies" : "points lie", beyond, extent, farthest);
+  return (path.empty() ? std::string() : path + ": ") + buf;
 }
 
 }  // namespace hgd::frame

@@ -5,6 +5,7 @@
 #include <Eigen/Core>
 #include <cstddef>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 namespace hgd::frame {
@@ -32,6 +33,23 @@ RobustFrame robustFrame(const std::vector<Eigen::Vector3d>& world, const std::ve
 /// the frame's). Their positions in `at`, ascending.
 std::vector<std::size_t> aloneAmong(const std::vector<Eigen::Vector3d>& at, const Eigen::Vector3d& centre,
                                     double r);
+
+/// The frame's limits from its size: beyond `far` a point is set apart; beyond `stray` (and
+/// alone, and few) too; within `body` it is the shape's body.
+struct FrameLimits {
+  double far = 0, stray = 0, body = 0;
+};
+FrameLimits frameLimits(const RobustFrame& frame);
+
+/// Throws IoError (naming `path`) when the frame spans more than kMaxExtent: corrupt coordinates.
+void refuseExtent(const std::string& path, const RobustFrame& frame);
+
+/// The warnings of what is set apart, prefixed with "path: " when `path` is not empty: `zeros`
+/// 'no return' points at (0, 0, 0) `distance` from a shape of size `extent`; `count` points
+/// more than `beyond` from it, the farthest `farthest` away.
+std::string noReturnWarning(const std::string& path, std::size_t zeros, double distance, double extent);
+std::string farWarning(const std::string& path, std::size_t count, double beyond, double extent,
+                       double farthest);
 
 /// A position's Morton key (10 bits an axis, x in the lowest) in the cube from `lo` whose side
 /// `scale` maps to 1023 (Geometry's space-filling order; beyond it, the edge cells).

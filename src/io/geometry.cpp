@@ -137,26 +137,14 @@ Geometry extractGeometry(const Shape& shape) {
         world.resize(k);
         g.raw_index.resize(k);
         no_return = zeros;
-        char buf[300];
-        std::snprintf(buf, sizeof buf,
-                      "%zu %s at exactly (0, 0, 0), %.3g units from the shape (whose size is %.3g): a "
-                      "scanner's 'no return' points, left where they are, untouched",
-                      zeros, zeros == 1 ? "point lies" : "points lie", distance, nz.extent);
-        g.warnings.push_back((shape.path.empty() ? std::string() : shape.path + ": ") + buf);
+        g.warnings.push_back(noReturnWarning(shape.path, zeros, distance, nz.extent));
       }
     }
   }
   const RobustFrame frame = robustFrame(world, g.raw_index, frame_step);
-  if (frame.extent > kMaxExtent) {
-    char buf[200];
-    std::snprintf(
-        buf, sizeof buf,
-        ": the points span %.3g units (the middle half of them, doubled): more than hgdeform can deform "
-        "(%.0e); are the coordinates corrupt?",
-        frame.extent, kMaxExtent);
-    throw IoError(shape.path + buf);
-  }
-  double far = frame.extent > 0 ? std::min(kFarFactor * frame.extent, kMaxOffset) : kMaxOffset;
+  refuseExtent(shape.path, frame);
+  const FrameLimits limits = frameLimits(frame);
+  const double far = limits.far;
   // Strays: points more than 16 times the shape's size from its centre, each alone there (no
   // other such point within one shape size: a part that reaches out, a rod, a second object,
   // has its points together), are no part of the shape when they are few (at most 1% of the
@@ -164,7 +152,7 @@ Geometry extractGeometry(const Shape& shape) {
   // away: one at 100 sizes was flung 66 units by a unit drag, one at 1e5 sizes 6.5e5, and it
   // pulled the clustering (the other points shifted by up to 0.8% of the move). Set apart like
   // the absurdly far: left where they are, untouched, with the same warning.
-  const double stray = frame.extent > 0 ? std::min(kStrayFactor * frame.extent, far) : far;
+  const double stray = limits.stray;
   std::vector<std::size_t> strays;  // positions in `world`, ascending
   if (frame.extent > 0) {
     const std::size_t m = world.size();
@@ -188,7 +176,7 @@ Geometry extractGeometry(const Shape& shape) {
   }
   // The frame's origin: the centre of the bounding box of the shape's body, the points within
   // four times its size of the median (every point of a shape without strays), rounded.
-  const double body = frame.extent > 0 ? 4 * frame.extent : INFINITY;
+  const double body = limits.body;
   Eigen::Vector3d body_lo = Eigen::Vector3d::Constant(INFINITY), body_hi = -body_lo;
   {
     // In blocks as above: each keeps its near points at its start, counts its far ones and
@@ -239,13 +227,8 @@ Geometry extractGeometry(const Shape& shape) {
     }
     g.far_points = far_count + no_return;
     if (far_count > 0) {
-      char buf[300];
-      std::snprintf(buf, sizeof buf,
-                    "%zu %s more than %.3g units from the shape (whose size is %.3g; the farthest "
-                    "%.3g away): left where they are, untouched",
-                    far_count, far_count == 1 ? "point lies" : "points lie", strays.empty() ? far : stray,
-                    frame.extent, farthest);
-      g.warnings.push_back((shape.path.empty() ? std::string() : shape.path + ": ") + buf);
+      g.warnings.push_back(
+          farWarning(shape.path, far_count, strays.empty() ? far : stray, frame.extent, farthest));
     }
   }
   if (world.empty()) throw IoError(shape.path + ": no finite points");

@@ -89,7 +89,6 @@ StreamedLevel streamCoarseLevel(const RecordLayout& layout,
                                 const StreamedLevelOptions& options) {
   using namespace frame;
   const std::string& path = layout.shape.path;
-  const std::string prefix = path.empty() ? std::string() : path + ": ";
   StreamedLevel out;
   const std::uint64_t n_records = layout.count;
   out.records = n_records;
@@ -128,18 +127,12 @@ StreamedLevel streamCoarseLevel(const RecordLayout& layout,
   }
   if (sample.empty()) unreproducible();
   const RobustFrame fr = out.zeros_apart ? nz : robustFrame(sample, sample_index, step);
-  if (fr.extent > kMaxExtent) {
-    char buf[200];
-    std::snprintf(buf, sizeof buf,
-                  ": the points span %.3g units (the middle half of them, doubled): more than hgdeform can "
-                  "deform (%.0e); are the coordinates corrupt?",
-                  fr.extent, kMaxExtent);
-    throw IoError(path + buf);
-  }
+  refuseExtent(path, fr);
   out.frame_centre = fr.centre;
-  out.far = fr.extent > 0 ? std::min(kFarFactor * fr.extent, kMaxOffset) : kMaxOffset;
-  out.stray_distance = fr.extent > 0 ? std::min(kStrayFactor * fr.extent, out.far) : out.far;
-  const double body = fr.extent > 0 ? 4 * fr.extent : INFINITY;
+  const FrameLimits limits = frameLimits(fr);
+  out.far = limits.far;
+  out.stray_distance = limits.stray;
+  const double body = limits.body;
 
   // The strays' typical-distance sample: the kept points at file indices on a stride.
   const std::size_t stray_stride = coarse::straySampleStride(n_records);
@@ -232,25 +225,11 @@ StreamedLevel streamCoarseLevel(const RecordLayout& layout,
     }
   }
   out.points = m - far_count;
-  if (zeros > 0) {
-    char buf[300];
-    std::snprintf(buf, sizeof buf,
-                  "%llu %s at exactly (0, 0, 0), %.3g units from the shape (whose size is %.3g): a "
-                  "scanner's 'no return' points, left where they are, untouched",
-                  static_cast<unsigned long long>(zeros), zeros == 1 ? "point lies" : "points lie",
-                  nz_distance, nz.extent);
-    out.warnings.push_back(prefix + buf);
-  }
+  if (zeros > 0) out.warnings.push_back(noReturnWarning(path, zeros, nz_distance, nz.extent));
   out.far_points = far_count + zeros;
-  if (far_count > 0) {
-    char buf[300];
-    std::snprintf(buf, sizeof buf,
-                  "%llu %s more than %.3g units from the shape (whose size is %.3g; the farthest "
-                  "%.3g away): left where they are, untouched",
-                  static_cast<unsigned long long>(far_count), far_count == 1 ? "point lies" : "points lie",
-                  out.far_strays.empty() ? out.far : out.stray_distance, fr.extent, farthest);
-    out.warnings.push_back(prefix + buf);
-  }
+  if (far_count > 0)
+    out.warnings.push_back(farWarning(path, far_count, out.far_strays.empty() ? out.far : out.stray_distance,
+                                      fr.extent, farthest));
   if (out.points == 0) throw IoError(path + ": no finite points");
   out.origin = (0.5 * (body_lo + body_hi)).array().round().matrix();
   out.body = Eigen::AlignedBox3f((body_lo - out.origin).cast<float>(), (body_hi - out.origin).cast<float>());
