@@ -2,6 +2,7 @@
 coordinates, computed in C++; checked against the view put back in order here with numpy."""
 
 import threading
+import time
 
 import numpy as np
 import pytest
@@ -124,8 +125,15 @@ def test_world_points_never_shows_half_a_frame():
     def drag():
         try:
             for k in range(25):
+                before = len(seen)
                 hd.drag((10, 1 + 0.04 * k, 0), (10, 1 + 0.04 * (k + 1), 0.02 * k))
                 states.add(hd.world_points().tobytes())
+                # On a loaded machine the readers can be starved for the whole drag: the next frame
+                # waits (10 s at most) until a fill of this one or of the drag before it came in,
+                # so the readers always race frames, not only the last one.
+                deadline = time.monotonic() + 10
+                while len(seen) <= before and time.monotonic() < deadline:
+                    time.sleep(0.001)
         except Exception as e:  # noqa: BLE001 (reported below)
             errors.append(e)
         finally:
