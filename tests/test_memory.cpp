@@ -243,21 +243,34 @@ TEST(Memory, DeformRefusesAShapeOverItsMemoryBeforeReadingIt) {
   EXPECT_TRUE(hgdtest::slurp(out_memory) == hgdtest::slurp(out_streamed));
 }
 
-TEST(Memory, BatchFailsTheScanOverItsMemoryAndDeformsTheOthers) {
+// In a batch, a scan over the memory is streamed when its file allows (a binary PCD: the bytes
+// `hgdeform deform` writes holding it), and fails with the reason when it does not (ascii); the
+// others are deformed.
+TEST(Memory, BatchStreamsTheScanOverItsMemoryOrFailsItAndDeformsTheOthers) {
   TempDir dir;
   const std::filesystem::path scans = dir.path() / "scans", outs = dir.path() / "out";
   std::filesystem::create_directories(scans);
   const std::string scenario = dir.file("s.json");
   hgdtest::writeText(scenario, kScenario);
   hgd::writeShape((scans / "small.ply").string(), shuffledSphere(4000));
-  hgd::writeShape((scans / "large.pcd").string(), shuffledSphere(300000));
+  const hgd::Shape large = shuffledSphere(300000);
+  hgd::writeShape((scans / "large.pcd").string(), large);
+  hgd::WriteOptions ascii;
+  ascii.encoding = hgd::Encoding::Ascii;
+  hgd::writeShape((scans / "large_ascii.ply").string(), large, ascii);
   const auto r = shell(quote(kTool) + " batch " + quote(scans.string()) + " -s " + quote(scenario) + " -o " +
                        quote(outs.string()) + " --memory 40M");
   EXPECT_EQ(r.code, 1) << r.err;
-  EXPECT_TRUE(contains(r.err, "large.pcd")) << r.err;
+  EXPECT_TRUE(contains(r.err, "large_ascii.ply")) << r.err;
   EXPECT_TRUE(contains(r.err, "that --memory allows")) << r.err;
+  EXPECT_TRUE(contains(r.err, "large.pcd: note: streamed")) << r.err;
   EXPECT_TRUE(std::filesystem::exists(outs / "small.ply"));
-  EXPECT_FALSE(std::filesystem::exists(outs / "large.pcd"));
+  EXPECT_FALSE(std::filesystem::exists(outs / "large_ascii.ply"));
+  const std::string memory = dir.file("memory.pcd");
+  const auto m = shell(quote(kTool) + " deform " + quote((scans / "large.pcd").string()) + " -s " +
+                       quote(scenario) + " -q -o " + quote(memory));
+  ASSERT_EQ(m.code, 0) << m.err;
+  EXPECT_TRUE(hgdtest::slurp(memory) == hgdtest::slurp((outs / "large.pcd").string()));
 }
 
 }  // namespace

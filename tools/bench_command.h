@@ -25,4 +25,15 @@ int pclIoReference(const char* in, const char* out);
 /// object with "left_out" when the CLI is not beside the bench.
 nlohmann::json commandReference(const hgd::Shape& shape, const std::string& scenario, int repeat);
 
+/// The streaming row at `points` (about: a square grid): hgdeform-make-scans' bumpy plane and
+/// scenario written a row at a time as a binary PLY in a temporary folder, then `repeat` times
+/// alternating, each in a fresh process: a copy of the file through the page cache, `hgdeform
+/// deform --stream` (wall time, peak from its report) and, where the machine holds the cloud
+/// twice, PCL's read + write. Medians: {"points", "file_mb", "generate_ms", "command_ms",
+/// "command_peak_mb", "copy_ms", "command_over_copy", "pcl_read_ms", "pcl_write_ms"} ("left_out"
+/// or "pcl_left_out" when a part could not run).
+nlohmann::json streamReference(long points, int repeat);
+/// Prints streamReference's row.
+void printStreamRow(const nlohmann::json& row);
+
 }  // namespace hgdbench

@@ -1,4 +1,6 @@
 // hgdeform: command-line front end. Thin: every stage lives in the library.
+#include <unistd.h>
+
 #include <cerrno>
 #include <chrono>
 #include <csignal>
@@ -28,6 +30,7 @@
 #include "hgdeform/io/io.h"
 #include "hgdeform/io/records.h"
 #include "huge_pages.h"
+#include "stream_progress.h"
 
 namespace hgdcli {
 /// `hgdeform batch` (tools/batch/batch.cpp); argv[0] is "batch", the options follow.
@@ -163,10 +166,12 @@ int parseDeform(int argc, const char* const* argv, DeformArgs& a) {
   app.add_flag("--stream", a.stream,
                "stream the scan: read and write its points block by block, in memory bounded by the coarse\n"
                "level, not by the points (binary PLY or PCD, written in the input's format; the same bytes\n"
-               "as a run in memory). Chosen by itself when a shape does not fit in memory");
+               "as a run in memory). Chosen by itself when a shape does not fit in memory. A long run\n"
+               "shows its pass, rate and time left on stderr (not with -q)");
   app.add_option("--memory", a.memory,
                  "the memory the run may take (e.g. 1.5G, 800M; default: what the machine has\n"
-                 "available): a shape estimated to need more is refused before it is read")
+                 "available): a shape estimated to need more is streamed (binary PLY or PCD) or refused\n"
+                 "before it is read")
       ->type_name("BYTES");
   addOutputFlags(app, a.ascii, a.quiet);
   return hgdcli::parse(app, argc, argv);
@@ -325,7 +330,12 @@ int runDeform(const DeformArgs& a) {
   // too, and a file that was there before is put back.
   hgd::DeformReport report;
   try {
-    report = stream ? hgd::streamDeform(input, scenario, ro, output) : run->report();
+    if (stream) {
+      const hgdcli::StreamProgress progress(input, !a.quiet, ::isatty(STDERR_FILENO) == 1);
+      report = hgd::streamDeform(input, scenario, ro, output);
+    } else {
+      report = run->report();
+    }
     report.peak_rss_mb = hgdcli::peakResidentMb();
     report.huge_page_malloc = hgdcli::hugePageMallocOn();
     if (report_path == "-") {

@@ -290,6 +290,7 @@ nlohmann::json runSize(const std::string& model, const std::string& armadillo, s
 struct BenchArgs {
   std::vector<long> sizes{50000, 173000, 438000, 1000000};
   std::vector<long> clusters{16, 100};
+  std::vector<long> stream_sizes{20000000, 200000000};
   std::vector<std::string> models{"sphere", "armadillo"};
   std::string armadillo = HGD_DEFAULT_ARMADILLO;
   int repeat = 5;
@@ -310,6 +311,9 @@ int parseArgs(int argc, char** argv, BenchArgs& a) {
       ->delimiter(',')
       ->check(hgdcli::integerFrom(1, 1000000000))
       ->type_name("N,N,...");
+  app.add_option("--stream-sizes", a.stream_sizes,
+                 "streaming rows' point counts (default 20000000,200000000; 0: none), at most 3 runs each")
+      ->delimiter(',');
   app.add_option("--clusters", a.clusters, "isovalue counts (default 16,100)")
       ->delimiter(',')
       ->check(hgdcli::integerFrom(1, 1000000000))
@@ -345,7 +349,7 @@ int parseArgs(int argc, char** argv, BenchArgs& a) {
                  "also write every measurement (with the tool and its version) as JSON; never the mesh")
       ->type_name("OUT");
   // A list keeps all its values (the tools' default policy, the last value wins, would keep one).
-  for (const char* name : {"--sizes", "--clusters", "--models"})
+  for (const char* name : {"--sizes", "--clusters", "--models", "--stream-sizes"})
     app.get_option(name)->multi_option_policy(CLI::MultiOptionPolicy::TakeAll)->allow_extra_args(false);
   return hgdcli::parse(app, argc, argv);
 }
@@ -498,6 +502,13 @@ int main(int argc, char** argv) {
         c["pcl_read_ms"].get<double>(), c["pcl_write_ms"].get<double>(), pcl,
         c["command_ms"].get<double>() / std::max(1e-9, pcl));
   }
+  for (const long n : args.stream_sizes)
+    if (n > 0) {
+      const nlohmann::json row = hgdbench::streamReference(n, std::min(repeat, 3));
+      hgdbench::printStreamRow(row);
+      std::fflush(stdout);
+      all.push_back({{"stream", row}});
+    }
   if (args.quality) {
     if (!hgdbench::haveCgalArap()) {
       const std::string why = "this build has no CGAL (install libcgal-dev and configure again)";

@@ -43,15 +43,9 @@ int main(int argc, char** argv) {
       std::snprintf(name, sizeof name, "scan_%03ld.%s", i, i % 2 ? "pcd" : "ply");
       const int bumps = 3 + static_cast<int>(i % 4);
       const float height = 0.04f + 0.01f * static_cast<float>(i % 3);
-      hgd::writeShape((dir / name).string(), hgd::shapes::bumpyPlane(bumps, height, h));
+      hgd::shapes::writeBumpyPlane((dir / name).string(), bumps, height, h);  // a row at a time
     }
-    hgd::writeFileAtomically((dir / "scenario.json").string(), R"({
-  "format": "hgdeform-scenario/1",
-  "fixed": [ { "box": { "min": [-1, -1, -1], "max": [0.05, 2, 1] } } ],
-  "manipulated": { "box": { "min": [0.95, -1, -1], "max": [2, 2, 1] } },
-  "move": { "frame": { "translate": [0, 0, 0.2], "rotate": { "axis": [0, 1, 0], "degrees": -15 } } }
-}
-)");
+    hgd::writeFileAtomically((dir / "scenario.json").string(), hgd::shapes::kBumpyPlaneScenario);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "hgdeform-make-scans: %s\n", e.what());
     return 1;

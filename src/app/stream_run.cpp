@@ -180,6 +180,7 @@ DeformReport streamDeform(const std::string& input, const Scenario& scenario, co
     opt.field.viewpoint = (layout.shape.sensor_origin.head<3>().cast<double>() - level.origin).cast<float>();
   }
   const StreamedDeformer s = streamedDeformer(layout, level, handles, opt);
+  handles = RecordHandles();  // (the level's classes of the records serve the write)
   rep.read_ms = sw.lap();
   rep.build_ms = rep.read_ms;
   const Deformer& d = *s.deformer;
@@ -192,7 +193,8 @@ DeformReport streamDeform(const std::string& input, const Scenario& scenario, co
   describeRun(d, scenario.moves, results, opt.clusters.isovalues, rep);
   rep.notes.push_back(
       "streamed: the coarse level by passes over the file, the points written block by block (" +
-      std::to_string(s.geometry->size()) + " points held)");
+      std::to_string(s.geometry->size()) + " coarse points held, and the rest positions of " +
+      std::to_string(s.level->manipulated_rest.size()) + " manipulated handle points)");
   rep.warnings.insert(rep.warnings.begin(), level.warnings.begin(), level.warnings.end());
   rep.warnings.push_back(input +
                          ": a streamed run does not measure the surface's stretch (every point's neighbour "

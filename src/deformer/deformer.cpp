@@ -15,11 +15,6 @@
 
 namespace hgd {
 
-namespace {
-constexpr std::size_t kMaxMatchPoints = 32;  // shape-matching points besides the picked one
-constexpr double kPinWeight = 1e4;           // relative weight of the barycentre pin
-}  // namespace
-
 Deformer::Impl::Impl(std::shared_ptr<const Geometry> geometry, const Handles& handles,
                      const DeformOptions& options, std::shared_ptr<const PrebuiltLevel> level)
     : geometry_(std::move(geometry)), handles_(handles), options_(options) {
@@ -77,7 +72,7 @@ void Deformer::Impl::rebuild() {
   frame_mode_ = false;
   local_.resize(data_.clustering.clusters.size());
   exact_.assign(data_.clustering.clusters.size(), ExactTransform{});
-  picked_ = -1;
+  unpick();
   updateShape(/*lazy=*/true);
   data_.timings.setup_ms = sw.lap();
   clock.lap("deformer.first_shape");
@@ -97,7 +92,7 @@ void Deformer::Impl::restore(const DeformerState& state) {
   else
     solver_.release();
   frame_mode_ = state.frame_mode;
-  picked_ = -1;
+  unpick();
   updateShape();
 }
 
@@ -105,7 +100,7 @@ void Deformer::Impl::leaveFrameMode() {
   if (!frame_mode_) return;
   solver_.release();
   frame_mode_ = false;
-  picked_ = -1;
+  unpick();
 }
 
 Eigen::Vector3d Deformer::Impl::currentNormalised(int cluster, const Eigen::Vector3d& rest) const {
@@ -115,53 +110,10 @@ Eigen::Vector3d Deformer::Impl::currentNormalised(int cluster, const Eigen::Vect
   return t.A * (rest - g) + g + t.t;
 }
 
-void Deformer::Impl::pick(const Eigen::Vector3d& world) {
-  const Eigen::Vector3f local = (world - geometry_->origin).cast<float>();
-  float best = INFINITY;
-  picked_ = handles_.manipulated.front();
-  readHandlePositions([&](const std::vector<Eigen::Vector3f>& at) {
-    for (int i : handles_.manipulated) {
-      const float d = (at[static_cast<std::size_t>(i)] - local).squaredNorm();
-      if (d < best) {
-        best = d;
-        picked_ = i;
-      }
-    }
-  });
-  // Shape matching on (a subsample of) the handle's cluster points plus the picked point.
-  const auto& members =
-      data_.clustering.clusters[static_cast<std::size_t>(data_.clustering.manipulated)].members;
-  const std::size_t stride =
-      std::max<std::size_t>(1, (members.size() + kMaxMatchPoints - 1) / kMaxMatchPoints);
-  manip_rest_.clear();
-  manip_weight_.clear();
-  for (std::size_t k = 0; k < members.size(); k += stride) {
-    if (members[k] == picked_) continue;
-    manip_rest_.push_back(normalise(
-        (*geometry_->points)[static_cast<std::size_t>(members[k])].getVector3fMap().cast<double>()));
-    manip_weight_.push_back(1.0);
-  }
-  manip_rest_.push_back(
-      normalise((*geometry_->points)[static_cast<std::size_t>(picked_)].getVector3fMap().cast<double>()));
-  manip_weight_.push_back(options_.weights.picked);
-  // The paper's t_MC = c - c0: the handle's weighted barycentre goes exactly to the targets'
-  // weighted barycentre. Imposed as one extra matching point of overwhelming weight, so that
-  // only A_MC is left to the energy.
-  double wsum = 0;
-  Eigen::Vector3d c0 = Eigen::Vector3d::Zero();
-  for (std::size_t k = 0; k < manip_rest_.size(); ++k) {
-    c0 += manip_weight_[k] * manip_rest_[k];
-    wsum += manip_weight_[k];
-  }
-  manip_rest_.push_back(c0 / wsum);
-  manip_weight_.push_back(kPinWeight * wsum);
-  manip_target_.resize(manip_rest_.size());
-}
-
 SolveStats Deformer::Impl::drag(const Eigen::Vector3d& from, const Eigen::Vector3d& to) {
   if (!to.allFinite() || !from.allFinite()) throw std::invalid_argument("drag: target is not finite");
   leaveFrameMode();
-  if (picked_ < 0 || from != last_to_) pick(from);
+  if (!hasPick() || from != last_to_) pick(from);
   const SolveStats st = dragFrame(to);
   updateShape();
   return st;
@@ -189,15 +141,14 @@ SolveStats Deformer::Impl::dragFrame(const Eigen::Vector3d& to) {
 
 SolveStats Deformer::Impl::translateHandle(const Eigen::Vector3d& from, const Eigen::Vector3d& to) {
   if (!to.allFinite() || !from.allFinite()) throw std::invalid_argument("drag: target is not finite");
-  if (picked_ < 0 || from != last_to_) pick(from);
+  if (!hasPick() || from != last_to_) pick(from);
   const SolveStats st = moveHandle(Eigen::Affine3d(Eigen::Translation3d(to - pickedWorld())));
   last_to_ = to;
   return st;
 }
 
 Eigen::Vector3d Deformer::Impl::pickedWorld() const {
-  const Eigen::Vector3d rest =
-      normalise((*geometry_->points)[static_cast<std::size_t>(picked_)].getVector3fMap().cast<double>());
+  const Eigen::Vector3d rest = normalise(picked_rest_.cast<double>());
   return currentNormalised(data_.clustering.manipulated, rest) / scale_ + centre_ + geometry_->origin;
 }
 
@@ -206,10 +157,7 @@ DragResult Deformer::Impl::dragTo(const Eigen::Vector3d& from, const Eigen::Vect
   if (!to.allFinite() || !from.allFinite()) throw std::invalid_argument("drag: target is not finite");
   leaveFrameMode();
   pick(from);
-  Eigen::Vector3d start;
-  readHandlePositions([&](const std::vector<Eigen::Vector3f>& at) {
-    start = at[static_cast<std::size_t>(picked_)].cast<double>() + geometry_->origin;
-  });
+  const Eigen::Vector3d start = pickedNow().cast<double>() + geometry_->origin;
   last_to_ = from;
   const double diag = 1.0 / scale_;
   if (start == to) {  // the picked point is already there: nothing to solve, nothing moves
@@ -237,7 +185,7 @@ DragResult Deformer::Impl::dragTo(const Eigen::Vector3d& from, const Eigen::Vect
   while (r.frames < options_.max_drag_frames && (pickedWorld() - to).norm() > tol) frame(to);
   updateShape();
   r.interpolation_ms = interp_ms_;
-  r.error = (deformedWorld(static_cast<std::size_t>(picked_)) - to).norm();
+  r.error = (pickedNow().cast<double>() + geometry_->origin - to).norm();
   r.reached = r.error <= tol;
   return r;
 }
@@ -246,15 +194,6 @@ SolveStats Deformer::Impl::setHandleTransform(const Eigen::Affine3d& transform) 
   if (!transform.matrix().allFinite())
     throw std::invalid_argument("setHandleTransform: transform is not finite");
   return moveHandle(transform * handleTransform().inverse());
-}
-
-Eigen::Vector3d Deformer::Impl::handleCentre() const {
-  Eigen::Vector3d c = Eigen::Vector3d::Zero();
-  readHandlePositions([&](const std::vector<Eigen::Vector3f>& at) {
-    for (int i : handles_.manipulated)
-      c += at[static_cast<std::size_t>(i)].cast<double>() + geometry_->origin;
-  });
-  return c / static_cast<double>(handles_.manipulated.size());
 }
 
 SolveStats Deformer::Impl::moveHandle(const Eigen::Affine3d& motion) {
@@ -304,7 +243,7 @@ SolveStats Deformer::Impl::moveHandle(const Eigen::Affine3d& motion) {
 }
 
 SolveStats Deformer::Impl::solveHandle(const Eigen::Affine3d& transform) {
-  if (!frame_mode_) picked_ = -1;  // a drag after the frame move picks again
+  if (!frame_mode_) unpick();  // a drag after the frame move picks again
   frame_mode_ = true;
   const Eigen::Matrix3d a = transform.linear();
   const Eigen::Vector3d o = geometry_->origin;
@@ -331,7 +270,7 @@ Eigen::Affine3d Deformer::Impl::handleTransform() const {
 void Deformer::Impl::reset() {
   leaveFrameMode();
   solver_.reset();
-  picked_ = -1;
+  unpick();
   updateShape();
 }
 
@@ -341,23 +280,6 @@ void Deformer::Impl::settleFirstShape() const {
   // local_ is still the build's: updateShape() and rebuild() settle or drop this first.
   interpolatePositions(data_.table, local_, positions_, first_shape_.blend);
   first_shape_.due.store(false, std::memory_order_release);
-}
-
-template <typename Read>
-void Deformer::Impl::readHandlePositions(Read&& read) const {
-  const std::lock_guard<std::mutex> lock(first_shape_.mutex);
-  if (first_shape_.due.load(std::memory_order_relaxed) && !first_shape_.handle_done) {
-    // Row by row what the whole table gives (as a preview frame's points), for these only.
-    std::vector<int> handle = handles_.manipulated;
-    std::sort(handle.begin(), handle.end());
-    handle.erase(std::unique(handle.begin(), handle.end()), handle.end());
-    std::vector<Eigen::Vector3f> moved(handle.size());
-    interpolatePositions(subTable(handle), local_, moved, first_shape_.blend);
-    for (std::size_t k = 0; k < handle.size(); ++k)
-      positions_[static_cast<std::size_t>(handle[k])] = moved[k];
-    first_shape_.handle_done = true;
-  }
-  read(static_cast<const std::vector<Eigen::Vector3f>&>(positions_));
 }
 
 void Deformer::Impl::setBlend(Blend blend) {

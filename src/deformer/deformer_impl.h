@@ -96,7 +96,24 @@ class Deformer::Impl {
   // Shape matching of the manipulated handle.
   std::vector<Eigen::Vector3d> manip_rest_, manip_target_;
   std::vector<double> manip_weight_;
+  // The picked point: its geometry index (-1: none picked, or one the geometry does not hold),
+  // its index among the level's manipulated_rest (a streamed shape's; else -1), its rest local
+  // position.
   int picked_ = -1;
+  int picked_external_ = -1;
+  Eigen::Vector3f picked_rest_ = Eigen::Vector3f::Zero();
+  bool hasPick() const { return picked_ >= 0 || picked_external_ >= 0; }
+  void unpick() { picked_ = picked_external_ = -1; }
+  /// The picked point's deformed local position.
+  Eigen::Vector3f pickedNow() const;
+  /// The level's manipulated handle points when the geometry does not hold them (else null).
+  const std::vector<Eigen::Vector3f>* externalHandle() const {
+    return data_.prebuilt && !data_.prebuilt->manipulated_rest.empty() ? &data_.prebuilt->manipulated_rest
+                                                                       : nullptr;
+  }
+  /// Calls fn(k, deformed local position) for the external handle points [first, first + count)
+  /// of a block: what interpolatePositions gives their pinned rows, as for the points it holds.
+  void externalPositions(std::size_t first, std::size_t count, std::vector<Eigen::Vector3f>& out) const;
   Eigen::Vector3d last_to_ = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
   // Per-frame buffers.
   std::vector<LocalTransform> local_;

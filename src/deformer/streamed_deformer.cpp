@@ -11,19 +11,27 @@ namespace hgd {
 StreamedDeformer streamedDeformer(const RecordLayout& layout, const StreamedLevel& level,
                                   const RecordHandles& handles, const DeformOptions& options) {
   if (level.coarse.empty()) throw std::invalid_argument("streamedDeformer: the coarse level is empty");
-  // The points held: the coarse points and the manipulated handle's, as Geometry has them.
+  // The points held: the coarse points, as Geometry has them; the manipulated handle's points
+  // apart, their rest positions only (the Deformer picks among them and takes their centre).
   struct Held {
     std::uint64_t record;
     Eigen::Vector3f p;
     Eigen::Vector3f n;
     std::uint32_t key;  // Morton
   };
+  struct Manipulated {
+    std::uint64_t record;
+    Eigen::Vector3f p;
+    std::uint32_t key;
+  };
   std::vector<std::pair<std::uint64_t, std::uint32_t>> reps;  // (record, coarse point), by record
   for (std::size_t a = 0; a < level.coarse_record.size(); ++a)
     reps.emplace_back(level.coarse_record[a], static_cast<std::uint32_t>(a));
   std::sort(reps.begin(), reps.end());
   std::vector<Held> held;
+  std::vector<Manipulated> manipulated;
   {
+    streamPass("held points");
     stream::Blocks blocks(layout, 1 << 16);
     std::size_t r = 0, m = 0;
     const std::vector<std::uint64_t>& manip = handles.manipulated;
@@ -34,12 +42,19 @@ StreamedDeformer streamedDeformer(const RecordLayout& layout, const StreamedLeve
       if (!is_rep && !is_manip) return;
       const Eigen::Vector3d w = blocks.world(k);
       if (!w.allFinite() || !level.kept(i, w)) return;
-      Held h{i, level.local(w), Eigen::Vector3f::Zero(), level.mortonKey(w)};
+      const Eigen::Vector3f p = level.local(w);
+      const std::uint32_t key = level.mortonKey(w);
+      if (is_manip) manipulated.push_back({i, p, key});
+      if (!is_rep) return;
+      Held h{i, p, Eigen::Vector3f::Zero(), key};
       if (level.file_normals) blocks.normal(k, h.n);
       held.push_back(h);
     });
   }
   std::sort(held.begin(), held.end(), [](const Held& a, const Held& b) {
+    return a.key != b.key ? a.key < b.key : a.record < b.record;
+  });
+  std::sort(manipulated.begin(), manipulated.end(), [](const Manipulated& a, const Manipulated& b) {
     return a.key != b.key ? a.key < b.key : a.record < b.record;
   });
   auto g = std::make_shared<Geometry>();
@@ -81,12 +96,8 @@ StreamedDeformer streamedDeformer(const RecordLayout& layout, const StreamedLeve
   for (std::size_t k = 0; k < held.size(); ++k) {
     const auto it =
         std::lower_bound(reps.begin(), reps.end(), std::make_pair(held[k].record, std::uint32_t{0}));
-    if (it != reps.end() && it->first == held[k].record) {
-      c.points[it->second] = static_cast<int>(k);
-      c.anchor[k] = it->second;
-    } else {
-      c.anchor[k] = level.anchorOf(held[k].record, held[k].p, level.classOf(held[k].record));
-    }
+    c.points[it->second] = static_cast<int>(k);  // (every point held is a coarse point)
+    c.anchor[k] = it->second;
   }
   if (std::find(c.points.begin(), c.points.end(), -1) != c.points.end())
     throw std::logic_error("streamedDeformer: a coarse point was not found in the file");
@@ -94,6 +105,15 @@ StreamedDeformer streamedDeformer(const RecordLayout& layout, const StreamedLeve
   pre->handles.manipulated = level.coarse_manipulated;
   pre->handles.joints = level.coarse_joints;
   pre->shape_points = static_cast<std::size_t>(level.points);
+  pre->manipulated_rest.reserve(manipulated.size());
+  pre->manipulated_held.reserve(manipulated.size());
+  for (const Manipulated& q : manipulated) {
+    pre->manipulated_rest.push_back(q.p);
+    const auto it = std::lower_bound(reps.begin(), reps.end(), std::make_pair(q.record, std::uint32_t{0}));
+    const bool rep = it != reps.end() && it->first == q.record;
+    pre->manipulated_held.push_back(rep ? c.points[it->second] : -1);
+  }
+  std::vector<Manipulated>().swap(manipulated);
   out.geometry = g;
   out.level = pre;
   out.deformer = std::make_unique<Deformer>(out.geometry, out.handles, options, out.level);

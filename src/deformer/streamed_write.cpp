@@ -40,6 +40,7 @@ std::vector<std::string> writeStreamedDeformed(const std::string& path, const Re
                        "as they were, not turned with the shape");
   const auto& coarse_normals = d.surfaceGraph().normals();
   writeRecords(path, layout, [&](RecordSink& sink) {
+    streamPass("write");
     const RecordReader reader(layout);
     pcl::PCLPointCloud2 c;
     c.fields = shape.cloud.fields;

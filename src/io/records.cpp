@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <utility>
 
 #include "io/internal.h"
 
@@ -11,6 +12,21 @@ namespace hgd {
 using io_internal::errnoText;
 using io_internal::fail;
 using io_internal::num;
+
+namespace {
+thread_local std::function<void(const RecordProgress&)> t_progress;
+thread_local const char* t_pass = "";
+}  // namespace
+
+std::function<void(const RecordProgress&)> setRecordProgress(
+    std::function<void(const RecordProgress&)> hook) {
+  std::swap(hook, t_progress);
+  return hook;
+}
+
+void streamPass(const char* name) {
+  t_pass = name;
+}
 
 RecordReader::RecordReader(const RecordLayout& layout) : layout_(layout) {
   const std::string& path = layout.shape.path;
@@ -39,6 +55,7 @@ void RecordReader::read(std::uint64_t first, std::size_t count, std::uint8_t* ou
     left -= static_cast<std::size_t>(got);
     at += static_cast<std::uint64_t>(got);
   }
+  if (t_progress) t_progress(RecordProgress{t_pass, first + count, layout_.count});
 }
 
 }  // namespace hgd

@@ -98,6 +98,7 @@ StreamedLevel streamCoarseLevel(const RecordLayout& layout,
   Blocks blocks(layout, options.block);
 
   // The frame's sample: the finite records at file indices on a stride (Geometry's).
+  streamPass("frame");
   const std::size_t step = frameSampleStep(n_records);
   std::vector<Eigen::Vector3d> sample, sample_nz;
   std::vector<int> sample_index, sample_nz_index;
@@ -138,6 +139,7 @@ StreamedLevel streamCoarseLevel(const RecordLayout& layout,
   const std::size_t stray_stride = coarse::straySampleStride(n_records);
 
   // Pass 1: what is set apart, the body, the bounds, whether every kept normal is usable.
+  streamPass("body");
   struct Beyond {
     std::uint64_t record;
     Eigen::Vector3d w;
@@ -239,6 +241,7 @@ StreamedLevel streamCoarseLevel(const RecordLayout& layout,
   out.morton_scale = morton_extent > 0 ? 1023.0 / morton_extent : 0.0;
 
   // The handles, now that what is kept is known.
+  streamPass("handles");
   const RecordHandles handles = handles_of(out);
   // The coarse level's size and classes (coarsen's).
   const std::size_t target =
@@ -287,6 +290,7 @@ StreamedLevel streamCoarseLevel(const RecordLayout& layout,
   // The grid's sizing subset (the grid must be known before the cells): the kept points at file
   // indices on a stride.
   const std::size_t grid_stride = coarse::gridSampleStride(n_records, target);
+  streamPass("grid");
   std::vector<Eigen::Vector3f> grid_at;
   std::vector<std::uint16_t> grid_cls;
   blocks.strided(grid_stride, [&](std::uint64_t i, std::size_t k) {
@@ -302,6 +306,7 @@ StreamedLevel streamCoarseLevel(const RecordLayout& layout,
 
   // Pass 2: every kept point's cell: its count and its point nearest the centre; the cells of
   // each handle's points.
+  streamPass("cells");
   std::unordered_map<std::uint64_t, CellAcc> cells;
   std::vector<Near> typical_at;                          // the strays' typical-distance sample
   std::vector<const std::vector<std::uint64_t>*> lists;  // fixed, manipulated, joints
@@ -332,6 +337,7 @@ StreamedLevel streamCoarseLevel(const RecordLayout& layout,
   std::sort(keys.begin(), keys.end());
 
   // The strays of sparse cells (coarse_strays.cpp's rule, without its search's shortcuts).
+  streamPass("strays");
   std::vector<std::uint64_t> level_strays;
   std::unordered_map<std::uint64_t, std::vector<Near>> gathered;
   std::unordered_set<std::uint64_t> stray_set;

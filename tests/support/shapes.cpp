@@ -10,6 +10,8 @@
 #include <tuple>
 
 #include "hgdeform/io/geometry.h"
+#include "hgdeform/io/io.h"
+#include "hgdeform/io/records.h"
 
 namespace hgd {
 namespace shapes {
@@ -115,32 +117,69 @@ Shape cylinder(float length, float radius, float h) {
   return cloudShape(p, n);
 }
 
+namespace {
+
+/// bumpyPlane's point (i, j) of a grid of `cells`: x, y, z and the normal.
+void bumpyPlanePoint(int i, int j, int cells, int bumps, float height, float out[6]) {
+  const float sigma = 0.25f / bumps;
+  const float x = static_cast<float>(i) / cells, y = static_cast<float>(j) / cells;
+  float z = 0;
+  Eigen::Vector2f grad = Eigen::Vector2f::Zero();
+  for (int a = 0; a < bumps; ++a)
+    for (int b = 0; b < bumps; ++b) {
+      const float cx = (a + 0.5f) / bumps, cy = (b + 0.5f) / bumps;
+      const float dx = x - cx, dy = y - cy;
+      const float e = height * std::exp(-(dx * dx + dy * dy) / (2 * sigma * sigma));
+      z += e;
+      grad += Eigen::Vector2f(-dx, -dy) * e / (sigma * sigma);
+    }
+  const Eigen::Vector3f n = Eigen::Vector3f(-grad.x(), -grad.y(), 1).normalized();
+  const float v[6] = {x, y, z, n.x(), n.y(), n.z()};
+  std::memcpy(out, v, sizeof v);
+}
+
+int bumpyPlaneCells(float h) {
+  return std::max(2, static_cast<int>(std::lround(1.0f / h)));
+}
+
+}  // namespace
+
 Shape bumpyPlane(int bumps, float height, float h) {
   std::vector<Eigen::Vector3f> p, n;
-  const int cells = std::max(2, static_cast<int>(std::lround(1.0f / h)));
-  const float sigma = 0.25f / bumps;
-  auto f = [&](float x, float y, Eigen::Vector2f& grad) {
-    float z = 0;
-    grad.setZero();
-    for (int i = 0; i < bumps; ++i)
-      for (int j = 0; j < bumps; ++j) {
-        const float cx = (i + 0.5f) / bumps, cy = (j + 0.5f) / bumps;
-        const float dx = x - cx, dy = y - cy;
-        const float e = height * std::exp(-(dx * dx + dy * dy) / (2 * sigma * sigma));
-        z += e;
-        grad += Eigen::Vector2f(-dx, -dy) * e / (sigma * sigma);
-      }
-    return z;
-  };
+  const int cells = bumpyPlaneCells(h);
   for (int i = 0; i <= cells; ++i)
     for (int j = 0; j <= cells; ++j) {
-      const float x = static_cast<float>(i) / cells, y = static_cast<float>(j) / cells;
-      Eigen::Vector2f g;
-      const float z = f(x, y, g);
-      p.emplace_back(x, y, z);
-      n.push_back(Eigen::Vector3f(-g.x(), -g.y(), 1).normalized());
+      float v[6];
+      bumpyPlanePoint(i, j, cells, bumps, height, v);
+      p.emplace_back(v[0], v[1], v[2]);
+      n.emplace_back(v[3], v[4], v[5]);
     }
   return cloudShape(p, n);
+}
+
+void writeBumpyPlane(const std::string& path, int bumps, float height, float h) {
+  const int cells = bumpyPlaneCells(h);
+  RecordLayout layout;
+  layout.shape = cloudShape({}, {Eigen::Vector3f::Zero()});  // the fields of x, y, z and normals
+  layout.shape.format = formatFromPath(path);
+  if (layout.shape.format == FileFormat::Pcd)  // writeShape's PCD names them as PCL does
+    for (auto& f : layout.shape.cloud.fields)
+      if (f.name.size() == 2 && f.name[0] == 'n') f.name = std::string("normal_") + f.name[1];
+  layout.count = static_cast<std::uint64_t>(cells + 1) * static_cast<std::uint64_t>(cells + 1);
+  if (layout.count > 0xFFFFFFFFull) throw IoError(path + ": more points than a file's width holds");
+  layout.shape.cloud.width = static_cast<std::uint32_t>(layout.count);
+  layout.shape.cloud.row_step = 0;
+  layout.bytes = layout.shape.cloud.point_step;
+  writeRecords(path, layout, [&](RecordSink& sink) {
+    std::vector<float> row(static_cast<std::size_t>(cells + 1) * 6);
+    for (int i = 0; i <= cells; ++i) {
+      // A row's points on every thread (a 200M-point plane's Gaussians are minutes on one).
+#pragma omp parallel for schedule(static)
+      for (int j = 0; j <= cells; ++j)
+        bumpyPlanePoint(i, j, cells, bumps, height, &row[static_cast<std::size_t>(j) * 6]);
+      sink.write(reinterpret_cast<const std::uint8_t*>(row.data()), row.size() * sizeof(float));
+    }
+  });
 }
 
 Shape fork(float gap, float w, float h) {

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <string>
 #include <vector>
 
 #include "hgdeform/io/shape.h"
@@ -23,6 +24,18 @@ Shape cylinder(float length = 1.0f, float radius = 0.1f, float h = 0.01f);
 /// A bumpy plane in z = 0 over [0, 1] x [0, 1]: `bumps` x `bumps` Gaussian bumps of height
 /// `height`, sampled at spacing h, normals up.
 Shape bumpyPlane(int bumps = 4, float height = 0.06f, float h = 0.01f);
+/// Writes bumpyPlane(bumps, height, h) at `path` (a binary PLY or PCD) as writeShape would, byte
+/// for byte, a row of points at a time: a plane of hundreds of millions of points in little memory.
+void writeBumpyPlane(const std::string& path, int bumps, float height, float h);
+/// A scenario for bumpy planes: the edge x < 0.05 fixed, the edge x > 0.95 lifted by 0.2 and
+/// turned by 15 degrees (hgdeform-make-scans' and the bench's streaming rows').
+inline constexpr const char* kBumpyPlaneScenario = R"({
+  "format": "hgdeform-scenario/1",
+  "fixed": [ { "box": { "min": [-1, -1, -1], "max": [0.05, 2, 1] } } ],
+  "manipulated": { "box": { "min": [0.95, -1, -1], "max": [2, 2, 1] } },
+  "move": { "frame": { "translate": [0, 0, 0.2], "rotate": { "axis": [0, 1, 0], "degrees": -15 } } }
+}
+)";
 
 /// A fork lying in the xy plane: a base bar along x from 0 to 0.4, then two parallel prongs
 /// from 0.4 to 1.2, separated by `gap` (surfaces of box-section bars of width w).

@@ -109,7 +109,8 @@ int parseArgs(int argc, char** argv, Config& c, bool print) {
       ->type_name("K/N");
   app.add_option("--memory", memory,
                  "the memory a scan may take (e.g. 1.5G; default: what the machine has available\n"
-                 "when the scan starts): a scan estimated to need more fails before it is read")
+                 "when the scan starts): a scan estimated to need more is streamed (binary PLY or PCD)\n"
+                 "or fails before it is read")
       ->type_name("BYTES");
   app.add_flag("-q,--quiet", c.quiet, "print errors only");
   const int status = hgdcli::parse(app, argc, argv, print);

@@ -18,8 +18,10 @@
 #include "hgdeform/app/regions.h"
 #include "hgdeform/app/runner.h"
 #include "hgdeform/app/scenario.h"
+#include "hgdeform/app/stream.h"
 #include "hgdeform/io/geometry.h"
 #include "hgdeform/io/io.h"
+#include "hgdeform/io/records.h"
 #ifdef HGD_HAVE_RENDER
 #include "thumbnails.h"
 #endif
@@ -156,6 +158,16 @@ std::string thumbnail(const Context& ctx, const Scan& s, const hgd::ScenarioRunn
 #endif
 }
 
+/// Whether `path`'s points are records a streamed run reads in place (hgd::readRecordLayout).
+bool streamable(const std::string& path) {
+  try {
+    hgd::readRecordLayout(path);
+    return true;
+  } catch (const hgd::IoError&) {
+    return false;
+  }
+}
+
 }  // namespace
 
 std::string thumbnailName(const std::string& rel) {
@@ -211,22 +223,40 @@ ScanResult processScan(const Scan& s, const Context& ctx) {
     // read by its name: the reader's precise error would quote its text into stderr and the
     // summary (the first line of a file that is no scan).
     hgd::sniffFormat(s.input.string());
-    hgd::checkDeformMemory(
-        s.input.string(), ctx.cfg.memory,
-        scenario.full_resolution.value_or(false) ? 0 : hgd::DeformOptions().multires_above);
-    hgd::ScenarioRunner run = hgd::ScenarioRunner::read(s.input.string());
-    run.setScenario(scenario);
-    run.applyMoves();
+    // A scan that does not fit in memory is streamed where its file allows (a binary PLY or PCD
+    // built on a coarse level), as `hgdeform deform` does; the reason the memory check gave stands
+    // otherwise.
+    const bool full = scenario.full_resolution.value_or(false);
+    std::optional<hgd::IoError> too_big;
+    try {
+      hgd::checkDeformMemory(s.input.string(), ctx.cfg.memory,
+                             full ? 0 : hgd::DeformOptions().multires_above);
+    } catch (const hgd::IoError& e) {
+      if (full || !streamable(s.input.string())) throw;
+      too_big = e;
+    }
+    std::optional<hgd::ScenarioRunner> run;
+    if (!too_big) {
+      run.emplace(hgd::ScenarioRunner::read(s.input.string()));
+      run->setScenario(scenario);
+      run->applyMoves();
+    }
     fs::create_directories(s.output.parent_path());
     std::error_code gone;
     fs::remove(record_path, gone);  // from here until the new record, the output is unrecorded
-    // Without a thumbnail (which draws the rest shape beside the deformed one), the shape is
-    // held once: deformed in place to be written.
-    if (ctx.thumbnails)
-      run.write(s.output.string(), {}, {s.scenario.string()});
-    else
-      run.writeAndRelease(s.output.string(), {}, {s.scenario.string()});
-    const hgd::DeformReport rep = run.report();
+    hgd::DeformReport rep;
+    if (too_big) {
+      rep = hgd::streamDeform(s.input.string(), scenario, hgd::RunOptions(), s.output.string());
+      rep.notes.insert(rep.notes.begin(), std::string("streamed: ") + too_big->what());
+    } else {
+      // Without a thumbnail (which draws the rest shape beside the deformed one), the shape is
+      // held once: deformed in place to be written.
+      if (ctx.thumbnails)
+        run->write(s.output.string(), {}, {s.scenario.string()});
+      else
+        run->writeAndRelease(s.output.string(), {}, {s.scenario.string()});
+      rep = run->report();
+    }
     testHook(s.rel);
     batch::Provenance p;
     p.input = s.rel;
@@ -255,9 +285,11 @@ ScanResult processScan(const Scan& s, const Context& ctx) {
     r.has_metrics = true;
     r.report = rep;
     for (const auto& w : rep.warnings) appendWarning(r.warning, w);
-    if (ctx.thumbnails) {
-      const hgd::Shape after = run.deformedShape();
-      r.thumbnail = thumbnail(ctx, s, &run, &after, scenario, r.warning);
+    if (ctx.thumbnails && run) {
+      const hgd::Shape after = run->deformedShape();
+      r.thumbnail = thumbnail(ctx, s, &*run, &after, scenario, r.warning);
+    } else if (ctx.thumbnails) {
+      appendWarning(r.warning, "no thumbnail: a streamed scan is not drawn (it does not fit in memory)");
     }
   } catch (const std::bad_alloc&) {
     r.status = "failed";

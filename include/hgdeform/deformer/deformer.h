@@ -46,8 +46,9 @@ class Deformer {
   Deformer(std::shared_ptr<const Geometry> geometry, const Handles& handles,
            const DeformOptions& options = {});
   /// On a coarse level built elsewhere (a scan streamed from its file: streamedDeformer() in
-  /// <hgdeform/multires/streamed.h> makes both): `geometry` holds the shape's coarse points and
-  /// its manipulated handle's points, `handles` index it, and `level` maps it.
+  /// <hgdeform/multires/streamed.h> makes both): `geometry` holds the shape's coarse points,
+  /// `handles` index it, and `level` maps it and lists the manipulated handle's points (the
+  /// Deformer picks among them and takes their centre).
   Deformer(std::shared_ptr<const Geometry> geometry, const Handles& handles, const DeformOptions& options,
            std::shared_ptr<const PrebuiltLevel> level);
   Deformer(const Deformer&) = delete;

@@ -63,13 +63,20 @@ struct BuildTimings {
 };
 
 /// A coarse level built elsewhere (streamCoarseLevel: a scan streamed from its file) for a
-/// geometry that holds only some of the shape's points (the coarse points and the manipulated
-/// handle's): `level` maps those points (its anchors are theirs; its weights count every point
-/// of the shape), `handles` are the whole shape's handles on the coarse level.
+/// geometry that holds only some of the shape's points (the coarse points): `level` maps those
+/// points (its anchors are theirs; its weights count every point of the shape), `handles` are
+/// the whole shape's handles on the coarse level.
 struct PrebuiltLevel {
   CoarseLevel level;
   Handles handles;
   std::size_t shape_points = 0;  ///< the whole shape's (for what the build says of itself)
+  /// The manipulated handle's points when the geometry does not hold them all (a streamed
+  /// shape's: only its coarse points): their local rest positions in Geometry's order, and each
+  /// one's index in the geometry (-1: not held). The Deformer picks among them and takes their
+  /// centre; each follows the manipulated cluster's transform (a handle's points are pinned).
+  /// Empty: the handle's points are the geometry's (`handles.manipulated` of the Deformer).
+  std::vector<Eigen::Vector3f> manipulated_rest;
+  std::vector<int> manipulated_held;
 };
 
 /// What precompute() builds, for the resolution it chose.

@@ -1,6 +1,7 @@
 // A Deformer on a scan streamed from its file (hgdeform/multires/streamed.h): its geometry holds
-// the coarse points and the manipulated handle's points only, and it solves what a Deformer on
-// the whole file, read into memory, solves at the same resolution, bit for bit.
+// the coarse points only, the manipulated handle's points are kept apart as rest positions (16
+// bytes a point: what a pick and the handle's centre read), and it solves what a Deformer on the
+// whole file, read into memory, solves at the same resolution, bit for bit.
 #pragma once
 
 #include <memory>
@@ -19,9 +20,9 @@ struct StreamedDeformer {
   std::unique_ptr<Deformer> deformer;
 };
 
-/// Reads the manipulated handle's points in one pass over the file's records and builds the
-/// Deformer on `level` (streamCoarseLevel of the same file and handles, which must not be
-/// empty). `options`: the deformation's; its multi-resolution sizes are the level's.
+/// Reads the coarse points and the manipulated handle's in one pass over the file's records and
+/// builds the Deformer on `level` (streamCoarseLevel of the same file and handles, which must not
+/// be empty). `options`: the deformation's; its multi-resolution sizes are the level's.
 StreamedDeformer streamedDeformer(const RecordLayout& layout, const StreamedLevel& level,
                                   const RecordHandles& handles, const DeformOptions& options);
 

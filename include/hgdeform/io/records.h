@@ -50,6 +50,19 @@ class RecordReader {
   int fd_ = -1;
 };
 
+/// Where a long run's passes over a file's records are (what a front end shows as progress).
+struct RecordProgress {
+  const char* pass = "";      ///< what the pass is for (streamPass's name)
+  std::uint64_t done = 0;     ///< how far in the file the last read ended (a pass reads in order)
+  std::uint64_t records = 0;  ///< the file's records
+};
+/// The calling thread's RecordReaders report each read to `hook` (empty: none); returns the
+/// hook that was set.
+std::function<void(const RecordProgress&)> setRecordProgress(std::function<void(const RecordProgress&)> hook);
+/// Names the pass the calling thread's reads belong to from now on (a string that lives as long
+/// as the program: a literal).
+void streamPass(const char* name);
+
 /// Where writeRecords() sends the records, in order.
 class RecordSink {
  public:

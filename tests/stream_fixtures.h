@@ -1,0 +1,104 @@
+// Test fixtures of the streamed runs (test_stream, test_stream_cli): a temporary folder, a scan
+// shaped like users' files, a file's bytes.
+#pragma once
+
+#include <unistd.h>
+
+#include <Eigen/Core>
+#include <algorithm>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <limits>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "hgdeform/io/geometry.h"
+#include "hgdeform/io/shape.h"
+#include "support/shapes.h"
+
+namespace hgd_test {
+
+struct TempDir {
+  std::filesystem::path dir;
+  TempDir() {
+    dir = std::filesystem::temp_directory_path() /
+          ("hgd_stream_" + std::to_string(::getpid()) + "_" + std::to_string(std::random_device{}()));
+    std::filesystem::create_directories(dir);
+  }
+  ~TempDir() { std::filesystem::remove_all(dir); }
+  std::string operator/(const std::string& name) const { return (dir / name).string(); }
+};
+
+/// A scan as users' files hold it: a bumpy sphere's points with noise, 1% strays about it,
+/// dense pieces, repeated points (merged scans), NaN records, a few points far away (a bad return
+/// at 10^4 sizes) and, when `zeros`, 'no return' records at (0, 0, 0) while the shape lies at
+/// `offset`; normals of random signs; shuffled. x, y, z in double (offset: georeferenced), an
+/// intensity, normals in float.
+inline hgd::Shape userScan(std::size_t n, unsigned seed, const Eigen::Vector3d& offset, bool zeros) {
+  std::mt19937 rng(seed);
+  std::vector<Eigen::Vector3f> p, none;
+  {
+    const hgd::Geometry s = hgd::extractGeometry(hgd::shapes::bumpySphere(n));
+    for (std::size_t i = 0; i < s.size(); ++i) p.push_back(s.world(i).cast<float>());
+  }
+  std::uniform_real_distribution<float> u(-1.4f, 1.4f), noise(-0.004f, 0.004f);
+  for (std::size_t k = 0; k < p.size() / 100; ++k) p.emplace_back(u(rng), u(rng), u(rng));
+  p = hgd::shapes::withDensePieces(std::move(p), 12, 800, 0.01f, 5);
+  for (auto& x : p) x += Eigen::Vector3f(noise(rng), noise(rng), noise(rng));
+  std::uniform_int_distribution<std::size_t> any(0, p.size() - 1);
+  for (std::size_t k = 0; k < p.size() / 20; ++k) p.push_back(p[any(rng)]);
+  std::vector<Eigen::Vector3d> w;
+  for (const auto& x : p) w.push_back(x.cast<double>() + offset);
+  w.push_back(offset + Eigen::Vector3d(3e4, 0, 0));
+  w.push_back(offset + Eigen::Vector3d(0, -5e4, 2e4));
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  for (int k = 0; k < 500; ++k) w.emplace_back(nan, nan, nan);
+  if (zeros)
+    for (int k = 0; k < 700; ++k) w.emplace_back(0, 0, 0);
+  std::shuffle(w.begin(), w.end(), rng);
+
+  hgd::Shape shape;
+  pcl::PCLPointCloud2& c = shape.cloud;
+  const auto field = [&](const char* name, std::uint32_t offset_bytes, std::uint8_t type) {
+    pcl::PCLPointField f;
+    f.name = name;
+    f.offset = offset_bytes;
+    f.datatype = type;
+    f.count = 1;
+    c.fields.push_back(f);
+  };
+  field("x", 0, pcl::PCLPointField::FLOAT64);
+  field("y", 8, pcl::PCLPointField::FLOAT64);
+  field("z", 16, pcl::PCLPointField::FLOAT64);
+  field("nx", 24, pcl::PCLPointField::FLOAT32);
+  field("ny", 28, pcl::PCLPointField::FLOAT32);
+  field("nz", 32, pcl::PCLPointField::FLOAT32);
+  field("intensity", 36, pcl::PCLPointField::UINT16);
+  c.point_step = 38;
+  c.width = static_cast<std::uint32_t>(w.size());
+  c.height = 1;
+  c.row_step = c.point_step * c.width;
+  c.data.resize(c.row_step);
+  std::uniform_real_distribution<float> dir(-1, 1);
+  std::uniform_int_distribution<int> level(0, 65535);
+  for (std::size_t i = 0; i < w.size(); ++i) {
+    std::uint8_t* r = c.data.data() + i * c.point_step;
+    std::memcpy(r, w[i].data(), 24);
+    Eigen::Vector3f nv(dir(rng), dir(rng), dir(rng));
+    nv = nv.normalized() * (rng() % 2 ? 1.0f : -1.0f);
+    std::memcpy(r + 24, nv.data(), 12);
+    const auto v = static_cast<std::uint16_t>(level(rng));
+    std::memcpy(r + 36, &v, 2);
+  }
+  return shape;
+}
+
+inline std::string fileBytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+}  // namespace hgd_test

@@ -1,0 +1,211 @@
+// `hgdeform deform --stream` as a user meets it: a run that moves nothing gives every record back
+// bit for bit; what it cannot stream (a mesh, a small shape, ascii) and an output that is the
+// input are refused by name with nothing written; a failed run leaves the file that was at the
+// output; the progress line's passes, rate and time left.
+#include <gtest/gtest.h>
+#include <pcl/io/pcd_io.h>
+#include <sys/wait.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include "hgdeform/io/fields.h"
+#include "hgdeform/io/io.h"
+#include "hgdeform/io/records.h"
+#include "stream_fixtures.h"
+#include "stream_progress.h"
+#include "support/shapes.h"
+
+namespace {
+
+using hgd_test::fileBytes;
+using hgd_test::TempDir;
+using hgd_test::userScan;
+
+const Eigen::Vector3d kOffset(512345.25, 4187654.5, 312.0);
+
+struct CliRun {
+  int status = -1;
+  std::string err;
+};
+
+/// `hgdeform deform --stream IN -s S -o OUT -q`, its exit status and stderr.
+CliRun deformStreamed(const TempDir& tmp, const std::string& in, const std::string& scenario,
+                      const std::string& out) {
+  const std::string err = tmp / "stderr.txt";
+  const std::string cmd = std::string(HGD_TOOL) + " deform --stream '" + in + "' -s '" + scenario + "' -o '" +
+                          out + "' -q 2> '" + err + "'";
+  const int raw = std::system(cmd.c_str());
+  CliRun r;
+  r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
+  r.err = fileBytes(err);
+  return r;
+}
+
+/// A scenario on userScan's shape at `offset`: below z -0.7 fixed, a sphere at x 1 manipulated,
+/// and `move` (JSON).
+std::string writeScenario(const TempDir& tmp, const Eigen::Vector3d& offset, const std::string& move,
+                          const std::string& name = "s.json") {
+  const std::string path = tmp / name;
+  std::ofstream s(path);
+  char buf[1024];
+  std::snprintf(buf, sizeof buf,
+                R"({"fixed": [{"box": {"min": [%.3f, %.3f, %.3f], "max": [%.3f, %.3f, %.3f]}}],
+                    "manipulated": {"sphere": {"center": [%.3f, %.3f, %.3f], "radius": 0.35}},
+                    "move": %s})",
+                offset.x() - 2, offset.y() - 2, offset.z() - 2, offset.x() + 2, offset.y() + 2,
+                offset.z() - 0.7, offset.x() + 1, offset.y(), offset.z(), move.c_str());
+  s << buf;
+  return path;
+}
+
+/// The bytes of a file's records (readRecordLayout's place).
+std::string recordBytes(const std::string& path) {
+  const hgd::RecordLayout layout = hgd::readRecordLayout(path);
+  return fileBytes(path).substr(layout.offset, layout.count * layout.bytes);
+}
+
+}  // namespace
+
+// A frame move by nothing: every record, NaN points, zeros, strays and normals of random signs
+// among them, comes back as it was (the writer must not recompute x, y, z or turn a normal by an
+// identity). A georeferenced PLY of doubles whole, and the records of PCL's page-padded PCD.
+TEST(StreamCli, RunThatMovesNothingGivesEveryRecordBackBitForBit) {
+  TempDir tmp;
+  const std::string still = R"({"frame": {"translate": [0, 0, 0]}})";
+  {
+    const hgd::Shape scan = userScan(140000, 23, kOffset, true);
+    ASSERT_GT(scan.size(), 131072u);  // above the multi-resolution threshold: streamable
+    const std::string in = tmp / "survey.ply", out = tmp / "out.ply";
+    hgd::writeShape(in, scan);
+    const CliRun r = deformStreamed(tmp, in, writeScenario(tmp, kOffset, still), out);
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_TRUE(fileBytes(out) == fileBytes(in)) << "the streamed PLY differs from its input";
+  }
+  {
+    const hgd::Shape scan = userScan(140000, 29, Eigen::Vector3d::Zero(), false);
+    pcl::PointCloud<pcl::PointNormal> pn;
+    const hgd::XyzFields f = hgd::findXyzFields(scan.cloud);
+    const auto value = [&](std::size_t i, int field) {
+      return static_cast<float>(
+          hgd::readValue(scan.cloud, i, scan.cloud.fields[static_cast<std::size_t>(field)]));
+    };
+    for (std::size_t i = 0; i < scan.size(); ++i) {
+      pcl::PointNormal q;
+      q.x = value(i, f.x);
+      q.y = value(i, f.y);
+      q.z = value(i, f.z);
+      q.normal_x = value(i, f.nx);
+      q.normal_y = value(i, f.ny);
+      q.normal_z = value(i, f.nz);
+      q.curvature = static_cast<float>(i % 7);
+      pn.push_back(q);
+    }
+    pn.is_dense = false;
+    const std::string in = tmp / "pcl.pcd", out = tmp / "out.pcd";
+    ASSERT_EQ(pcl::io::savePCDFileBinary(in, pn), 0);
+    const CliRun r = deformStreamed(tmp, in, writeScenario(tmp, Eigen::Vector3d::Zero(), still), out);
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_TRUE(recordBytes(out) == recordBytes(in)) << "the streamed PCD's records differ from PCL's";
+  }
+}
+
+// What --stream cannot do is refused by name, with a non-zero exit and nothing at the output;
+// an output that is the input, however spelled, is refused and the input left as it was; a run
+// that fails after the output was named puts back the file that was there.
+TEST(StreamCli, RefusesWhatItCannotStreamAndLeavesNoOutput) {
+  TempDir tmp;
+  const std::string drag = R"({"frame": {"translate": [0, 0, 0.2]}})";
+  const std::string scenario = writeScenario(tmp, Eigen::Vector3d::Zero(), drag);
+  const auto refused = [&](const std::string& in, const std::string& why) {
+    SCOPED_TRACE(in);
+    const std::string out = tmp / "out.ply";
+    const CliRun r = deformStreamed(tmp, in, scenario, out);
+    EXPECT_NE(r.status, 0);
+    EXPECT_NE(r.err.find(in), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find(why), std::string::npos) << r.err;
+    EXPECT_FALSE(std::filesystem::exists(out));
+  };
+  {
+    const std::string mesh = tmp / "bar.ply";
+    hgd::writeShape(mesh, hgd::shapes::barMesh(2.0f, 0.2f, 0.004f));
+    refused(mesh, "mesh");
+  }
+  {
+    const std::string small = tmp / "small.ply";
+    hgd::writeShape(small, userScan(20000, 31, Eigen::Vector3d::Zero(), false));
+    refused(small, "full resolution");
+  }
+  const hgd::Shape scan = userScan(140000, 37, Eigen::Vector3d::Zero(), true);
+  {
+    const std::string ascii = tmp / "ascii.ply";
+    hgd::WriteOptions wo;
+    wo.encoding = hgd::Encoding::Ascii;
+    hgd::writeShape(ascii, scan, wo);
+    refused(ascii, "ascii");
+  }
+  const std::string in = tmp / "scan.ply";
+  hgd::writeShape(in, scan);
+  const std::string before = fileBytes(in);
+  std::filesystem::create_symlink("scan.ply", tmp / "link.ply");
+  for (const std::string& out : {in, tmp / "./scan.ply", tmp / "link.ply"}) {
+    SCOPED_TRACE(out);
+    const CliRun r = deformStreamed(tmp, in, scenario, out);
+    EXPECT_NE(r.status, 0);
+    EXPECT_NE(r.err.find("refusing to overwrite the input"), std::string::npos) << r.err;
+    EXPECT_TRUE(fileBytes(in) == before) << "the input was changed";
+  }
+  {
+    // The manipulated sphere far from the shape: the run fails after the output was named.
+    const std::string out = tmp / "kept.ply";
+    { std::ofstream(out) << "a file that was there"; }
+    const std::string nowhere = writeScenario(tmp, Eigen::Vector3d(50, 50, 50), drag, "nowhere.json");
+    const CliRun r = deformStreamed(tmp, in, nowhere, out);
+    EXPECT_NE(r.status, 0);
+    EXPECT_NE(r.err.find("selects no point"), std::string::npos) << r.err;
+    EXPECT_EQ(fileBytes(out), "a file that was there");
+  }
+}
+
+// The progress line of a run of 10M records: the passes counted (the stray passes share a name
+// and are told apart by the position going back), the rate of the full passes only (not the
+// strided frame sample), the time left over the passes planned.
+TEST(StreamCli, ProgressCountsPassesRateAndTimeLeft) {
+  hgdcli::StreamProgress p("scan.ply", false, false);
+  const std::uint64_t n = 10000000;
+  const auto at = [&](const char* pass, std::uint64_t done, double t) {
+    return p.line(hgd::RecordProgress{pass, done, n}, t);
+  };
+  EXPECT_EQ(at("frame", 5000000, 0.5), "");  // a strided sample: no rate from it
+  at("body", 1000000, 0.6);
+  // body: 0.5 -> 1.5 s for 10M records: 10M points/s; 4 passes after it.
+  EXPECT_EQ(at("body", n, 1.5), "scan.ply: pass 1 of 5 (body) 100%, 10 M points/s, about 0:04 left");
+  EXPECT_EQ(at("handles", n / 2, 2.0),
+            "scan.ply: pass 2 of 5 (handles)  50%, 10 M points/s, about 0:04 left");
+  at("handles", n, 2.5);
+  at("grid", n, 2.6);   // strided: its 0.1 s is not in the rate
+  at("cells", n, 4.6);  // a slower pass: 30M records in 4 s
+  // The strays' passes join the plan: 7 passes; 3.5 done at 7.5M points/s.
+  EXPECT_EQ(at("strays", n / 2, 5.266666),
+            "scan.ply: pass 4 of 7 (strays)  50%, 7.5 M points/s, about 0:05 left");
+  at("strays", n, 5.933333);
+  EXPECT_EQ(at("strays", n / 10, 6.066666),
+            "scan.ply: pass 5 of 7 (strays)  10%, 7.5 M points/s, about 0:04 left");
+}
+
+// The streamed plane generator (hgdeform-make-scans, the bench's streaming rows) writes what
+// writeShape writes of the plane held whole, byte for byte, as PLY and as PCD.
+TEST(StreamCli, GeneratedPlaneIsTheWholePlanesBytes) {
+  TempDir tmp;
+  for (const char* name : {"plane.ply", "plane.pcd"}) {
+    SCOPED_TRACE(name);
+    const std::string whole = tmp / (std::string("whole_") + name), rows = tmp / name;
+    hgd::writeShape(whole, hgd::shapes::bumpyPlane(5, 0.05f, 1.0f / 137));
+    hgd::shapes::writeBumpyPlane(rows, 5, 0.05f, 1.0f / 137);
+    const std::string a = fileBytes(whole), b = fileBytes(rows);
+    EXPECT_GT(a.size(), 138u * 138u * 24u);
+    EXPECT_TRUE(a == b) << a.size() << " bytes against " << b.size();
+  }
+}
