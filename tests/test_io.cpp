@@ -1314,8 +1314,16 @@ TEST_F(IoTest, BinaryPlyBadFaceIndexIsAnInteger) {
 }
 
 // Headers with very many names are read in linear time: 100,000 PLY properties and 200,000
-// XYZ columns (the quadratic checks of repeated names took 6 s and 55 s).
+// XYZ columns (the quadratic checks of repeated names took 6 s and 55 s; linear reads take 0.1 s
+// and 0.3 s, about 1.5 s and 2.5 s under AddressSanitizer on a loaded machine). The bound is 2 s,
+// 8 s in the sanitizer build: a quadratic read is there 30 s and more. (The growth from a quarter
+// of the names is no cleaner a measure: 6x-10x when linear, from the caches alone.)
 TEST_F(IoTest, HugeHeadersReadInLinearTime) {
+#ifdef HGD_SANITIZED
+  constexpr double kBound = 8.0;
+#else
+  constexpr double kBound = 2.0;
+#endif
   const std::size_t nprops = 100000;
   std::string ply = "ply\nformat ascii 1.0\nelement vertex 1\n";
   std::string row;
@@ -1344,8 +1352,8 @@ TEST_F(IoTest, HugeHeadersReadInLinearTime) {
   const double ply_s = std::chrono::duration<double>(t1 - t0).count();
   const double xyz_s = std::chrono::duration<double>(t2 - t1).count();
   std::printf("100k-property PLY: %.3f s, 200k-column XYZ: %.3f s\n", ply_s, xyz_s);
-  EXPECT_LT(ply_s, 2.0);
-  EXPECT_LT(xyz_s, 2.0);
+  EXPECT_LT(ply_s, kBound);
+  EXPECT_LT(xyz_s, kBound);
 }
 
 }  // namespace

@@ -100,7 +100,7 @@ void checkDeformMemory(const std::string& path, std::uint64_t cap, std::size_t m
   throw IoError(path + ": " + points + " would take about " + byteText(need) + " of memory to deform" +
                 (full ? " at full resolution" : "") + ", more than the " + byteText(cap) +
                 (asked ? " that --memory allows" : " this machine has available") +
-                "; hgdeform holds a shape in memory (it cannot stream one larger than memory yet)" +
+                "; only a binary PLY or PCD built on a coarse level is streamed (--stream)" +
                 (full && multires_above == 0 ? "; without --full-field the build takes less" : ""));
 }
 

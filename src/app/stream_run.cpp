@@ -164,7 +164,7 @@ DeformReport streamDeform(const std::string& input, const Scenario& scenario, co
   RecordHandles handles;
   const StreamedLevel level = streamCoarseLevel(
       layout,
-      [&](const StreamedLevel& frame) {
+      [&](const StreamedLevel& frame) -> const RecordHandles& {
         handles = streamHandles(scenario, layout, frame);
         return handles;
       },

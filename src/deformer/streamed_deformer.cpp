@@ -30,6 +30,7 @@ StreamedDeformer streamedDeformer(const RecordLayout& layout, const StreamedLeve
   std::sort(reps.begin(), reps.end());
   std::vector<Held> held;
   std::vector<Manipulated> manipulated;
+  manipulated.reserve(handles.manipulated.size());  // (at most: not a point more, no doubling)
   {
     streamPass("held points");
     stream::Blocks blocks(layout, 1 << 16);

@@ -46,12 +46,8 @@ std::vector<std::string> writeStreamedDeformed(const std::string& path, const Re
     c.fields = shape.cloud.fields;
     c.point_step = layout.bytes;
     c.height = 1;
-    std::size_t stray_at = 0, class_at = 0;
-    const auto classOf = [&](std::uint64_t record) {  // records ascend: a cursor
-      const auto& rc = level.record_class;
-      while (class_at < rc.size() && rc[class_at].first < record) ++class_at;
-      return class_at < rc.size() && rc[class_at].first == record ? rc[class_at].second : 0;
-    };
+    std::size_t stray_at = 0;
+    StreamedLevel::ClassCursor class_of(level);  // records ascend
     pcl::PointCloud<pcl::PointXYZ> pts;
     pcl::PointCloud<pcl::Normal>::Ptr normals(new pcl::PointCloud<pcl::Normal>);
     std::vector<std::uint32_t> anchor;
@@ -79,7 +75,7 @@ std::vector<std::string> writeStreamedDeformed(const std::string& path, const Re
           const Eigen::Vector3f p = level.local(w);
           while (stray_at < level.strays.size() && level.strays[stray_at] < i) ++stray_at;
           const bool is_stray = stray_at < level.strays.size() && level.strays[stray_at] == i;
-          const int cl = classOf(i);
+          const int cl = class_of.of(i);
           pts.push_back(pcl::PointXYZ(p.x(), p.y(), p.z()));
           stray.push_back(is_stray);
           cls.push_back(cl);

@@ -81,11 +81,11 @@ struct Near {
 StreamedLevel streamCoarseLevel(const RecordLayout& layout, const RecordHandles& handles,
                                 const StreamedLevelOptions& options) {
   return streamCoarseLevel(
-      layout, [&](const StreamedLevel&) { return handles; }, options);
+      layout, [&](const StreamedLevel&) -> const RecordHandles& { return handles; }, options);
 }
 
 StreamedLevel streamCoarseLevel(const RecordLayout& layout,
-                                const std::function<RecordHandles(const StreamedLevel&)>& handles_of,
+                                const std::function<const RecordHandles&(const StreamedLevel&)>& handles_of,
                                 const StreamedLevelOptions& options) {
   using namespace frame;
   const std::string& path = layout.shape.path;
@@ -242,7 +242,7 @@ StreamedLevel streamCoarseLevel(const RecordLayout& layout,
 
   // The handles, now that what is kept is known.
   streamPass("handles");
-  const RecordHandles handles = handles_of(out);
+  const RecordHandles& handles = handles_of(out);
   // The coarse level's size and classes (coarsen's).
   const std::size_t target =
       options.points_per_coarse > 0
@@ -253,30 +253,40 @@ StreamedLevel streamCoarseLevel(const RecordLayout& layout,
   const int class_bits = coarse::bitsFor(classes - 1);
   if (target == 0 || 3 * coarse::kMaxAxisBits + class_bits >= 64 || classes > 65535) return out;
   {
-    std::vector<std::pair<std::uint64_t, int>> all;  // a later class wins: joints, fixed, manipulated
+    // The lists merged (each ascends); a record in several has the class that pins last: the
+    // manipulated handle's, else the last fixed list's, else the last joint's. Counted first,
+    // then written: no copy of the lists, no sort.
+    std::vector<std::pair<const std::vector<std::uint64_t>*, int>> lists;  // precedence ascending
     for (std::size_t k = 0; k < handles.joints.size(); ++k)
-      for (const std::uint64_t i : handles.joints[k])
-        all.emplace_back(i, static_cast<int>(2 + handles.fixed.size() + k));
+      lists.emplace_back(&handles.joints[k], static_cast<int>(2 + handles.fixed.size() + k));
     for (std::size_t k = 0; k < handles.fixed.size(); ++k)
-      for (const std::uint64_t i : handles.fixed[k]) all.emplace_back(i, static_cast<int>(2 + k));
-    for (const std::uint64_t i : handles.manipulated) all.emplace_back(i, 1);
-    std::stable_sort(all.begin(), all.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
-    for (std::size_t k = 0; k < all.size(); ++k)
-      if (k + 1 == all.size() || all[k + 1].first != all[k].first) out.record_class.push_back(all[k]);
+      lists.emplace_back(&handles.fixed[k], static_cast<int>(2 + k));
+    lists.emplace_back(&handles.manipulated, 1);
+    const auto merge = [&](auto&& emit) {
+      std::vector<std::size_t> at(lists.size(), 0);
+      for (;;) {
+        std::uint64_t next = std::numeric_limits<std::uint64_t>::max();
+        for (std::size_t l = 0; l < lists.size(); ++l)
+          if (at[l] < lists[l].first->size()) next = std::min(next, (*lists[l].first)[at[l]]);
+        if (next == std::numeric_limits<std::uint64_t>::max()) return;
+        int cls = 0;
+        for (std::size_t l = 0; l < lists.size(); ++l)
+          if (at[l] < lists[l].first->size() && (*lists[l].first)[at[l]] == next) {
+            cls = lists[l].second;
+            ++at[l];
+          }
+        emit(next << 16 | static_cast<std::uint64_t>(cls));
+      }
+    };
+    std::size_t count = 0;
+    merge([&](std::uint64_t) { ++count; });
+    out.record_class.reserve(count);
+    merge([&](std::uint64_t v) { out.record_class.push_back(v); });
   }
-  // A pass's class of each record, in order.
-  struct ClassCursor {
-    const std::vector<std::pair<std::uint64_t, int>>& v;
-    std::size_t at = 0;
-    int of(std::uint64_t record) {
-      while (at < v.size() && v[at].first < record) ++at;
-      return at < v.size() && v[at].first == record ? v[at].second : 0;
-    }
-  };
 
   // A pass over the points Geometry keeps: fn(record, row, world, local position, class).
   const auto eachKept = [&](auto&& fn) {
-    ClassCursor cc{out.record_class};
+    StreamedLevel::ClassCursor cc(out);
     SortedCursor stray_far(out.far_strays);
     blocks.each([&](std::uint64_t i, std::size_t k) {
       const Eigen::Vector3d w = blocks.world(k);

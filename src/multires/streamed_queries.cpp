@@ -13,8 +13,8 @@ std::uint32_t StreamedLevel::mortonKey(const Eigen::Vector3d& w) const {
 }
 
 int StreamedLevel::classOf(std::uint64_t record) const {
-  const auto it = std::lower_bound(record_class.begin(), record_class.end(), std::make_pair(record, -1));
-  return it != record_class.end() && it->first == record ? it->second : 0;
+  const auto it = std::lower_bound(record_class.begin(), record_class.end(), record << 16);
+  return it != record_class.end() && (*it >> 16) == record ? static_cast<int>(*it & 0xFFFFu) : 0;
 }
 
 bool StreamedLevel::kept(std::uint64_t record, const Eigen::Vector3d& world) const {
