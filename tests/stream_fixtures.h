@@ -2,6 +2,8 @@
 // shaped like users' files, a file's bytes.
 #pragma once
 
+#include <pcl/point_cloud.h>
+#include <pcl/point_types.h>
 #include <unistd.h>
 
 #include <Eigen/Core>
@@ -15,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "hgdeform/io/fields.h"
 #include "hgdeform/io/geometry.h"
 #include "hgdeform/io/shape.h"
 #include "support/shapes.h"
@@ -99,6 +102,33 @@ inline hgd::Shape userScan(std::size_t n, unsigned seed, const Eigen::Vector3d& 
 inline std::string fileBytes(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+/// A scan's x, y, z and normals as PCL's PointNormal cloud (as a PCL program would save it;
+/// not dense: its NaN points), with `curvature` set to each point's index modulo `curvature_mod`
+/// (0: zero).
+inline pcl::PointCloud<pcl::PointNormal> asPointNormals(const hgd::Shape& scan, int curvature_mod = 0) {
+  pcl::PointCloud<pcl::PointNormal> pn;
+  const hgd::XyzFields f = hgd::findXyzFields(scan.cloud);
+  const auto value = [&](std::size_t i, int field) {
+    return static_cast<float>(
+        hgd::readValue(scan.cloud, i, scan.cloud.fields[static_cast<std::size_t>(field)]));
+  };
+  for (std::size_t i = 0; i < scan.size(); ++i) {
+    pcl::PointNormal q;
+    q.x = value(i, f.x);
+    q.y = value(i, f.y);
+    q.z = value(i, f.z);
+    q.normal_x = value(i, f.nx);
+    q.normal_y = value(i, f.ny);
+    q.normal_z = value(i, f.nz);
+    q.curvature = curvature_mod > 0
+                      ? static_cast<float>(static_cast<int>(i % static_cast<std::size_t>(curvature_mod)))
+                      : 0.0f;
+    pn.push_back(q);
+  }
+  pn.is_dense = false;
+  return pn;
 }
 
 }  // namespace hgd_test

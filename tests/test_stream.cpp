@@ -220,25 +220,7 @@ TEST(Stream, CoarseLevelIsTheOneBuiltInMemory) {
   }
   {
     const hgd::Shape scan = userScan(60000, 7, Eigen::Vector3d::Zero(), false);
-    pcl::PointCloud<pcl::PointNormal> pn;
-    const hgd::XyzFields f = hgd::findXyzFields(scan.cloud);
-    for (std::size_t i = 0; i < scan.size(); ++i) {
-      pcl::PointNormal q;
-      q.x =
-          static_cast<float>(hgd::readValue(scan.cloud, i, scan.cloud.fields[static_cast<std::size_t>(f.x)]));
-      q.y =
-          static_cast<float>(hgd::readValue(scan.cloud, i, scan.cloud.fields[static_cast<std::size_t>(f.y)]));
-      q.z =
-          static_cast<float>(hgd::readValue(scan.cloud, i, scan.cloud.fields[static_cast<std::size_t>(f.z)]));
-      q.normal_x = static_cast<float>(
-          hgd::readValue(scan.cloud, i, scan.cloud.fields[static_cast<std::size_t>(f.nx)]));
-      q.normal_y = static_cast<float>(
-          hgd::readValue(scan.cloud, i, scan.cloud.fields[static_cast<std::size_t>(f.ny)]));
-      q.normal_z = static_cast<float>(
-          hgd::readValue(scan.cloud, i, scan.cloud.fields[static_cast<std::size_t>(f.nz)]));
-      pn.push_back(q);
-    }
-    pn.is_dense = false;
+    const pcl::PointCloud<pcl::PointNormal> pn = hgd_test::asPointNormals(scan);
     const std::string pcd = tmp / "pcl.pcd";
     ASSERT_EQ(pcl::io::savePCDFileBinary(pcd, pn), 0);
     const hgd::Shape read = hgd::readShape(pcd);
@@ -377,23 +359,7 @@ TEST(Stream, StreamedRunWritesTheInMemoryRunsBytes) {
   }
   {
     const hgd::Shape scan = userScan(60000, 17, Eigen::Vector3d::Zero(), false);
-    pcl::PointCloud<pcl::PointNormal> pn;
-    const hgd::XyzFields f = hgd::findXyzFields(scan.cloud);
-    const auto value = [&](std::size_t i, int field) {
-      return static_cast<float>(
-          hgd::readValue(scan.cloud, i, scan.cloud.fields[static_cast<std::size_t>(field)]));
-    };
-    for (std::size_t i = 0; i < scan.size(); ++i) {
-      pcl::PointNormal q;
-      q.x = value(i, f.x);
-      q.y = value(i, f.y);
-      q.z = value(i, f.z);
-      q.normal_x = value(i, f.nx);
-      q.normal_y = value(i, f.ny);
-      q.normal_z = value(i, f.nz);
-      pn.push_back(q);
-    }
-    pn.is_dense = false;
+    const pcl::PointCloud<pcl::PointNormal> pn = hgd_test::asPointNormals(scan);
     const std::string pcd = tmp / "pcl.pcd";
     ASSERT_EQ(pcl::io::savePCDFileBinary(pcd, pn), 0);
     expectSameOutput(pcd, recordHandles(hgd::readShape(pcd), Eigen::Vector3d::Zero()), tmp / "memory.pcd",

@@ -86,24 +86,7 @@ TEST(StreamCli, RunThatMovesNothingGivesEveryRecordBackBitForBit) {
   }
   {
     const hgd::Shape scan = userScan(140000, 29, Eigen::Vector3d::Zero(), false);
-    pcl::PointCloud<pcl::PointNormal> pn;
-    const hgd::XyzFields f = hgd::findXyzFields(scan.cloud);
-    const auto value = [&](std::size_t i, int field) {
-      return static_cast<float>(
-          hgd::readValue(scan.cloud, i, scan.cloud.fields[static_cast<std::size_t>(field)]));
-    };
-    for (std::size_t i = 0; i < scan.size(); ++i) {
-      pcl::PointNormal q;
-      q.x = value(i, f.x);
-      q.y = value(i, f.y);
-      q.z = value(i, f.z);
-      q.normal_x = value(i, f.nx);
-      q.normal_y = value(i, f.ny);
-      q.normal_z = value(i, f.nz);
-      q.curvature = static_cast<float>(i % 7);
-      pn.push_back(q);
-    }
-    pn.is_dense = false;
+    const pcl::PointCloud<pcl::PointNormal> pn = hgd_test::asPointNormals(scan, 7);
     const std::string in = tmp / "pcl.pcd", out = tmp / "out.pcd";
     ASSERT_EQ(pcl::io::savePCDFileBinary(in, pn), 0);
     const CliRun r = deformStreamed(tmp, in, writeScenario(tmp, Eigen::Vector3d::Zero(), still), out);

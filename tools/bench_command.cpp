@@ -91,6 +91,17 @@ std::pair<double, double> pclInChild(const std::string& in, const std::string& o
   return {r, w};
 }
 
+/// The command's own peak in MB (its report's VmHWM), else `child_mb` (wait4's ru_maxrss,
+/// which would be the bench's size when the bench, holding its clouds, is the larger).
+double reportedPeak(const std::string& report, double child_mb) {
+  double own = 0;
+  try {
+    own = nlohmann::json::parse(std::ifstream(report)).value("peak_rss_mb", 0.0);
+  } catch (const std::exception&) {
+  }
+  return own > 0 ? own : child_mb;
+}
+
 }  // namespace
 
 int pclIoReference(const char* in, const char* out) {
@@ -125,14 +136,7 @@ nlohmann::json commandReference(const hgd::Shape& shape, const std::string& scen
       return {{"left_out", "hgdeform deform failed on the bench's file"}};
     }
     command.push_back(ms);
-    // The command's own peak (its report's VmHWM): ru_maxrss would be the bench's size when the
-    // bench, holding its clouds, is the larger.
-    double own = 0;
-    try {
-      own = nlohmann::json::parse(std::ifstream(report)).value("peak_rss_mb", 0.0);
-    } catch (const std::exception&) {
-    }
-    peak.push_back(own > 0 ? own : mb);
+    peak.push_back(reportedPeak(report, mb));
     fs::remove(out);
     const auto [read_ms, write_ms] = pclInChild(in, pcl_out);
     fs::remove(pcl_out);
@@ -215,12 +219,7 @@ nlohmann::json streamReference(long points, int repeat) {
     fs::remove(out);
     if (ms < 0) return left_out("hgdeform deform --stream failed on the bench's file");
     command.push_back(ms);
-    double own = 0;
-    try {
-      own = nlohmann::json::parse(std::ifstream(report)).value("peak_rss_mb", 0.0);
-    } catch (const std::exception&) {
-    }
-    peak.push_back(own > 0 ? own : mb);
+    peak.push_back(reportedPeak(report, mb));
     if (pcl_fits) {
       const auto [read_ms, write_ms] = pclInChild(in, pcl_out);
       fs::remove(pcl_out);
