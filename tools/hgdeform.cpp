@@ -302,11 +302,7 @@ int runDeform(const DeformArgs& a) {
       hgd::checkDeformMemory(input, memory, full ? 0 : opt.multires_above);
     } catch (const hgd::IoError& too_big) {
       if (full || a.ascii) throw;
-      try {
-        hgd::readRecordLayout(input);
-      } catch (const hgd::IoError&) {
-        throw too_big;  // not records in place: the reason stands
-      }
+      if (!hgd::canStream(input, output)) throw;  // not records in place: the reason stands
       std::fprintf(stderr, "hgdeform: note: %s: streamed (%s)\n", input.c_str(), too_big.what());
       stream = true;
     }

@@ -10,11 +10,11 @@ namespace hgdcli {
 
 namespace {
 
-// The passes that read every record (the others read a sample on a stride: quick), and how many a
-// run makes: the body, the handles, the cells, the held points and the write; the strays' two when
-// the level has sparse cells.
+// The passes that read every record (the others read a sample on a stride, or a few records alone:
+// quick), and how many a run makes: the body, the handles, the cells, the held points and the write; the
+// strays' two when the level has sparse cells.
 bool fullPass(const std::string& pass) {
-  return pass != "frame" && pass != "grid";
+  return pass != "frame" && pass != "grid" && pass != "beyond";
 }
 constexpr int kPlannedPasses = 5, kStrayPasses = 2;
 

@@ -6,6 +6,7 @@
 #include "hgdeform/app/stream.h"
 #include "hgdeform/deformer/streamed.h"
 #include "hgdeform/io/fields.h"
+#include "hgdeform/io/io.h"
 #include "multires/record_blocks.h"
 #include "util/timer.h"
 
@@ -145,6 +146,18 @@ RecordHandles streamHandles(const Scenario& scenario, const RecordLayout& layout
   return h;
 }
 
+bool canStream(const std::string& input, const std::string& output) {
+  try {
+    const ShapeSize size = probeShapeSize(input);
+    if (!size.binary || size.compressed || size.faces > 0 || formatFromPath(output) != size.format)
+      return false;
+    readRecordLayout(input);
+    return true;
+  } catch (const IoError&) {
+    return false;
+  }
+}
+
 DeformReport streamDeform(const std::string& input, const Scenario& scenario, const RunOptions& options,
                           const std::string& output) {
   Stopwatch sw;
@@ -152,6 +165,9 @@ DeformReport streamDeform(const std::string& input, const Scenario& scenario, co
   const RecordLayout layout = readRecordLayout(input);
   if (!layout.shape.polygons.empty())
     throw IoError(input + ": cannot stream: a mesh's faces are not streamed; read the whole file instead");
+  if (formatFromPath(output) != layout.shape.format)  // before the passes, not after them
+    throw IoError(output + ": cannot stream " + input + " into another format: a streamed run writes the " +
+                  (layout.shape.format == FileFormat::Ply ? "binary PLY" : "binary PCD") + " it reads");
   DeformOptions opt = mergedOptions(options, scenario);
   if (opt.multires_above == 0 || layout.count <= opt.multires_above)
     throw IoError(input + ": cannot stream: " + std::to_string(layout.count) +

@@ -9,6 +9,7 @@
 #include <functional>
 #include <limits>
 #include <numeric>
+#include <queue>
 #include <unordered_map>
 #include <unordered_set>
 
@@ -216,6 +217,7 @@ StreamedLevel streamCoarseLevel(const RecordLayout& layout,
     hi = hi.cwiseMax(beyond_hi);
     normals_ok = normals_ok && beyond_normals_ok;
   } else {
+    streamPass("beyond");  // a few records read alone: not a pass over the file
     Blocks one(layout, 1);
     for (const Beyond& b : beyond) {
       if (std::binary_search(out.far_strays.begin(), out.far_strays.end(), b.record)) continue;
@@ -263,19 +265,25 @@ StreamedLevel streamCoarseLevel(const RecordLayout& layout,
       lists.emplace_back(&handles.fixed[k], static_cast<int>(2 + k));
     lists.emplace_back(&handles.manipulated, 1);
     const auto merge = [&](auto&& emit) {
+      // The lists' heads in a heap (smallest record first, then the list of highest precedence):
+      // N log L, whatever the number of joints.
+      using Head = std::pair<std::uint64_t, std::size_t>;  // (record, list)
+      const auto later = [](const Head& x, const Head& y) {
+        return x.first != y.first ? x.first > y.first : x.second < y.second;
+      };
+      std::priority_queue<Head, std::vector<Head>, decltype(later)> heads(later);
       std::vector<std::size_t> at(lists.size(), 0);
-      for (;;) {
-        std::uint64_t next = std::numeric_limits<std::uint64_t>::max();
-        for (std::size_t l = 0; l < lists.size(); ++l)
-          if (at[l] < lists[l].first->size()) next = std::min(next, (*lists[l].first)[at[l]]);
-        if (next == std::numeric_limits<std::uint64_t>::max()) return;
-        int cls = 0;
-        for (std::size_t l = 0; l < lists.size(); ++l)
-          if (at[l] < lists[l].first->size() && (*lists[l].first)[at[l]] == next) {
-            cls = lists[l].second;
-            ++at[l];
-          }
-        emit(next << 16 | static_cast<std::uint64_t>(cls));
+      for (std::size_t l = 0; l < lists.size(); ++l)
+        if (!lists[l].first->empty()) heads.emplace((*lists[l].first)[0], l);
+      while (!heads.empty()) {
+        const std::uint64_t record = heads.top().first;
+        const int cls = lists[heads.top().second].second;  // the highest precedence of this record's
+        while (!heads.empty() && heads.top().first == record) {
+          const std::size_t l = heads.top().second;
+          heads.pop();
+          if (++at[l] < lists[l].first->size()) heads.emplace((*lists[l].first)[at[l]], l);
+        }
+        emit(record << 16 | static_cast<std::uint64_t>(cls));
       }
     };
     std::size_t count = 0;

@@ -158,15 +158,20 @@ std::string thumbnail(const Context& ctx, const Scan& s, const hgd::ScenarioRunn
 #endif
 }
 
-/// Whether `path`'s points are records a streamed run reads in place (hgd::readRecordLayout).
-bool streamable(const std::string& path) {
+/// Whether the scan is one a run holds in memory (a streamed one is not drawn).
+bool fitsInMemory(const Scan& s, const Context& ctx, const hgd::Scenario& scenario) {
   try {
-    hgd::readRecordLayout(path);
+    hgd::checkDeformMemory(
+        s.input.string(), ctx.cfg.memory,
+        scenario.full_resolution.value_or(false) ? 0 : hgd::DeformOptions().multires_above);
     return true;
   } catch (const hgd::IoError&) {
     return false;
   }
 }
+
+constexpr const char* kNoStreamedThumbnail =
+    "no thumbnail: a streamed scan is not drawn (it does not fit in memory)";
 
 }  // namespace
 
@@ -209,7 +214,10 @@ ScanResult processScan(const Scan& s, const Context& ctx) {
           appendWarning(r.warning, std::string("provenance record not updated: ") + e.what());
         }
       }
-      if (ctx.thumbnails) r.thumbnail = thumbnail(ctx, s, nullptr, nullptr, scenario, r.warning);
+      if (ctx.thumbnails && fitsInMemory(s, ctx, scenario))
+        r.thumbnail = thumbnail(ctx, s, nullptr, nullptr, scenario, r.warning);
+      else if (ctx.thumbnails)
+        appendWarning(r.warning, kNoStreamedThumbnail);
       r.ms_wall = msSince(t0);
       return r;
     }
@@ -232,7 +240,7 @@ ScanResult processScan(const Scan& s, const Context& ctx) {
       hgd::checkDeformMemory(s.input.string(), ctx.cfg.memory,
                              full ? 0 : hgd::DeformOptions().multires_above);
     } catch (const hgd::IoError& e) {
-      if (full || !streamable(s.input.string())) throw;
+      if (full || !hgd::canStream(s.input.string(), s.output.string())) throw;
       too_big = e;
     }
     std::optional<hgd::ScenarioRunner> run;
@@ -289,7 +297,7 @@ ScanResult processScan(const Scan& s, const Context& ctx) {
       const hgd::Shape after = run->deformedShape();
       r.thumbnail = thumbnail(ctx, s, &*run, &after, scenario, r.warning);
     } else if (ctx.thumbnails) {
-      appendWarning(r.warning, "no thumbnail: a streamed scan is not drawn (it does not fit in memory)");
+      appendWarning(r.warning, kNoStreamedThumbnail);
     }
   } catch (const std::bad_alloc&) {
     r.status = "failed";

@@ -18,6 +18,12 @@ namespace hgd {
 /// resolveHandles does.
 RecordHandles streamHandles(const Scenario& scenario, const RecordLayout& layout, const StreamedLevel& level);
 
+/// Whether a streamed run can deform `input` into `output`, by the header alone (a mesh's faces
+/// are not read): a cloud whose points are records read in place (binary PLY or PCD:
+/// readRecordLayout), written in its own format. What a front end asks before choosing to
+/// stream a shape that does not fit in memory (the memory's reason stands otherwise).
+bool canStream(const std::string& input, const std::string& output);
+
 /// Runs `scenario` on `input` streamed and writes the deformed file at `output` (binary, the
 /// input's format). A mesh, or a shape whose build the file read whole would make at full
 /// resolution (not more points than multires_above), is refused before the build. Throws IoError or
