@@ -163,6 +163,8 @@ class Deformer {
   Energies energies() const;
   const BuildTimings& buildTimings() const;
   double lastInterpolationMs() const;
+  /// The picked point's index in geometry(); -1 when none is, or when it is one of a streamed
+  /// shape's manipulated points the geometry does not hold.
   int picked() const;
   double diagonal() const;
 

@@ -109,7 +109,9 @@ struct StreamedLevel {
 StreamedLevel streamCoarseLevel(const RecordLayout& layout, const RecordHandles& handles,
                                 const StreamedLevelOptions& options);
 /// The same with the handles found once the frame is (`handles_of` is given the level with its
-/// frame set: kept() answers; it may read the file).
+/// frame set: kept() answers; it may read the file). It returns a reference to handles that live
+/// until this returns (the caller's, not a copy: a scan's handle lists can be gigabytes); declare
+/// a lambda's return type `-> const RecordHandles&`, or it returns a temporary.
 StreamedLevel streamCoarseLevel(const RecordLayout& layout,
                                 const std::function<const RecordHandles&(const StreamedLevel&)>& handles_of,
                                 const StreamedLevelOptions& options);
