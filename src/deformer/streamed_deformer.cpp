@@ -52,12 +52,11 @@ StreamedDeformer streamedDeformer(const RecordLayout& layout, const StreamedLeve
       held.push_back(h);
     });
   }
-  std::sort(held.begin(), held.end(), [](const Held& a, const Held& b) {
+  const auto geometryOrder = [](const auto& a, const auto& b) {  // Geometry's: Morton key, then record
     return a.key != b.key ? a.key < b.key : a.record < b.record;
-  });
-  std::sort(manipulated.begin(), manipulated.end(), [](const Manipulated& a, const Manipulated& b) {
-    return a.key != b.key ? a.key < b.key : a.record < b.record;
-  });
+  };
+  std::sort(held.begin(), held.end(), geometryOrder);
+  std::sort(manipulated.begin(), manipulated.end(), geometryOrder);
   auto g = std::make_shared<Geometry>();
   g->origin = level.origin;
   g->body = level.body;

@@ -159,11 +159,16 @@ std::string thumbnail(const Context& ctx, const Scan& s, const hgd::ScenarioRunn
 }
 
 /// Whether the scan is one a run holds in memory (a streamed one is not drawn).
+/// The memory check of a scan (hgd::checkDeformMemory at the build the scenario asks for):
+/// throws IoError with the reason when it does not fit.
+void checkScanMemory(const Scan& s, const Context& ctx, const hgd::Scenario& scenario) {
+  hgd::checkDeformMemory(s.input.string(), ctx.cfg.memory,
+                         scenario.full_resolution.value_or(false) ? 0 : hgd::DeformOptions().multires_above);
+}
+
 bool fitsInMemory(const Scan& s, const Context& ctx, const hgd::Scenario& scenario) {
   try {
-    hgd::checkDeformMemory(
-        s.input.string(), ctx.cfg.memory,
-        scenario.full_resolution.value_or(false) ? 0 : hgd::DeformOptions().multires_above);
+    checkScanMemory(s, ctx, scenario);
     return true;
   } catch (const hgd::IoError&) {
     return false;
@@ -237,8 +242,7 @@ ScanResult processScan(const Scan& s, const Context& ctx) {
     const bool full = scenario.full_resolution.value_or(false);
     std::optional<hgd::IoError> too_big;
     try {
-      hgd::checkDeformMemory(s.input.string(), ctx.cfg.memory,
-                             full ? 0 : hgd::DeformOptions().multires_above);
+      checkScanMemory(s, ctx, scenario);
     } catch (const hgd::IoError& e) {
       if (full || !hgd::canStream(s.input.string(), s.output.string())) throw;
       too_big = e;
