@@ -20,6 +20,7 @@
 #include "hgdeform/io/fields.h"
 #include "hgdeform/io/geometry.h"
 #include "hgdeform/io/shape.h"
+#include "hgdeform/multires/streamed.h"
 #include "support/shapes.h"
 
 namespace hgd_test {
@@ -97,6 +98,25 @@ inline hgd::Shape userScan(std::size_t n, unsigned seed, const Eigen::Vector3d& 
     std::memcpy(r + 36, &v, 2);
   }
   return shape;
+}
+
+/// The handles of a file's records: below z -0.75 fixed, beyond x 0.8 the manipulated handle
+/// (of the shape's own coordinates: less its offset), in record indices.
+inline hgd::RecordHandles recordHandles(const hgd::Shape& shape, const Eigen::Vector3d& offset) {
+  hgd::RecordHandles h;
+  h.fixed.resize(1);
+  const hgd::XyzFields f = hgd::findXyzFields(shape.cloud);
+  for (std::size_t i = 0; i < shape.size(); ++i) {
+    const Eigen::Vector3d x =
+        Eigen::Vector3d(hgd::readValue(shape.cloud, i, shape.cloud.fields[static_cast<std::size_t>(f.x)]),
+                        hgd::readValue(shape.cloud, i, shape.cloud.fields[static_cast<std::size_t>(f.y)]),
+                        hgd::readValue(shape.cloud, i, shape.cloud.fields[static_cast<std::size_t>(f.z)])) -
+        offset;
+    if (!x.allFinite() || x.norm() > 10) continue;
+    if (x.z() < -0.75) h.fixed[0].push_back(i);
+    if (x.x() > 0.8) h.manipulated.push_back(i);
+  }
+  return h;
 }
 
 inline std::string fileBytes(const std::string& path) {

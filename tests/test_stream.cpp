@@ -29,27 +29,9 @@
 namespace {
 
 using hgd_test::fileBytes;
+using hgd_test::recordHandles;
 using hgd_test::TempDir;
 using hgd_test::userScan;
-
-/// The handles of a file's records: below z -0.75 fixed, beyond x 0.8 the manipulated handle
-/// (of the shape's own coordinates: less its offset), in record indices.
-hgd::RecordHandles recordHandles(const hgd::Shape& shape, const Eigen::Vector3d& offset) {
-  hgd::RecordHandles h;
-  h.fixed.resize(1);
-  const hgd::XyzFields f = hgd::findXyzFields(shape.cloud);
-  for (std::size_t i = 0; i < shape.size(); ++i) {
-    const Eigen::Vector3d x =
-        Eigen::Vector3d(hgd::readValue(shape.cloud, i, shape.cloud.fields[static_cast<std::size_t>(f.x)]),
-                        hgd::readValue(shape.cloud, i, shape.cloud.fields[static_cast<std::size_t>(f.y)]),
-                        hgd::readValue(shape.cloud, i, shape.cloud.fields[static_cast<std::size_t>(f.z)])) -
-        offset;
-    if (!x.allFinite() || x.norm() > 10) continue;
-    if (x.z() < -0.75) h.fixed[0].push_back(i);
-    if (x.x() > 0.8) h.manipulated.push_back(i);
-  }
-  return h;
-}
 
 /// The same handles as geometry indices.
 hgd::Handles geometryHandles(const hgd::RecordHandles& r, const hgd::Geometry& g) {

@@ -244,3 +244,64 @@ TEST(StreamCli, GeneratedPlaneIsTheWholePlanesBytes) {
     EXPECT_TRUE(a == b) << a.size() << " bytes against " << b.size();
   }
 }
+
+// `mpirun -n 3 hgdeform deform --mpi` as a cluster user runs it: the one output file the three
+// ranks write is, byte for byte, the file `hgdeform deform` writes holding the scan in memory
+// (and `--stream`'s); rank 0 alone reports. A scenario that selects nothing fails every rank:
+// a non-zero exit, the reason said once (not once a rank), no output.
+TEST(StreamCli, MpiRanksWriteTheFileOneProcessWrites) {
+#ifndef HGD_HAVE_MPI
+  GTEST_SKIP() << "built without MPI";
+#else
+  if (std::system("command -v mpirun > /dev/null 2>&1") != 0) GTEST_SKIP() << "mpirun is not on PATH";
+  TempDir tmp;
+  const hgd::Shape scan = userScan(140000, 23, kOffset, true);
+  ASSERT_GT(scan.size(), 131072u);
+  const std::string in = tmp / "survey.ply";
+  hgd::writeShape(in, scan);
+  char move[512];
+  std::snprintf(move, sizeof move,
+                R"([{"drag": {"from": [%.3f, %.3f, %.3f], "to": [%.3f, %.3f, %.3f]}},
+                    {"frame": {"translate": [0.05, 0, 0.1], "rotate": {"axis": [0, 0, 1], "degrees": 20}}}])",
+                kOffset.x() + 1, kOffset.y(), kOffset.z(), kOffset.x() + 1.2, kOffset.y() + 0.1,
+                kOffset.z() + 0.3);
+  const std::string scenario = writeScenario(tmp, kOffset, move);
+  const std::string tool = HGD_TOOL, memory = tmp / "memory.ply", split = tmp / "split.ply",
+                    report = tmp / "r.json", err = tmp / "mpi.txt";
+  ASSERT_EQ(std::system((tool + " deform '" + in + "' -s '" + scenario + "' -o '" + memory + "' -q").c_str()),
+            0);
+  const std::string mpirun = "mpirun --allow-run-as-root --oversubscribe -np 3 ";
+  const int raw = std::system((mpirun + tool + " deform --mpi '" + in + "' -s '" + scenario + "' -o '" +
+                               split + "' --report '" + report + "' 2> '" + err + "' > /dev/null")
+                                  .c_str());
+  ASSERT_TRUE(WIFEXITED(raw) && WEXITSTATUS(raw) == 0) << fileBytes(err);
+  const std::string a = fileBytes(memory), b = fileBytes(split), input = fileBytes(in);
+  ASSERT_EQ(a.size(), b.size());
+  std::size_t differ = 0, moved = 0;
+  for (std::size_t k = 0; k < a.size(); ++k) {
+    differ += a[k] != b[k];
+    moved += a[k] != input[k];
+  }
+  EXPECT_EQ(differ, 0u) << "bytes that differ";
+  EXPECT_GT(moved, a.size() / 50);
+  EXPECT_NE(fileBytes(report).find("split across 3 ranks"), std::string::npos);
+  // One report of the run's notes: rank 0's.
+  const std::string said = fileBytes(err);
+  std::size_t notes = 0;
+  for (std::size_t at = 0; (at = said.find("streamed: the coarse level", at)) != std::string::npos; ++at)
+    ++notes;
+  EXPECT_EQ(notes, 1u) << said;
+
+  const std::string nothing = writeScenario(tmp, kOffset + Eigen::Vector3d(100, 0, 0), move, "nothing.json");
+  const std::string none = tmp / "none.ply";
+  const int bad = std::system((mpirun + tool + " deform --mpi '" + in + "' -s '" + nothing + "' -o '" + none +
+                               "' 2> '" + err + "' > /dev/null")
+                                  .c_str());
+  EXPECT_FALSE(WIFEXITED(bad) && WEXITSTATUS(bad) == 0);
+  const std::string why = fileBytes(err);
+  std::size_t said_once = 0;
+  for (std::size_t at = 0; (at = why.find("selects no point", at)) != std::string::npos; ++at) ++said_once;
+  EXPECT_EQ(said_once, 1u) << why;
+  EXPECT_FALSE(std::filesystem::exists(none));
+#endif
+}

@@ -30,6 +30,7 @@
 #include "hgdeform/io/io.h"
 #include "hgdeform/io/records.h"
 #include "huge_pages.h"
+#include "stream_mpi.h"
 #include "stream_progress.h"
 
 namespace hgdcli {
@@ -81,6 +82,7 @@ struct DeformArgs {
   int joint_clusters = hgd::DeformOptions().clusters.joint_isovalues;
   int reweight = 0;     // GaussNewtonOptions::reweight_rounds
   bool stream = false;  // --stream
+  bool mpi = false;     // --mpi
   std::string blend;    // empty: the scenario's
   std::string solver = "auto";
   std::string memory;  // --memory: empty for the memory the machine has available
@@ -168,6 +170,10 @@ int parseDeform(int argc, const char* const* argv, DeformArgs& a) {
                "level, not by the points (binary PLY or PCD, written in the input's format; the same bytes\n"
                "as a run in memory). Chosen by itself when a shape does not fit in memory. A long run\n"
                "shows its pass, rate and time left on stderr (not with -q)");
+  app.add_flag("--mpi", a.mpi,
+               "one scan split across MPI ranks (mpirun -n N hgdeform deform --mpi ...): each rank reads,\n"
+               "deforms and writes its share of the records into the one output file (MPI-IO), which is\n"
+               "the file one process writes, byte for byte. Streamed (--stream); rank 0 reports");
   app.add_option("--memory", a.memory,
                  "the memory the run may take (e.g. 1.5G, 800M; default: what the machine has\n"
                  "available): a shape estimated to need more is streamed (binary PLY or PCD) or refused\n"
@@ -260,7 +266,8 @@ int runField(const FieldArgs& a) {
   return 0;
 }
 
-int runDeform(const DeformArgs& a) {
+int runDeform(const DeformArgs& a, hgd::StreamRanks* ranks = nullptr) {
+  const bool lead = !ranks || ranks->rank() == 0;  // the rank that reports (and restores)
   const std::string& input = a.input;
   const std::string& scenario_path = a.scenario;
   const std::string& output = a.output;
@@ -296,7 +303,7 @@ int runDeform(const DeformArgs& a) {
   // and its build is on a coarse level; --stream asks for it whatever the size.
   // (The scenario's "resolution": "full" keeps every point in the graph, as --full-field.)
   const bool full = a.full_field || scenario.full_resolution.value_or(false);
-  bool stream = a.stream;
+  bool stream = a.stream || a.mpi;
   if (!stream) {
     try {
       hgd::checkDeformMemory(input, memory, full ? 0 : opt.multires_above);
@@ -307,12 +314,17 @@ int runDeform(const DeformArgs& a) {
       stream = true;
     }
   }
+  const char* const streamed = a.mpi ? "--mpi" : "--stream";
   if (stream && a.ascii)
-    throw hgdcli::UsageError("--stream writes the input's binary format: not with --ascii");
+    throw hgdcli::UsageError(std::string(streamed) + " writes the input's binary format: not with --ascii");
   if (stream && full)
-    throw hgdcli::UsageError(
-        "--stream builds on a coarse level: not with --full-field or \"resolution\": \"full\"");
-  hgd::PreviousOutput previous(output);  // what a failed run leaves at `output`
+    throw hgdcli::UsageError(std::string(streamed) +
+                             " builds on a coarse level: not with --full-field or \"resolution\": \"full\"");
+  if (ranks && output == "-")
+    throw hgdcli::UsageError("--mpi writes one file from every rank: not to standard output");
+  // What a failed run leaves at `output` (rank 0's to put back: it writes the file).
+  std::optional<hgd::PreviousOutput> previous;
+  if (lead) previous.emplace(output);
   std::optional<hgd::ScenarioRunner> run;
   if (!stream) {
     run.emplace(hgd::ScenarioRunner::read(input, ro));
@@ -327,8 +339,9 @@ int runDeform(const DeformArgs& a) {
   hgd::DeformReport report;
   try {
     if (stream) {
-      const hgdcli::StreamProgress progress(input, !a.quiet, ::isatty(STDERR_FILENO) == 1);
-      report = hgd::streamDeform(input, scenario, ro, output);
+      const hgdcli::StreamProgress progress(input, lead && !a.quiet, ::isatty(STDERR_FILENO) == 1);
+      report = hgd::streamDeform(input, scenario, ro, output, ranks);
+      if (!lead) return 0;  // rank 0 reports
     } else {
       report = run->report();
     }
@@ -356,7 +369,7 @@ int runDeform(const DeformArgs& a) {
       hgd::writeReportJson(report_path, report);
     }
   } catch (...) {
-    previous.restore();
+    if (previous) previous->restore();
     throw;
   }
   for (const auto& note : report.notes) std::fprintf(stderr, "hgdeform: note: %s\n", note.c_str());
@@ -366,6 +379,33 @@ int runDeform(const DeformArgs& a) {
     std::fprintf(report_path == "-" ? stderr : stdout, "%s -> %s: %s\n", input.c_str(), output.c_str(),
                  hgd::summaryLine(report).c_str());
   return 0;
+}
+
+/// `deform --mpi`: the run on every rank of an MPI launch, rank 0 reporting. Another rank says
+/// nothing of a failure (rank 0 says it: every rank meets the same error) and exits non-zero.
+int runDeformMpi(const DeformArgs& a) {
+  if (!hgdcli::StreamMpi::available())
+    throw hgdcli::UsageError("--mpi: this hgdeform was built without MPI (HGDEFORM_MPI=OFF)");
+  hgdcli::StreamMpi mpi;
+  if (!mpi.launched() && !a.quiet)
+    std::fprintf(stderr, "hgdeform: note: --mpi without an MPI launcher (mpirun, srun): one process\n");
+  // A failed run: rank 0 says why before any rank exits (a launcher ends the whole job at the
+  // first rank that exits non-zero, and rank 0 with it).
+  const bool lead = mpi.rank() == 0;
+  int status = 1;
+  try {
+    return runDeform(a, mpi.ranks());
+  } catch (const hgdcli::UsageError& e) {
+    if (lead) std::fprintf(stderr, "hgdeform deform: %s\n(see 'hgdeform deform --help')\n", e.what());
+    status = 2;
+  } catch (const std::bad_alloc&) {
+    if (lead) std::fprintf(stderr, "hgdeform deform: out of memory\n");
+  } catch (const std::exception& e) {
+    if (lead) std::fprintf(stderr, "hgdeform deform: %s\n", e.what());
+  }
+  std::fflush(stderr);
+  mpi.settle();
+  return status;
 }
 
 }  // namespace
@@ -408,6 +448,7 @@ int main(int argc, char** argv) {
       DeformArgs a;
       const int status = parseDeform(argc - 1, argv + 1, a);
       if (status >= 0) return status;
+      if (a.mpi) return runDeformMpi(a);
       hgdcli::hugePageMallocFor(a.input.c_str(), kHugePageInput, argv);
       return runDeform(a);
     }

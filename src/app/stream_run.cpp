@@ -8,12 +8,14 @@
 #include "hgdeform/io/fields.h"
 #include "hgdeform/io/io.h"
 #include "multires/record_blocks.h"
+#include "multires/streamed_passes.h"
 #include "util/timer.h"
 
 namespace hgd {
 
-RecordHandles streamHandles(const Scenario& scenario, const RecordLayout& layout,
-                            const StreamedLevel& level) {
+RecordHandles streamHandles(const Scenario& scenario, const RecordLayout& layout, const StreamedLevel& level,
+                            StreamRanks* ranks) {
+  if (ranks && ranks->size() < 2) ranks = nullptr;
   const std::string name = scenario.path.empty() ? "scenario" : scenario.path;
   const Shape& shape = layout.shape;
   const pcl::PCLPointCloud2& fields = shape.cloud;
@@ -76,45 +78,52 @@ RecordHandles streamHandles(const Scenario& scenario, const RecordLayout& layout
     }
   std::vector<std::vector<std::uint64_t>> picked(regions.size());
   stream::Blocks blocks(layout, 1 << 16);
+  if (ranks) blocks.share(shareOf(layout.count, ranks->rank(), ranks->size()));
   const pcl::PCLPointCloud2& c = blocks.cloud();
-  blocks.each([&](std::uint64_t i, std::size_t row) {
-    const Eigen::Vector3d w = blocks.world(row);
-    if (!w.allFinite() || !level.kept(i, w)) return;
-    for (std::size_t k = 0; k < regions.size(); ++k) {
-      const Region& r = *regions[k];
-      bool in = false;
-      switch (r.kind) {
-        case Region::Kind::Sphere: in = (w - r.centre).squaredNorm() <= r.radius * r.radius; break;
-        case Region::Kind::Box:
-          in = (w.array() >= r.min.array()).all() && (w.array() <= r.max.array()).all();
-          break;
-        case Region::Kind::Indices:
-          in = std::binary_search(sorted_indices[k].begin(), sorted_indices[k].end(),
-                                  static_cast<long long>(i));
-          break;
-        case Region::Kind::Cylinder: {
-          const Eigen::Vector3d d = r.end - r.start, p = w - r.start;
-          const double t = p.dot(d) / d.squaredNorm();
-          in = t >= 0 && t <= 1 && (p - t * d).squaredNorm() <= r.radius * r.radius;
-          break;
-        }
-        case Region::Kind::Field: {
-          const FieldTest& t = field_tests[k];
-          const pcl::PCLPointField& f = c.fields[static_cast<std::size_t>(t.field)];
-          if (t.packed) {
-            std::uint32_t v;
-            std::memcpy(&v, c.data.data() + row * c.point_step + f.offset, 4);
-            in = (v & t.mask) == t.want;
-          } else {
-            const double v = readValue(c, row, f);
-            in = v >= t.lo && v <= t.hi;
+  const std::string failed = stream::attempt([&] {
+    blocks.each([&](std::uint64_t i, std::size_t row) {
+      const Eigen::Vector3d w = blocks.world(row);
+      if (!w.allFinite() || !level.kept(i, w)) return;
+      for (std::size_t k = 0; k < regions.size(); ++k) {
+        const Region& r = *regions[k];
+        bool in = false;
+        switch (r.kind) {
+          case Region::Kind::Sphere: in = (w - r.centre).squaredNorm() <= r.radius * r.radius; break;
+          case Region::Kind::Box:
+            in = (w.array() >= r.min.array()).all() && (w.array() <= r.max.array()).all();
+            break;
+          case Region::Kind::Indices:
+            in = std::binary_search(sorted_indices[k].begin(), sorted_indices[k].end(),
+                                    static_cast<long long>(i));
+            break;
+          case Region::Kind::Cylinder: {
+            const Eigen::Vector3d d = r.end - r.start, p = w - r.start;
+            const double t = p.dot(d) / d.squaredNorm();
+            in = t >= 0 && t <= 1 && (p - t * d).squaredNorm() <= r.radius * r.radius;
+            break;
           }
-          break;
+          case Region::Kind::Field: {
+            const FieldTest& t = field_tests[k];
+            const pcl::PCLPointField& f = c.fields[static_cast<std::size_t>(t.field)];
+            if (t.packed) {
+              std::uint32_t v;
+              std::memcpy(&v, c.data.data() + row * c.point_step + f.offset, 4);
+              in = (v & t.mask) == t.want;
+            } else {
+              const double v = readValue(c, row, f);
+              in = v >= t.lo && v <= t.hi;
+            }
+            break;
+          }
         }
+        if (in) picked[k].push_back(i);
       }
-      if (in) picked[k].push_back(i);
-    }
+    });
   });
+  if (ranks)
+    stream::share(*ranks, failed, picked);  // each list in record order
+  else if (!failed.empty())
+    throw IoError(failed);
   // The checks in resolveHandles' order: each region's emptiness, then its overlap.
   const auto nonEmpty = [&](std::size_t k) {
     if (picked[k].empty())
@@ -159,10 +168,21 @@ bool canStream(const std::string& input, const std::string& output) {
 }
 
 DeformReport streamDeform(const std::string& input, const Scenario& scenario, const RunOptions& options,
-                          const std::string& output) {
+                          const std::string& output, StreamRanks* ranks) {
+  if (ranks && ranks->size() < 2) ranks = nullptr;
   Stopwatch sw;
   DeformReport rep;
-  const RecordLayout layout = readRecordLayout(input);
+  RecordLayout layout;
+  const auto read = [&] {
+    layout = readRecordLayout(input);
+    if (ranks && layout.count < static_cast<std::uint64_t>(ranks->size()))
+      throw IoError(input + ": " + std::to_string(layout.count) + " points cannot be split across " +
+                    std::to_string(ranks->size()) + " ranks");
+  };
+  if (ranks)  // a rank that cannot read the file (not on its node) fails every rank, none waits
+    stream::gatherOrThrow(*ranks, stream::attempt(read), "");
+  else
+    read();
   if (!layout.shape.polygons.empty())
     throw IoError(input + ": cannot stream: a mesh's faces are not streamed; read the whole file instead");
   if (formatFromPath(output) != layout.shape.format)  // before the passes, not after them
@@ -177,11 +197,17 @@ DeformReport streamDeform(const std::string& input, const Scenario& scenario, co
   lo.coarse_points = opt.coarse_points;
   lo.points_per_coarse = opt.points_per_coarse;
   lo.find_strays = layout.shape.polygons.empty();
+  lo.ranks = ranks;
+  // This rank's reads are its share's: progress counts them.
+  struct Share {
+    explicit Share(const RecordShare& s) { streamShare(s.first, s.last); }
+    ~Share() { streamShare(0, 0); }
+  } share(ranks ? shareOf(layout.count, ranks->rank(), ranks->size()) : RecordShare{});
   RecordHandles handles;
   const StreamedLevel level = streamCoarseLevel(
       layout,
       [&](const StreamedLevel& frame) -> const RecordHandles& {
-        handles = streamHandles(scenario, layout, frame);
+        handles = streamHandles(scenario, layout, frame, ranks);
         return handles;
       },
       lo);
@@ -203,7 +229,8 @@ DeformReport streamDeform(const std::string& input, const Scenario& scenario, co
   std::vector<MoveResult> results;
   for (std::size_t k = 0; k < scenario.moves.size(); ++k)
     results.push_back(applyMove(*s.deformer, scenario.moves[k], static_cast<int>(k) + 1));
-  const std::vector<std::string> write_warnings = writeStreamedDeformed(output, layout, level, s);
+  const std::vector<std::string> write_warnings =
+      writeStreamedDeformed(output, layout, level, s, 1 << 16, ranks);
   rep.write_ms = sw.lap();
   rep.points = level.points;
   describeRun(d, scenario.moves, results, opt.clusters.isovalues, rep);
@@ -211,6 +238,10 @@ DeformReport streamDeform(const std::string& input, const Scenario& scenario, co
       "streamed: the coarse level by passes over the file, the points written block by block (" +
       std::to_string(s.geometry->size()) + " coarse points held, and the rest positions of " +
       std::to_string(s.level->manipulated_rest.size()) + " manipulated handle points)");
+  if (ranks)
+    rep.notes.push_back("split across " + std::to_string(ranks->size()) +
+                        " ranks: each read, deformed and wrote its share of the records; the build ran on "
+                        "every rank from the gathered level");
   rep.warnings.insert(rep.warnings.begin(), level.warnings.begin(), level.warnings.end());
   rep.warnings.push_back(input +
                          ": a streamed run does not measure the surface's stretch (every point's neighbour "

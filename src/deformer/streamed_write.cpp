@@ -6,12 +6,69 @@
 #include "hgdeform/deformer/streamed.h"
 #include "hgdeform/io/fields.h"
 #include "hgdeform/io/io.h"
+#include "multires/streamed_passes.h"
+#include "util/pack.h"
 
 namespace hgd {
 
+namespace {
+
+/// The one output file of a split run: rank 0 writes it atomically (writeRecords: the header,
+/// the elements after the records, the rename), every rank writes its share of the records into
+/// its temporary file at their place (StreamRanks::writeAt). Three gathers keep the ranks in
+/// step: (A) the temporary file named, or rank 0's failure before it; (B) every share written;
+/// (C) the file in place, or rank 0's failure to finish it. An error on any rank is thrown on
+/// every rank, and nothing is left at `path`.
+template <typename Records>
+void writeShared(const std::string& path, const RecordLayout& layout, StreamRanks& ranks, Records&& records) {
+  const RecordShare mine = shareOf(layout.count, ranks.rank(), ranks.size());
+  const auto part = [&](RecordSink& sink) { records(sink, mine); };
+  const auto at = [&](std::uint64_t offset) { return offset + mine.first * layout.bytes; };
+  if (ranks.rank() != 0) {
+    const std::vector<std::string> named = stream::gatherOrThrow(ranks, "", "");  // A
+    pack::Reader in(named[0]);
+    std::string file;
+    in.get(file);
+    const auto offset = in.get<std::uint64_t>();
+    stream::gatherOrThrow(ranks, ranks.writeAt(file, at(offset), part), "");  // B
+    stream::gatherOrThrow(ranks, "", "");                                     // C
+    return;
+  }
+  int stage = 0;  // 0: the others wait at A; 1: past A (B failed: every rank threw); 2: at C
+  const auto tell = [&](const std::string& failed) {  // the others' gather of rank 0's failure
+    try {
+      stream::gatherOrThrow(ranks, failed, "");
+    } catch (const IoError&) {
+    }
+  };
+  try {
+    writeRecords(path, layout, [&](RecordSink& sink) {
+      const std::string file = sink.file();
+      pack::Writer w;
+      w.put(file).put(sink.offset());
+      stage = 1;
+      stream::gatherOrThrow(ranks,
+                            file.empty() ? path +
+                                               ": cannot be written by several processes (a descriptor or a "
+                                               "device): give a file"
+                                         : "",
+                            w.bytes());                                                // A
+      stream::gatherOrThrow(ranks, ranks.writeAt(file, at(sink.offset()), part), "");  // B
+      stage = 2;
+      sink.skip(layout.count * layout.bytes);
+    });
+  } catch (const std::exception& e) {
+    if (stage != 1) tell(e.what());
+    throw;
+  }
+  stream::gatherOrThrow(ranks, "", "");  // C
+}
+
+}  // namespace
+
 std::vector<std::string> writeStreamedDeformed(const std::string& path, const RecordLayout& layout,
                                                const StreamedLevel& level, const StreamedDeformer& s,
-                                               std::size_t block) {
+                                               std::size_t block, StreamRanks* ranks) {
   std::vector<std::string> warnings;
   const Shape& shape = layout.shape;
   const XyzFields f = findXyzFields(shape.cloud);
@@ -39,7 +96,8 @@ std::vector<std::string> writeStreamedDeformed(const std::string& path, const Re
                        ": its normals were not usable (some are zero or not finite): they are written back "
                        "as they were, not turned with the shape");
   const auto& coarse_normals = d.surfaceGraph().normals();
-  writeRecords(path, layout, [&](RecordSink& sink) {
+  // The records [share.first, share.last), deformed, to `sink` in order.
+  const auto records = [&](RecordSink& sink, const RecordShare& share) {
     streamPass("write");
     const RecordReader reader(layout);
     pcl::PCLPointCloud2 c;
@@ -54,8 +112,8 @@ std::vector<std::string> writeStreamedDeformed(const std::string& path, const Re
     std::vector<char> stray;
     std::vector<int> cls;
     std::vector<std::size_t> row;
-    for (std::uint64_t first = 0; first < layout.count; first += block) {
-      const auto count = static_cast<std::size_t>(std::min<std::uint64_t>(block, layout.count - first));
+    for (std::uint64_t first = share.first; first < share.last; first += block) {
+      const auto count = static_cast<std::size_t>(std::min<std::uint64_t>(block, share.last - first));
       c.width = static_cast<std::uint32_t>(count);
       c.row_step = c.point_step * c.width;
       c.data.resize(count * c.point_step);
@@ -115,7 +173,12 @@ std::vector<std::string> writeStreamedDeformed(const std::string& path, const Re
       }
       sink.write(c.data.data(), c.data.size());
     }
-  });
+  };
+  if (!ranks || ranks->size() < 2) {
+    writeRecords(path, layout, [&](RecordSink& sink) { records(sink, RecordShare{0, layout.count}); });
+    return warnings;
+  }
+  writeShared(path, layout, *ranks, records);
   return warnings;
 }
 

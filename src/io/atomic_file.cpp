@@ -193,6 +193,14 @@ void AtomicWriter::write(const void* p, std::size_t n) {
   written_ += n;
 }
 
+void AtomicWriter::skip(std::uint64_t n) {
+  if (tmp_.empty())
+    fail(target_, "cannot write: a descriptor or device cannot be written by several processes");
+  if (std::fflush(file_) != 0) failWrite(errno);
+  if (::fseeko(file_, static_cast<off_t>(n), SEEK_CUR) != 0) failWrite(errno);
+  written_ += n;
+}
+
 bool AtomicWriter::hasBinaryStlSize() const {
   return written_ >= 84 && binaryStlSizeFits(count_bytes_, written_);
 }

@@ -357,6 +357,14 @@ class AtomicWriter {
   void write(std::string_view s) { write(s.data(), s.size()); }
   void commit();
   const std::string& path() const { return target_; }
+  /// The temporary file being written (renamed to the target by commit), or "" when the
+  /// writer writes to a descriptor or a device directly.
+  const std::string& temporary() const { return tmp_; }
+  /// Bytes written so far (skipped ones included).
+  std::uint64_t written() const { return written_; }
+  /// Moves `n` bytes further in the temporary file without writing them (another process
+  /// writes them there before commit).
+  void skip(std::uint64_t n);
   /// Whether what was written so far has a binary STL's size (84 + 50 n bytes, n in bytes
   /// 80-83), which makes a reader that knows formats by their content take it for one.
   bool hasBinaryStlSize() const;

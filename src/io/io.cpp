@@ -372,6 +372,12 @@ void writeRecords(const std::string& path, const RecordLayout& layout,
       w->write(p, n);
       bytes += n;
     }
+    std::string file() const override { return w->temporary(); }
+    std::uint64_t offset() const override { return w->written(); }
+    void skip(std::uint64_t n) override {
+      w->skip(n);
+      bytes += n;
+    }
   };
   const std::function<void(AtomicWriter&)> hook = [&](AtomicWriter& w) {
     Sink sink;

@@ -2,7 +2,9 @@
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
+#include <stdexcept>
 #include <utility>
 
 #include "io/internal.h"
@@ -16,6 +18,7 @@ using io_internal::num;
 namespace {
 thread_local std::function<void(const RecordProgress&)> t_progress;
 thread_local const char* t_pass = "";
+thread_local std::uint64_t t_share_first = 0, t_share_last = 0;  // 0, 0: the whole file
 }  // namespace
 
 std::function<void(const RecordProgress&)> setRecordProgress(
@@ -26,6 +29,23 @@ std::function<void(const RecordProgress&)> setRecordProgress(
 
 void streamPass(const char* name) {
   t_pass = name;
+}
+
+void streamShare(std::uint64_t first, std::uint64_t last) {
+  t_share_first = last > 0 ? first : 0;
+  t_share_last = last;
+}
+
+void RecordSink::skip(std::uint64_t) {
+  throw std::logic_error("RecordSink::skip: this sink's records cannot be written by others");
+}
+
+RecordShare shareOf(std::uint64_t records, int rank, int ranks) {
+  const auto n = static_cast<std::uint64_t>(std::max(1, ranks));
+  const auto r = static_cast<std::uint64_t>(std::clamp(rank, 0, std::max(0, ranks - 1)));
+  const std::uint64_t base = records / n, extra = records % n;
+  const std::uint64_t first = r * base + std::min(r, extra);
+  return {first, first + base + (r < extra ? 1 : 0)};
 }
 
 RecordReader::RecordReader(const RecordLayout& layout) : layout_(layout) {
@@ -55,7 +75,12 @@ void RecordReader::read(std::uint64_t first, std::size_t count, std::uint8_t* ou
     left -= static_cast<std::size_t>(got);
     at += static_cast<std::uint64_t>(got);
   }
-  if (t_progress) t_progress(RecordProgress{t_pass, first + count, layout_.count});
+  if (!t_progress) return;
+  if (t_share_last > 0)
+    t_progress(RecordProgress{t_pass, first + count > t_share_first ? first + count - t_share_first : 0,
+                              t_share_last - t_share_first});
+  else
+    t_progress(RecordProgress{t_pass, first + count, layout_.count});
 }
 
 }  // namespace hgd

@@ -19,7 +19,7 @@ namespace hgd::stream {
 class Blocks {
  public:
   Blocks(const RecordLayout& layout, std::size_t block)
-      : reader_(layout), block_(std::max<std::size_t>(1, block)) {
+      : reader_(layout), block_(std::max<std::size_t>(1, block)), share_{0, layout.count} {
     cloud_.fields = layout.shape.cloud.fields;
     cloud_.point_step = layout.bytes;
     cloud_.height = 1;
@@ -27,17 +27,21 @@ class Blocks {
     xyz_ = findXyzFields(cloud_);
     if (!xyz_.hasXyz()) throw IoError(layout.shape.path + ": no x/y/z fields");
   }
-  /// Calls fn(record, k) for every record, cloud() holding its block (k its row there).
+  /// Reads only records [first, last) in each() and strided() (a rank's share).
+  void share(const RecordShare& s) { share_ = s; }
+  /// Calls fn(record, k) for every record of the share, cloud() holding its block (k its row
+  /// there).
   template <typename Fn>
   void each(Fn&& fn) {
-    const std::uint64_t n = reader_.layout().count;
-    for (std::uint64_t first = 0; first < n; first += block_) {
+    const std::uint64_t n = share_.last;
+    for (std::uint64_t first = share_.first; first < n; first += block_) {
       const auto count = static_cast<std::size_t>(std::min<std::uint64_t>(block_, n - first));
       load(first, count);
       for (std::size_t k = 0; k < count; ++k) fn(first + k, k);
     }
   }
-  /// Calls fn(record, k) for the records at multiples of `stride` (read alone when far apart).
+  /// Calls fn(record, k) for the share's records at multiples of `stride` (read alone when far
+  /// apart).
   template <typename Fn>
   void strided(std::uint64_t stride, Fn&& fn) {
     if (stride <= 16) {
@@ -46,7 +50,7 @@ class Blocks {
       });
       return;
     }
-    for (std::uint64_t i = 0; i < reader_.layout().count; i += stride) {
+    for (std::uint64_t i = (share_.first + stride - 1) / stride * stride; i < share_.last; i += stride) {
       load(i, 1);
       fn(i, std::size_t{0});
     }
@@ -83,6 +87,7 @@ class Blocks {
  private:
   RecordReader reader_;
   std::size_t block_;
+  RecordShare share_;
   pcl::PCLPointCloud2 cloud_;
   XyzFields xyz_;
 };

@@ -22,13 +22,17 @@
 #include "io/frame.h"
 #include "multires/coarse_grid.h"
 #include "multires/record_blocks.h"
+#include "multires/streamed_passes.h"
 
 namespace hgd {
 
 namespace {
 
 using coarse::Grid;
+using stream::Beyond;
 using stream::Blocks;
+using stream::CellAcc;
+using stream::Near;
 
 bool isZero(const Eigen::Vector3d& w) {
   return w.x() == 0 && w.y() == 0 && w.z() == 0;
@@ -46,35 +50,6 @@ class SortedCursor {
  private:
   const std::vector<std::uint64_t>& v_;
   std::size_t at_ = 0;
-};
-
-struct CellAcc {
-  std::uint32_t count = 0;
-  float best_d = 0;
-  std::uint64_t best = std::numeric_limits<std::uint64_t>::max();
-  Eigen::Vector3f p = Eigen::Vector3f::Zero();
-  Eigen::Vector3d w = Eigen::Vector3d::Zero();
-  Eigen::Vector3f n = Eigen::Vector3f::Zero();
-  /// Takes the point if nearer the centre, or as near and earlier in the file (coarsen's rule).
-  void offer(std::uint64_t record, float d, const Eigen::Vector3f& at, const Eigen::Vector3d& world,
-             const Eigen::Vector3f& normal) {
-    if (best == std::numeric_limits<std::uint64_t>::max() || d < best_d || (d == best_d && record < best)) {
-      best = record;
-      best_d = d;
-      p = at;
-      w = world;
-      n = normal;
-    }
-  }
-};
-
-/// A point the stray rule looks at.
-struct Near {
-  std::uint64_t record;
-  Eigen::Vector3f p;
-  Eigen::Vector3d w;
-  Eigen::Vector3f n;
-  std::uint64_t key = 0;  ///< its cell
 };
 
 }  // namespace
@@ -97,22 +72,34 @@ StreamedLevel streamCoarseLevel(const RecordLayout& layout,
   if (n_records > static_cast<std::uint64_t>(std::numeric_limits<int>::max()))
     throw IoError(path + ": " + std::to_string(n_records) + " points, more than 2,147,483,647");
   Blocks blocks(layout, options.block);
+  // A split run: this rank reads its share, and each pass's findings are gathered (share()).
+  StreamRanks* const ranks = options.ranks && options.ranks->size() > 1 ? options.ranks : nullptr;
+  if (ranks) blocks.share(shareOf(n_records, ranks->rank(), ranks->size()));
+  const auto pass = [&](auto&& local, auto&& gather) {
+    if (!ranks) return local();
+    gather(stream::attempt(local));
+  };
 
   // The frame's sample: the finite records at file indices on a stride (Geometry's).
   streamPass("frame");
   const std::size_t step = frameSampleStep(n_records);
-  std::vector<Eigen::Vector3d> sample, sample_nz;
-  std::vector<int> sample_index, sample_nz_index;
-  blocks.strided(step, [&](std::uint64_t i, std::size_t k) {
-    const Eigen::Vector3d w = blocks.world(k);
-    if (!w.allFinite()) return;
-    sample.push_back(w);
-    sample_index.push_back(static_cast<int>(i));
-    if (!isZero(w)) {
-      sample_nz.push_back(w);
-      sample_nz_index.push_back(static_cast<int>(i));
-    }
-  });
+  stream::FrameSample fs;
+  pass(
+      [&] {
+        blocks.strided(step, [&](std::uint64_t i, std::size_t k) {
+          const Eigen::Vector3d w = blocks.world(k);
+          if (!w.allFinite()) return;
+          fs.all.push_back(w);
+          fs.all_index.push_back(static_cast<int>(i));
+          if (!isZero(w)) {
+            fs.nonzero.push_back(w);
+            fs.nonzero_index.push_back(static_cast<int>(i));
+          }
+        });
+      },
+      [&](const std::string& failed) { stream::share(*ranks, failed, fs); });
+  const std::vector<Eigen::Vector3d>&sample = fs.all, &sample_nz = fs.nonzero;
+  const std::vector<int>&sample_index = fs.all_index, &sample_nz_index = fs.nonzero_index;
   const auto unreproducible = [&] {
     throw IoError(path +
                   ": cannot build the coarse level by passes: no finite point of the frame's sample "
@@ -141,63 +128,67 @@ StreamedLevel streamCoarseLevel(const RecordLayout& layout,
 
   // Pass 1: what is set apart, the body, the bounds, whether every kept normal is usable.
   streamPass("body");
-  struct Beyond {
-    std::uint64_t record;
-    Eigen::Vector3d w;
-  };
-  std::vector<Beyond> beyond;
   const std::uint64_t beyond_cap = n_records / 100 + 1;
-  bool beyond_overflow = false;
-  std::uint64_t finite = 0, zeros = 0, far_count = 0, beyond_count = 0;
-  double farthest = 0;
-  Eigen::Vector3d body_lo = Eigen::Vector3d::Constant(INFINITY), body_hi = -body_lo;
-  Eigen::Vector3d lo = body_lo, hi = body_hi, beyond_lo = body_lo, beyond_hi = body_hi;
-  bool normals_ok = blocks.hasNormals(), beyond_normals_ok = true;
-  blocks.each([&](std::uint64_t i, std::size_t k) {
-    const Eigen::Vector3d w = blocks.world(k);
-    if (!w.allFinite()) return;
-    ++finite;
-    if (out.zeros_apart && isZero(w)) {
-      ++zeros;
-      return;
-    }
-    const double d = (w - fr.centre).cwiseAbs().maxCoeff();
-    if (d > out.far) {
-      ++far_count;
-      farthest = std::max(farthest, d);
-      return;
-    }
-    Eigen::Vector3f nv;
-    const bool has_normal = blocks.normal(k, nv);
-    if (d > out.stray_distance && fr.extent > 0) {  // a stray, if few and alone
-      ++beyond_count;
-      if (beyond.size() < beyond_cap)
-        beyond.push_back({i, w});
-      else
-        beyond_overflow = true;
-      beyond_lo = beyond_lo.cwiseMin(w);
-      beyond_hi = beyond_hi.cwiseMax(w);
-      beyond_normals_ok = beyond_normals_ok && has_normal;
-      return;
-    }
-    if (d <= body) {
-      body_lo = body_lo.cwiseMin(w);
-      body_hi = body_hi.cwiseMax(w);
-    }
-    lo = lo.cwiseMin(w);
-    hi = hi.cwiseMax(w);
-    normals_ok = normals_ok && has_normal;
-  });
+  stream::BodyPass bp;
+  bp.normals_ok = blocks.hasNormals();
+  pass(
+      [&] {
+        blocks.each([&](std::uint64_t i, std::size_t k) {
+          const Eigen::Vector3d w = blocks.world(k);
+          if (!w.allFinite()) return;
+          ++bp.finite;
+          if (out.zeros_apart && isZero(w)) {
+            ++bp.zeros;
+            return;
+          }
+          const double d = (w - fr.centre).cwiseAbs().maxCoeff();
+          if (d > out.far) {
+            ++bp.far_count;
+            bp.farthest = std::max(bp.farthest, d);
+            return;
+          }
+          Eigen::Vector3f nv;
+          const bool has_normal = blocks.normal(k, nv);
+          if (d > out.stray_distance && fr.extent > 0) {  // a stray, if few and alone
+            ++bp.beyond_count;
+            if (bp.beyond.size() < beyond_cap) bp.beyond.push_back({i, w});
+            bp.beyond_lo = bp.beyond_lo.cwiseMin(w);
+            bp.beyond_hi = bp.beyond_hi.cwiseMax(w);
+            bp.beyond_normals_ok = bp.beyond_normals_ok && has_normal;
+            return;
+          }
+          if (d <= body) {
+            bp.body_lo = bp.body_lo.cwiseMin(w);
+            bp.body_hi = bp.body_hi.cwiseMax(w);
+          }
+          bp.lo = bp.lo.cwiseMin(w);
+          bp.hi = bp.hi.cwiseMax(w);
+          bp.normals_ok = bp.normals_ok && has_normal;
+        });
+      },
+      [&](const std::string& failed) { stream::share(*ranks, failed, bp, beyond_cap); });
+  const std::vector<Beyond>& beyond = bp.beyond;
+  const bool beyond_overflow = bp.beyond_count > beyond_cap;
+  const std::uint64_t finite = bp.finite, zeros = bp.zeros;
+  std::uint64_t far_count = bp.far_count;
+  double farthest = bp.farthest;
+  const Eigen::Vector3d body_lo = bp.body_lo, body_hi = bp.body_hi;
+  Eigen::Vector3d lo = bp.lo, hi = bp.hi;
+  bool normals_ok = bp.normals_ok;
   if (finite == 0)
     throw IoError(path + ": no finite points (all " + std::to_string(n_records) + " are NaN/inf)");
   if (sample_nz.empty() && finite > 0) {
     // Every sampled record is at (0, 0, 0): Geometry's frame of the others would be a sample of
     // every one of them, which needs another pass; only a shape of nothing but zeros is this.
     std::uint64_t nonzero = 0;
-    blocks.each([&](std::uint64_t, std::size_t k) {
-      const Eigen::Vector3d w = blocks.world(k);
-      nonzero += w.allFinite() && !isZero(w);
-    });
+    pass(
+        [&] {
+          blocks.each([&](std::uint64_t, std::size_t k) {
+            const Eigen::Vector3d w = blocks.world(k);
+            nonzero += w.allFinite() && !isZero(w);
+          });
+        },
+        [&](const std::string& failed) { stream::share(*ranks, failed, nonzero); });
     if (nonzero > 0) unreproducible();
   }
   const std::uint64_t m = finite - zeros;  // Geometry's world after the zeros
@@ -213,20 +204,28 @@ StreamedLevel streamCoarseLevel(const RecordLayout& layout,
   }
   // The beyond points kept: all of them, or all but the strays.
   if (out.far_strays.empty()) {
-    lo = lo.cwiseMin(beyond_lo);
-    hi = hi.cwiseMax(beyond_hi);
-    normals_ok = normals_ok && beyond_normals_ok;
+    lo = lo.cwiseMin(bp.beyond_lo);
+    hi = hi.cwiseMax(bp.beyond_hi);
+    normals_ok = normals_ok && bp.beyond_normals_ok;
   } else {
     streamPass("beyond");  // a few records read alone: not a pass over the file
-    Blocks one(layout, 1);
-    for (const Beyond& b : beyond) {
-      if (std::binary_search(out.far_strays.begin(), out.far_strays.end(), b.record)) continue;
-      lo = lo.cwiseMin(b.w);
-      hi = hi.cwiseMax(b.w);
-      Eigen::Vector3f nv;
-      one.load(b.record, 1);
-      normals_ok = normals_ok && one.normal(0, nv);
-    }
+    pass(
+        [&] {
+          Blocks one(layout, 1);
+          const RecordShare mine =
+              ranks ? shareOf(n_records, ranks->rank(), ranks->size()) : RecordShare{0, n_records};
+          for (const Beyond& b : beyond) {
+            if (b.record < mine.first || b.record >= mine.last ||
+                std::binary_search(out.far_strays.begin(), out.far_strays.end(), b.record))
+              continue;
+            lo = lo.cwiseMin(b.w);
+            hi = hi.cwiseMax(b.w);
+            Eigen::Vector3f nv;
+            one.load(b.record, 1);
+            normals_ok = normals_ok && one.normal(0, nv);
+          }
+        },
+        [&](const std::string& failed) { stream::share(*ranks, failed, lo, hi, normals_ok); });
   }
   out.points = m - far_count;
   if (zeros > 0) out.warnings.push_back(noReturnWarning(path, zeros, nz_distance, nz.extent));
@@ -311,12 +310,16 @@ StreamedLevel streamCoarseLevel(const RecordLayout& layout,
   streamPass("grid");
   std::vector<Eigen::Vector3f> grid_at;
   std::vector<std::uint16_t> grid_cls;
-  blocks.strided(grid_stride, [&](std::uint64_t i, std::size_t k) {
-    const Eigen::Vector3d w = blocks.world(k);
-    if (!w.allFinite() || !out.kept(i, w)) return;
-    grid_at.push_back(out.local(w));
-    grid_cls.push_back(static_cast<std::uint16_t>(out.classOf(i)));
-  });
+  pass(
+      [&] {
+        blocks.strided(grid_stride, [&](std::uint64_t i, std::size_t k) {
+          const Eigen::Vector3d w = blocks.world(k);
+          if (!w.allFinite() || !out.kept(i, w)) return;
+          grid_at.push_back(out.local(w));
+          grid_cls.push_back(static_cast<std::uint16_t>(out.classOf(i)));
+        });
+      },
+      [&](const std::string& failed) { stream::share(*ranks, failed, grid_at, grid_cls); });
   const Grid grid = coarse::sizeGrid(out.local(lo), out.local(hi), target, class_bits, grid_at, grid_cls);
   out.cell = grid.h;
   out.grid_lo = grid.lo;
@@ -325,30 +328,34 @@ StreamedLevel streamCoarseLevel(const RecordLayout& layout,
   // Pass 2: every kept point's cell: its count and its point nearest the centre; the cells of
   // each handle's points.
   streamPass("cells");
-  std::unordered_map<std::uint64_t, CellAcc> cells;
-  std::vector<Near> typical_at;                          // the strays' typical-distance sample
+  stream::CellPass cp;
+  std::unordered_map<std::uint64_t, CellAcc>& cells = cp.cells;
+  std::vector<Near>& typical_at = cp.typical_at;         // the strays' typical-distance sample
   std::vector<const std::vector<std::uint64_t>*> lists;  // fixed, manipulated, joints
   for (const auto& f : handles.fixed) lists.push_back(&f);
   lists.push_back(&handles.manipulated);
   for (const auto& j : handles.joints) lists.push_back(&j);
-  std::vector<std::unordered_set<std::uint64_t>> list_cells(lists.size());
-  {
-    std::vector<SortedCursor> in_list;
-    for (const auto* l : lists) in_list.emplace_back(*l);
-    eachKept(
-        [&](std::uint64_t i, std::size_t k, const Eigen::Vector3d& w, const Eigen::Vector3f& p, int cls) {
-          float centre2 = 0;
-          const std::uint64_t key = grid.key(p, cls, centre2);
-          Eigen::Vector3f nv = Eigen::Vector3f::Zero();
-          if (out.file_normals) blocks.normal(k, nv);
-          for (std::size_t l = 0; l < lists.size(); ++l)
-            if (in_list[l].has(i)) list_cells[l].insert(key);
-          CellAcc& cell = cells[key];
-          ++cell.count;
-          cell.offer(i, centre2, p, w, nv);
-          if (i % stray_stride == 0) typical_at.push_back({i, p, w, nv, key});
-        });
-  }
+  std::vector<std::unordered_set<std::uint64_t>>& list_cells = cp.list_cells;
+  list_cells.resize(lists.size());
+  pass(
+      [&] {
+        std::vector<SortedCursor> in_list;
+        for (const auto* l : lists) in_list.emplace_back(*l);
+        eachKept(
+            [&](std::uint64_t i, std::size_t k, const Eigen::Vector3d& w, const Eigen::Vector3f& p, int cls) {
+              float centre2 = 0;
+              const std::uint64_t key = grid.key(p, cls, centre2);
+              Eigen::Vector3f nv = Eigen::Vector3f::Zero();
+              if (out.file_normals) blocks.normal(k, nv);
+              for (std::size_t l = 0; l < lists.size(); ++l)
+                if (in_list[l].has(i)) list_cells[l].insert(key);
+              CellAcc& cell = cells[key];
+              ++cell.count;
+              cell.offer(i, centre2, p, w, nv);
+              if (i % stray_stride == 0) typical_at.push_back({i, p, w, nv, key});
+            });
+      },
+      [&](const std::string& failed) { stream::share(*ranks, failed, cp); });
   std::vector<std::uint64_t> keys;
   keys.reserve(cells.size());
   for (const auto& c : cells) keys.push_back(c.first);
@@ -393,11 +400,7 @@ StreamedLevel streamCoarseLevel(const RecordLayout& layout,
       // sparse cells' own points), and then each sparse cell's point counts the points near it
       // as they stream by (pass 4). What a point meets is order-free: the two smallest distances,
       // a count.
-      struct Typical {
-        std::uint64_t record;
-        Eigen::Vector3f p;
-        float d1 = INFINITY, d2 = INFINITY;
-      };
+      using stream::Typical;
       std::vector<Typical> typ;
       std::unordered_map<std::uint64_t, std::vector<std::size_t>> sample_in;  // cell -> sample points
       for (const Near& t : typical_at) typ.push_back({t.record, t.p});
@@ -415,9 +418,10 @@ StreamedLevel streamCoarseLevel(const RecordLayout& layout,
       }
       for (const std::uint64_t key : sparse) around(key, into(near_sparse));
       // Pass 3.
-      {
-        eachKept(
-            [&](std::uint64_t i, std::size_t k, const Eigen::Vector3d& w, const Eigen::Vector3f& p, int cls) {
+      pass(
+          [&] {
+            eachKept([&](std::uint64_t i, std::size_t k, const Eigen::Vector3d& w, const Eigen::Vector3f& p,
+                         int cls) {
               const std::uint64_t key = grid.key(p, cls);
               if (near_sample.count(key))
                 around(key, [&](std::uint64_t other) {
@@ -425,14 +429,7 @@ StreamedLevel streamCoarseLevel(const RecordLayout& layout,
                   if (it == sample_in.end()) return;
                   for (const std::size_t t : it->second) {
                     Typical& s = typ[t];
-                    if (s.record == i) continue;
-                    const float dd = (p - s.p).squaredNorm();
-                    if (dd < s.d1) {
-                      s.d2 = s.d1;
-                      s.d1 = dd;
-                    } else if (dd < s.d2) {
-                      s.d2 = dd;
-                    }
+                    if (s.record != i) s.meet((p - s.p).squaredNorm());
                   }
                 });
               if (sparse_set.count(key)) {
@@ -441,7 +438,8 @@ StreamedLevel streamCoarseLevel(const RecordLayout& layout,
                 gathered[key].push_back({i, p, w, nv});
               }
             });
-      }
+          },
+          [&](const std::string& failed) { stream::share(*ranks, failed, typ, gathered); });
       std::vector<float> typical;
       for (const Typical& t : typ)
         if (std::isfinite(t.d2) && t.d2 > 0) typical.push_back(t.d2);
@@ -450,18 +448,22 @@ StreamedLevel streamCoarseLevel(const RecordLayout& layout,
         // Pass 4: the near points of every sparse cell's point.
         std::unordered_map<std::uint64_t, std::vector<int>> near_count;  // per sparse cell, per point
         for (const std::uint64_t key : sparse) near_count[key].assign(gathered[key].size(), 0);
-        eachKept(
-            [&](std::uint64_t i, std::size_t, const Eigen::Vector3d&, const Eigen::Vector3f& p, int cls) {
-              const std::uint64_t key = grid.key(p, cls);
-              if (!near_sparse.count(key)) return;
-              around(key, [&](std::uint64_t other) {
-                const auto it = gathered.find(other);
-                if (it == gathered.end()) return;
-                std::vector<int>& count = near_count[other];
-                for (std::size_t q = 0; q < it->second.size(); ++q)
-                  count[q] += it->second[q].record != i && (p - it->second[q].p).squaredNorm() <= limit2;
+        pass(
+            [&] {
+              eachKept([&](std::uint64_t i, std::size_t, const Eigen::Vector3d&, const Eigen::Vector3f& p,
+                           int cls) {
+                const std::uint64_t key = grid.key(p, cls);
+                if (!near_sparse.count(key)) return;
+                around(key, [&](std::uint64_t other) {
+                  const auto it = gathered.find(other);
+                  if (it == gathered.end()) return;
+                  std::vector<int>& count = near_count[other];
+                  for (std::size_t q = 0; q < it->second.size(); ++q)
+                    count[q] += it->second[q].record != i && (p - it->second[q].p).squaredNorm() <= limit2;
+                });
               });
-            });
+            },
+            [&](const std::string& failed) { stream::share(*ranks, failed, sparse, near_count); });
         for (const std::uint64_t key : sparse)
           for (std::size_t q = 0; q < gathered[key].size(); ++q)
             if (near_count[key][q] < 2) {

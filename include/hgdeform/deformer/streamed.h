@@ -33,8 +33,11 @@ StreamedDeformer streamedDeformer(const RecordLayout& layout, const StreamedLeve
 /// Returns what a front end should say (normals left as they were). Throws IoError naming the
 /// file for x, y, z stored as integers (the in-memory writer widens them: the records would
 /// change size) and for what writeRecords refuses; nothing is left at `path` then.
+/// With `ranks` (a split run, every rank with the same level and deformer): each rank deforms its
+/// share of the records and writes it at its place in the one file (rank 0 writes the rest and
+/// puts the file in place); collective, and what fails on one rank is thrown on every rank.
 std::vector<std::string> writeStreamedDeformed(const std::string& path, const RecordLayout& layout,
                                                const StreamedLevel& level, const StreamedDeformer& deformer,
-                                               std::size_t block = 1 << 16);
+                                               std::size_t block = 1 << 16, StreamRanks* ranks = nullptr);
 
 }  // namespace hgd

@@ -62,12 +62,51 @@ std::function<void(const RecordProgress&)> setRecordProgress(std::function<void(
 /// Names the pass the calling thread's reads belong to from now on (a string that lives as long
 /// as the program: a literal).
 void streamPass(const char* name);
+/// The calling thread reads only records [first, last) of a file in its passes (its rank's share
+/// of a split run): its reports count those (`done` from `first`, `records` their number). A
+/// `last` of 0: the whole file.
+void streamShare(std::uint64_t first, std::uint64_t last);
 
 /// Where writeRecords() sends the records, in order.
 class RecordSink {
  public:
   virtual ~RecordSink() = default;
   virtual void write(const std::uint8_t* records, std::size_t bytes) = 0;
+  /// For records other processes write into the file (a scan split across MPI ranks): the file
+  /// being written (the temporary file beside the output until it is complete), or "" when the
+  /// output cannot be written by others (a descriptor, a pipe) ...
+  virtual std::string file() const { return {}; }
+  /// ... the byte of it the next record goes to, ...
+  virtual std::uint64_t offset() const { return 0; }
+  /// ... and a move past `bytes` that the others write (only when file() names one).
+  virtual void skip(std::uint64_t bytes);
+};
+
+/// Records [first, last) of a file (a rank's share of them).
+struct RecordShare {
+  std::uint64_t first = 0, last = 0;
+};
+/// The share of `rank` among `ranks` processes: the records in file order, split into nearly
+/// equal runs (the first `records % ranks` one longer).
+RecordShare shareOf(std::uint64_t records, int rank, int ranks);
+
+/// The processes of one streamed run split over its records (`mpirun hgdeform deform --mpi`:
+/// MPI's ranks, tools/stream_mpi.cpp): each reads its share of the records (shareOf), what each
+/// pass finds is gathered so that every rank holds the same level and builds the same deformer,
+/// and each writes its share of the output at its place in the one file.
+class StreamRanks {
+ public:
+  virtual ~StreamRanks() = default;
+  virtual int rank() const = 0;
+  virtual int size() const = 0;
+  /// Every rank's `mine`, in rank order, on every rank. Collective: every rank makes the same
+  /// calls in the same order.
+  virtual std::vector<std::string> allgather(const std::string& mine) = 0;
+  /// Collective: writes this rank's bytes into `file` (an existing file every rank can open)
+  /// from byte `at` on, as `part` sends them to its sink. Returns "" or what went wrong on this
+  /// rank (a failing `part` still leaves the collective calls made).
+  virtual std::string writeAt(const std::string& file, std::uint64_t at,
+                              const std::function<void(RecordSink&)>& part) = 0;
 };
 
 /// Writes `layout`'s shape as writeShape would write it holding the records that `records`

@@ -32,6 +32,10 @@ struct StreamedLevelOptions {
   std::size_t points_per_coarse = 10;  ///< DeformOptions::points_per_coarse
   bool find_strays = true;             ///< a cloud's (a mesh has none)
   std::size_t block = 1 << 16;         ///< records a read
+  /// The ranks of a split run (null or one rank: this process reads every record). Each reads
+  /// its share (shareOf) and every pass is gathered: every rank returns the same level, the
+  /// level one process builds.
+  StreamRanks* ranks = nullptr;
 };
 
 /// What extractGeometry and coarsen give a file's points, found by passes over its records.
