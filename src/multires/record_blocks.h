@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 
 #include "hgdeform/io/fields.h"
 #include "hgdeform/io/io.h"
@@ -64,17 +65,15 @@ class Blocks {
   }
   /// Row k's x, y, z as extractGeometry reads them (double).
   Eigen::Vector3d world(std::size_t k) const {
-    return {readValue(cloud_, k, cloud_.fields[static_cast<std::size_t>(xyz_.x)]),
-            readValue(cloud_, k, cloud_.fields[static_cast<std::size_t>(xyz_.y)]),
-            readValue(cloud_, k, cloud_.fields[static_cast<std::size_t>(xyz_.z)])};
+    const std::uint8_t* r = cloud_.data.data() + k * cloud_.point_step;
+    return {value(r, xyz_.x), value(r, xyz_.y), value(r, xyz_.z)};
   }
   /// Row k's normal as extractGeometry reads it: unit, or false when missing (not finite, zero).
   bool normal(std::size_t k, Eigen::Vector3f& out) const {
     if (!xyz_.hasNormals()) return false;
-    const Eigen::Vector3f nv(
-        static_cast<float>(readValue(cloud_, k, cloud_.fields[static_cast<std::size_t>(xyz_.nx)])),
-        static_cast<float>(readValue(cloud_, k, cloud_.fields[static_cast<std::size_t>(xyz_.ny)])),
-        static_cast<float>(readValue(cloud_, k, cloud_.fields[static_cast<std::size_t>(xyz_.nz)])));
+    const std::uint8_t* r = cloud_.data.data() + k * cloud_.point_step;
+    const Eigen::Vector3f nv(static_cast<float>(value(r, xyz_.nx)), static_cast<float>(value(r, xyz_.ny)),
+                             static_cast<float>(value(r, xyz_.nz)));
     const float len = nv.norm();
     if (!std::isfinite(len) || len < 1e-12f) return false;
     out = nv / len;
@@ -85,6 +84,21 @@ class Blocks {
   const pcl::PCLPointCloud2& cloud() const { return cloud_; }
 
  private:
+  /// A field's value in a record, as readValue reads it (float and double without its switch).
+  double value(const std::uint8_t* record, int field) const {
+    const pcl::PCLPointField& f = cloud_.fields[static_cast<std::size_t>(field)];
+    if (f.datatype == pcl::PCLPointField::FLOAT32) {
+      float v;
+      std::memcpy(&v, record + f.offset, sizeof v);
+      return v;
+    }
+    if (f.datatype == pcl::PCLPointField::FLOAT64) {
+      double v;
+      std::memcpy(&v, record + f.offset, sizeof v);
+      return v;
+    }
+    return readValue(cloud_, static_cast<std::size_t>(record - cloud_.data.data()) / cloud_.point_step, f);
+  }
   RecordReader reader_;
   std::size_t block_;
   RecordShare share_;

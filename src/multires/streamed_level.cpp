@@ -402,36 +402,30 @@ StreamedLevel streamCoarseLevel(const RecordLayout& layout,
       // a count.
       using stream::Typical;
       std::vector<Typical> typ;
-      std::unordered_map<std::uint64_t, std::vector<std::size_t>> sample_in;  // cell -> sample points
       for (const Near& t : typical_at) typ.push_back({t.record, t.p});
       std::unordered_set<std::uint64_t> sparse_set(sparse.begin(), sparse.end());
-      std::unordered_set<std::uint64_t> near_sample, near_sparse;  // cells around them that exist
-      const auto into = [&](std::unordered_set<std::uint64_t>& set) {
-        return [&](std::uint64_t key) {
-          if (cells.count(key)) set.insert(key);
-        };
-      };
-      for (std::size_t k = 0; k < typ.size(); ++k) {
-        const std::uint64_t key = typical_at[k].key;  // its cell (with its class)
-        sample_in[key].push_back(k);
-        around(key, into(near_sample));
-      }
-      for (const std::uint64_t key : sparse) around(key, into(near_sparse));
+      // Cell -> what a point in it meets: the sample points, and the sparse cells, in the 27
+      // cells around it of every class (the cells that exist): one look-up a point.
+      std::unordered_map<std::uint64_t, std::vector<std::uint32_t>> sample_near, sparse_near;
+      for (std::size_t k = 0; k < typ.size(); ++k)
+        around(typical_at[k].key, [&](std::uint64_t key) {  // its cell (with its class)
+          if (cells.count(key)) sample_near[key].push_back(static_cast<std::uint32_t>(k));
+        });
+      for (std::size_t s = 0; s < sparse.size(); ++s)
+        around(sparse[s], [&](std::uint64_t key) {
+          if (cells.count(key)) sparse_near[key].push_back(static_cast<std::uint32_t>(s));
+        });
       // Pass 3.
       pass(
           [&] {
             eachKept([&](std::uint64_t i, std::size_t k, const Eigen::Vector3d& w, const Eigen::Vector3f& p,
                          int cls) {
               const std::uint64_t key = grid.key(p, cls);
-              if (near_sample.count(key))
-                around(key, [&](std::uint64_t other) {
-                  const auto it = sample_in.find(other);
-                  if (it == sample_in.end()) return;
-                  for (const std::size_t t : it->second) {
-                    Typical& s = typ[t];
-                    if (s.record != i) s.meet((p - s.p).squaredNorm());
-                  }
-                });
+              if (const auto it = sample_near.find(key); it != sample_near.end())
+                for (const std::uint32_t t : it->second) {
+                  Typical& s = typ[t];
+                  if (s.record != i) s.meet((p - s.p).squaredNorm());
+                }
               if (sparse_set.count(key)) {
                 Eigen::Vector3f nv = Eigen::Vector3f::Zero();
                 if (out.file_normals) blocks.normal(k, nv);
@@ -450,17 +444,18 @@ StreamedLevel streamCoarseLevel(const RecordLayout& layout,
         for (const std::uint64_t key : sparse) near_count[key].assign(gathered[key].size(), 0);
         pass(
             [&] {
+              std::vector<std::pair<const std::vector<Near>*, std::vector<int>*>> of;  // per sparse cell
+              for (const std::uint64_t key : sparse) of.emplace_back(&gathered[key], &near_count[key]);
               eachKept([&](std::uint64_t i, std::size_t, const Eigen::Vector3d&, const Eigen::Vector3f& p,
                            int cls) {
-                const std::uint64_t key = grid.key(p, cls);
-                if (!near_sparse.count(key)) return;
-                around(key, [&](std::uint64_t other) {
-                  const auto it = gathered.find(other);
-                  if (it == gathered.end()) return;
-                  std::vector<int>& count = near_count[other];
-                  for (std::size_t q = 0; q < it->second.size(); ++q)
-                    count[q] += it->second[q].record != i && (p - it->second[q].p).squaredNorm() <= limit2;
-                });
+                const auto it = sparse_near.find(grid.key(p, cls));
+                if (it == sparse_near.end()) return;
+                for (const std::uint32_t s : it->second) {
+                  const std::vector<Near>& pts = *of[s].first;
+                  std::vector<int>& count = *of[s].second;
+                  for (std::size_t q = 0; q < pts.size(); ++q)
+                    count[q] += pts[q].record != i && (p - pts[q].p).squaredNorm() <= limit2;
+                }
               });
             },
             [&](const std::string& failed) { stream::share(*ranks, failed, sparse, near_count); });
