@@ -270,7 +270,8 @@ TEST(StreamCli, MpiRanksWriteTheFileOneProcessWrites) {
                     report = tmp / "r.json", err = tmp / "mpi.txt";
   ASSERT_EQ(std::system((tool + " deform '" + in + "' -s '" + scenario + "' -o '" + memory + "' -q").c_str()),
             0);
-  const std::string mpirun = "mpirun --allow-run-as-root --oversubscribe -np 3 ";
+  // (timeout: a rank waiting for another that left fails the test, not the suite's time)
+  const std::string mpirun = "timeout 300 mpirun --allow-run-as-root --oversubscribe -np 3 ";
   const int raw = std::system((mpirun + tool + " deform --mpi '" + in + "' -s '" + scenario + "' -o '" +
                                split + "' --report '" + report + "' 2> '" + err + "' > /dev/null")
                                   .c_str());
@@ -303,5 +304,7 @@ TEST(StreamCli, MpiRanksWriteTheFileOneProcessWrites) {
   for (std::size_t at = 0; (at = why.find("selects no point", at)) != std::string::npos; ++at) ++said_once;
   EXPECT_EQ(said_once, 1u) << why;
   EXPECT_FALSE(std::filesystem::exists(none));
+  for (const auto& e : std::filesystem::directory_iterator(tmp.dir))
+    EXPECT_EQ(e.path().filename().string().find(".tmp-"), std::string::npos) << e.path();
 #endif
 }

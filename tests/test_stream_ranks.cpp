@@ -17,7 +17,9 @@
 #include <mutex>
 #include <random>
 #include <string>
+#include <tuple>
 #include <unordered_map>
+#include <unordered_set>
 #include <utility>
 #include <vector>
 
@@ -51,8 +53,7 @@ class ThreadWorld {
     }
     std::string writeAt(const std::string& file, std::uint64_t at,
                         const std::function<void(hgd::RecordSink&)>& part) override {
-      world_.gather(rank_, "");  // collective open
-      std::string failed;
+      std::string failed;  // (each rank on its own, as MPI's ranks open it: no collective call)
       const int fd = ::open(file.c_str(), O_WRONLY | O_CLOEXEC);
       if (fd < 0) failed = file + ": cannot open";
       struct Sink final : hgd::RecordSink {
@@ -75,7 +76,6 @@ class ThreadWorld {
         }
         ::close(fd);
       }
-      world_.gather(rank_, "");  // collective close
       return failed;
     }
 
@@ -330,6 +330,37 @@ TEST(StreamRanks, OneRankFailingFailsEveryRankAndLeavesNoOutput) {
     EXPECT_EQ(fileBytes(out), "what was there");
     EXPECT_EQ(leftovers(tmp.dir), 0u);
   }
+  // Rank 0 cannot make the output (its folder does not exist: before the others are told where
+  // to write), and cannot put it in place (a folder stands at its name: after every share is in).
+  for (const std::string& out : {tmp / "no/such/folder/out.ply", tmp / "folder.ply"}) {
+    SCOPED_TRACE(out);
+    if (out == tmp / "folder.ply") std::filesystem::create_directory(out);
+    const hgd::RecordLayout layout = hgd::readRecordLayout(in);
+    hgd::DeformOptions options;
+    options.multires_above = 1;
+    options.coarse_points = 1000;
+    ThreadWorld world(3);
+    auto results = world.run<int>([&](hgd::StreamRanks& ranks) {
+      hgd::StreamedLevelOptions o;
+      o.coarse_points = 1000;
+      o.ranks = &ranks;
+      const hgd::StreamedLevel level = hgd::streamCoarseLevel(layout, rh, o);
+      const hgd::StreamedDeformer s = hgd::streamedDeformer(layout, level, rh, options, &ranks);
+      s.deformer->moveHandle(Eigen::Affine3d(Eigen::Translation3d(0.1, 0, 0)));
+      hgd::writeStreamedDeformed(out, layout, level, s, 4096, &ranks);
+      return 0;
+    });
+    for (auto& f : results) {
+      try {
+        f.get();
+        ADD_FAILURE() << "a rank did not fail";
+      } catch (const hgd::IoError& e) {
+        EXPECT_NE(std::string(e.what()).find(out), std::string::npos) << e.what();
+      }
+    }
+    EXPECT_EQ(leftovers(tmp.dir), 0u);
+  }
+  EXPECT_TRUE(std::filesystem::is_directory(tmp / "folder.ply"));
 }
 
 // The shares: every record in exactly one, in file order, sizes within one of each other.
@@ -349,13 +380,13 @@ TEST(StreamRanks, SharesCoverTheRecordsOnceInOrder) {
     }
 }
 
-// The merges themselves, on findings dealt at random to three ranks (ties included): the two
+// The merges themselves, on random findings in three shares of 1,000 records (ties included): the two
 // smallest distances each sample met and each cell's count and nearest point are what one
 // process meeting every point in file order finds. (On the scans above a merge that kept only
 // one distance a rank still gives the same level: the stray limit is a median.)
 TEST(StreamRanks, GathersMergeAsOneProcessMeets) {
   std::mt19937 rng(5);
-  std::uniform_int_distribution<int> rank_of(0, 2), small(0, 40);
+  std::uniform_int_distribution<int> small(0, 40);
   struct Met {
     int rank;
     std::size_t sample;
@@ -364,7 +395,7 @@ TEST(StreamRanks, GathersMergeAsOneProcessMeets) {
   };
   std::vector<Met> met;
   for (std::uint64_t i = 0; i < 3000; ++i)  // in file order: records ascending
-    met.push_back({rank_of(rng), static_cast<std::size_t>(small(rng) % 25),
+    met.push_back({static_cast<int>(i / 1000), static_cast<std::size_t>(small(rng) % 25),
                    static_cast<float>(small(rng)) * 0.25f, static_cast<std::uint64_t>(small(rng) % 30), i});
   std::vector<hgd::stream::Typical> one(25);
   hgd::stream::CellPass cells_one;
@@ -377,8 +408,10 @@ TEST(StreamRanks, GathersMergeAsOneProcessMeets) {
             Eigen::Vector3d::Constant(static_cast<double>(m.record)), Eigen::Vector3f::Zero());
   }
   ThreadWorld world(3);
-  auto results = world.run<std::pair<std::vector<hgd::stream::Typical>, hgd::stream::CellPass>>(
+  using Gathered = std::unordered_map<std::uint64_t, std::vector<hgd::stream::Near>>;
+  auto results = world.run<std::tuple<std::vector<hgd::stream::Typical>, hgd::stream::CellPass, Gathered>>(
       [&](hgd::StreamRanks& ranks) {
+        Gathered gathered;
         std::vector<hgd::stream::Typical> typ(25);
         hgd::stream::CellPass cells;
         cells.list_cells.resize(1);
@@ -390,14 +423,24 @@ TEST(StreamRanks, GathersMergeAsOneProcessMeets) {
           c.offer(m.record, m.d, Eigen::Vector3f::Constant(m.d),
                   Eigen::Vector3d::Constant(static_cast<double>(m.record)), Eigen::Vector3f::Zero());
           cells.list_cells[0].insert(m.key * 2);
+          if (m.key < 3)
+            gathered[m.key].push_back(
+                {m.record, Eigen::Vector3f::Zero(), Eigen::Vector3d::Zero(), Eigen::Vector3f::Zero(), 0});
         }
-        std::unordered_map<std::uint64_t, std::vector<hgd::stream::Near>> gathered;
         hgd::stream::share(ranks, "", typ, gathered);
         hgd::stream::share(ranks, "", cells);
-        return std::make_pair(typ, cells);
+        return std::make_tuple(typ, cells, gathered);
       });
   for (auto& f : results) {
-    const auto [typ, cells] = f.get();
+    const auto [typ, cells, gathered] = f.get();
+    // Each sparse cell's points in file order, every rank's.
+    for (std::uint64_t key = 0; key < 3; ++key) {
+      std::vector<std::uint64_t> want, got;
+      for (const Met& m : met)
+        if (m.key == key) want.push_back(m.record);
+      for (const hgd::stream::Near& q : gathered.at(key)) got.push_back(q.record);
+      EXPECT_EQ(got, want) << key;
+    }
     for (std::size_t k = 0; k < one.size(); ++k) {
       EXPECT_EQ(typ[k].d1, one[k].d1) << k;
       EXPECT_EQ(typ[k].d2, one[k].d2) << k;
@@ -410,6 +453,8 @@ TEST(StreamRanks, GathersMergeAsOneProcessMeets) {
       EXPECT_EQ(got.best_d, c.best_d) << key;
       EXPECT_EQ(got.w, c.w) << key;
     }
-    EXPECT_EQ(cells.list_cells[0].size(), cells_one.cells.size());
+    std::unordered_set<std::uint64_t> keys_twice;  // every rank's handle cells, each once
+    for (const auto& kv : cells_one.cells) keys_twice.insert(kv.first * 2);
+    EXPECT_EQ(cells.list_cells[0], keys_twice);
   }
 }

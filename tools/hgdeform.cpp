@@ -389,23 +389,29 @@ int runDeformMpi(const DeformArgs& a) {
   hgdcli::StreamMpi mpi;
   if (!mpi.launched() && !a.quiet)
     std::fprintf(stderr, "hgdeform: note: --mpi without an MPI launcher (mpirun, srun): one process\n");
-  // A failed run: rank 0 says why before any rank exits (a launcher ends the whole job at the
-  // first rank that exits non-zero, and rank 0 with it).
+  // Every rank ends in finish(): rank 0 says why a run failed before any rank exits (a launcher
+  // ends the whole job at the first rank that exits non-zero, and rank 0 with it).
   const bool lead = mpi.rank() == 0;
-  int status = 1;
+  int status = 0;
+  std::string error;
   try {
-    return runDeform(a, mpi.ranks());
+    status = runDeform(a, mpi.ranks());
   } catch (const hgdcli::UsageError& e) {
     if (lead) std::fprintf(stderr, "hgdeform deform: %s\n(see 'hgdeform deform --help')\n", e.what());
     status = 2;
+    error = e.what();
   } catch (const std::bad_alloc&) {
     if (lead) std::fprintf(stderr, "hgdeform deform: out of memory\n");
+    status = 1;
+    error = "out of memory";
   } catch (const std::exception& e) {
     if (lead) std::fprintf(stderr, "hgdeform deform: %s\n", e.what());
+    status = 1;
+    error = e.what();
   }
   std::fflush(stderr);
-  mpi.settle();
-  return status;
+  std::fflush(stdout);
+  return mpi.finish(status, error);
 }
 
 }  // namespace

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
 #include <cstdlib>
 #include <functional>
 #include <string>
@@ -52,8 +53,10 @@ class MpiRanks final : public hgd::StreamRanks {
   std::string writeAt(const std::string& file, std::uint64_t at,
                       const std::function<void(hgd::RecordSink&)>& part) override {
     MPI_File fh = MPI_FILE_NULL;
-    // Collective: every rank opens (the file exists: rank 0's temporary) and closes it.
-    int code = MPI_File_open(MPI_COMM_WORLD, file.c_str(), MPI_MODE_WRONLY, MPI_INFO_NULL, &fh);
+    // Each rank on its own (MPI_COMM_SELF: a rank that cannot open the file makes no collective
+    // call the others wait for; the gather after this says who failed). The file exists: rank
+    // 0's temporary.
+    int code = MPI_File_open(MPI_COMM_SELF, file.c_str(), MPI_MODE_WRONLY, MPI_INFO_NULL, &fh);
     std::string failed;
     if (code != MPI_SUCCESS) {
       failed = file + ": cannot open for writing the records of rank " + std::to_string(rank_) + ": " +
@@ -113,27 +116,48 @@ StreamMpi::StreamMpi() {
     MPI_Comm_rank(MPI_COMM_WORLD, &rank_);
     MPI_Comm_size(MPI_COMM_WORLD, &size_);
     ranks_ = std::make_unique<MpiRanks>(rank_, size_);
+    MPI_Comm_dup(MPI_COMM_WORLD, &finish_comm_);
   }
 #endif
 }
 
-void StreamMpi::settle() {
+int StreamMpi::finish(int status, const std::string& error) {
 #ifdef HGD_HAVE_MPI
-  if (!launched_) return;
-  MPI_Request request;
-  MPI_Ibarrier(MPI_COMM_WORLD, &request);
-  for (int waited = 0; waited < 3000; ++waited) {
+  if (launched_) {
+    // Every rank's status, on a communicator of its own (a rank still waiting in a gather of the
+    // run, for one that failed alone, makes no mismatched call): when every rank gets here.
+    std::vector<int> all(static_cast<std::size_t>(size_), 0);
+    MPI_Request request;
+    MPI_Iallgather(&status, 1, MPI_INT, all.data(), 1, MPI_INT, finish_comm_, &request);
     int done = 0;
-    MPI_Test(&request, &done, MPI_STATUS_IGNORE);
-    if (done) return;
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    for (int waited = 0; waited < 3000 && !done; ++waited) {
+      MPI_Test(&request, &done, MPI_STATUS_IGNORE);
+      if (!done) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    if (!done) {  // a rank failed alone: the others wait for it in the run; said here, ended here
+      if (rank_ != 0) std::fprintf(stderr, "hgdeform deform: rank %d: %s\n", rank_, error.c_str());
+      std::fflush(stderr);
+      MPI_Abort(MPI_COMM_WORLD, status != 0 ? status : 1);
+    }
+    int worst = 0;
+    for (const int s : all) worst = std::max(worst, s);
+    // Rank 0 said its own error already; another rank says its own when rank 0 had none.
+    if (rank_ != 0 && status != 0 && all[0] == 0) {
+      std::fprintf(stderr, "hgdeform deform: rank %d: %s\n", rank_, error.c_str());
+      std::fflush(stderr);
+    }
+    return worst;
   }
 #endif
+  (void)error;
+  return status;
 }
 
 StreamMpi::~StreamMpi() {
 #ifdef HGD_HAVE_MPI
-  if (launched_) MPI_Finalize();
+  if (!launched_) return;
+  MPI_Comm_free(&finish_comm_);
+  MPI_Finalize();
 #endif
 }
 

@@ -9,6 +9,7 @@
 #include "hgdeform/io/io.h"
 #include "multires/record_blocks.h"
 #include "multires/streamed_passes.h"
+#include "util/pack.h"
 #include "util/timer.h"
 
 namespace hgd {
@@ -179,10 +180,19 @@ DeformReport streamDeform(const std::string& input, const Scenario& scenario, co
       throw IoError(input + ": " + std::to_string(layout.count) + " points cannot be split across " +
                     std::to_string(ranks->size()) + " ranks");
   };
-  if (ranks)  // a rank that cannot read the file (not on its node) fails every rank, none waits
-    stream::gatherOrThrow(*ranks, stream::attempt(read), "");
-  else
+  if (ranks) {  // a rank that cannot read the file (not on its node) fails every rank, none waits
+    const std::string failed = stream::attempt(read);
+    pack::Writer w;
+    w.put(layout.count).put(layout.offset).put(layout.bytes);
+    const std::vector<std::string> seen = stream::gatherOrThrow(*ranks, failed, w.bytes());
+    for (std::size_t r = 1; r < seen.size(); ++r)
+      if (seen[r] != seen[0])
+        throw IoError(input + ": rank " + std::to_string(r) +
+                      " sees another file than rank 0 (other records or header): the ranks must read "
+                      "the same file");
+  } else {
     read();
+  }
   if (!layout.shape.polygons.empty())
     throw IoError(input + ": cannot stream: a mesh's faces are not streamed; read the whole file instead");
   if (formatFromPath(output) != layout.shape.format)  // before the passes, not after them
@@ -221,14 +231,34 @@ DeformReport streamDeform(const std::string& input, const Scenario& scenario, co
     opt.field.orient_to_viewpoint = true;
     opt.field.viewpoint = (layout.shape.sensor_origin.head<3>().cast<double>() - level.origin).cast<float>();
   }
-  const StreamedDeformer s = streamedDeformer(layout, level, handles, opt);
+  const StreamedDeformer s = streamedDeformer(layout, level, handles, opt, ranks);
   handles = RecordHandles();  // (the level's classes of the records serve the write)
   rep.read_ms = sw.lap();
   rep.build_ms = rep.read_ms;
   const Deformer& d = *s.deformer;
   std::vector<MoveResult> results;
-  for (std::size_t k = 0; k < scenario.moves.size(); ++k)
-    results.push_back(applyMove(*s.deformer, scenario.moves[k], static_cast<int>(k) + 1));
+  const auto moves = [&] {
+    for (std::size_t k = 0; k < scenario.moves.size(); ++k)
+      results.push_back(applyMove(*s.deformer, scenario.moves[k], static_cast<int>(k) + 1));
+  };
+  if (ranks) {
+    // Every rank solved on its own: the same level gives the same transforms, bit for bit (the
+    // build does not depend on the thread count), and a rank whose differ would write its share
+    // from another deformation: checked, not assumed.
+    const std::string failed = stream::attempt(moves);
+    pack::Writer w;
+    if (failed.empty())
+      for (const Eigen::Affine3d& t : d.worldTransforms())
+        for (int e = 0; e < 16; ++e) w.put(t.matrix().data()[e]);
+    const std::vector<std::string> solved = stream::gatherOrThrow(*ranks, failed, w.bytes());
+    for (std::size_t r = 1; r < solved.size(); ++r)
+      if (solved[r] != solved[0])
+        throw IoError(input + ": rank " + std::to_string(r) +
+                      " solved other cluster transforms than rank 0 (the ranks must run the same build of "
+                      "hgdeform on the same kind of machine)");
+  } else {
+    moves();
+  }
   const std::vector<std::string> write_warnings =
       writeStreamedDeformed(output, layout, level, s, 1 << 16, ranks);
   rep.write_ms = sw.lap();

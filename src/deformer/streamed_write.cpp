@@ -1,6 +1,7 @@
 // The deformed file written block by block from a streamed build (hgdeform/deformer/streamed.h):
 // Deformer::writeDeformed's rules (write_deformed.cpp) on each block's records.
 #include <algorithm>
+#include <filesystem>
 
 #include "deformer/xyz_access.h"
 #include "hgdeform/deformer/streamed.h"
@@ -8,6 +9,7 @@
 #include "hgdeform/io/io.h"
 #include "multires/streamed_passes.h"
 #include "util/pack.h"
+#include "util/parallel.h"
 
 namespace hgd {
 
@@ -43,7 +45,9 @@ void writeShared(const std::string& path, const RecordLayout& layout, StreamRank
   };
   try {
     writeRecords(path, layout, [&](RecordSink& sink) {
-      const std::string file = sink.file();
+      // (absolute: a rank may run in another working directory)
+      const std::string file =
+          sink.file().empty() ? std::string() : std::filesystem::absolute(sink.file()).string();
       pack::Writer w;
       w.put(file).put(sink.offset());
       stage = 1;
@@ -104,14 +108,19 @@ std::vector<std::string> writeStreamedDeformed(const std::string& path, const Re
     c.fields = shape.cloud.fields;
     c.point_step = layout.bytes;
     c.height = 1;
-    std::size_t stray_at = 0;
-    StreamedLevel::ClassCursor class_of(level);  // records ascend
     pcl::PointCloud<pcl::PointXYZ> pts;
     pcl::PointCloud<pcl::Normal>::Ptr normals(new pcl::PointCloud<pcl::Normal>);
     std::vector<std::uint32_t> anchor;
     std::vector<char> stray;
     std::vector<int> cls;
     std::vector<std::size_t> row;
+    struct Found {  // a record's place in the level (found in parallel, gathered in order)
+      Eigen::Vector3f p, n;
+      std::uint32_t anchor;
+      int cls;
+      char kept, stray;
+    };
+    std::vector<Found> found;
     for (std::uint64_t first = share.first; first < share.last; first += block) {
       const auto count = static_cast<std::size_t>(std::min<std::uint64_t>(block, share.last - first));
       c.width = static_cast<std::uint32_t>(count);
@@ -120,6 +129,30 @@ std::vector<std::string> writeStreamedDeformed(const std::string& path, const Re
       reader.read(first, count, c.data.data());
       XyzAccess xyz(c, f);
       if (any_move) {
+        found.resize(count);
+        const auto n = static_cast<long long>(count);
+#pragma omp parallel for schedule(static) if (n > kParallelMin)
+        for (long long kk = 0; kk < n; ++kk) {
+          const auto k = static_cast<std::size_t>(kk);
+          const std::uint64_t i = first + k;
+          Found& r = found[k];
+          const Eigen::Vector3d w = xyz.get(k);
+          r.kept = w.allFinite() && level.kept(i, w);
+          if (!r.kept) continue;
+          r.p = level.local(w);
+          const auto at = std::lower_bound(level.strays.begin(), level.strays.end(), i);
+          r.stray = at != level.strays.end() && *at == i;
+          r.cls = level.classOf(i);
+          r.anchor = r.stray ? level.stray_anchor[static_cast<std::size_t>(at - level.strays.begin())]
+                             : level.anchorOf(i, r.p, r.cls);
+          if (write_normals) {
+            const Eigen::Vector3f nv(
+                static_cast<float>(readValue(c, k, c.fields[static_cast<std::size_t>(f.nx)])),
+                static_cast<float>(readValue(c, k, c.fields[static_cast<std::size_t>(f.ny)])),
+                static_cast<float>(readValue(c, k, c.fields[static_cast<std::size_t>(f.nz)])));
+            r.n = nv / nv.norm();
+          }
+        }
         pts.clear();
         normals->clear();
         anchor.clear();
@@ -127,26 +160,17 @@ std::vector<std::string> writeStreamedDeformed(const std::string& path, const Re
         cls.clear();
         row.clear();
         for (std::size_t k = 0; k < count; ++k) {
-          const std::uint64_t i = first + k;
-          const Eigen::Vector3d w = xyz.get(k);
-          if (!w.allFinite() || !level.kept(i, w)) continue;
-          const Eigen::Vector3f p = level.local(w);
-          while (stray_at < level.strays.size() && level.strays[stray_at] < i) ++stray_at;
-          const bool is_stray = stray_at < level.strays.size() && level.strays[stray_at] == i;
-          const int cl = class_of.of(i);
-          pts.push_back(pcl::PointXYZ(p.x(), p.y(), p.z()));
-          stray.push_back(is_stray);
-          cls.push_back(cl);
-          anchor.push_back(is_stray ? level.stray_anchor[stray_at] : level.anchorOf(i, p, cl));
+          const Found& r = found[k];
+          if (!r.kept) continue;
+          pts.push_back(pcl::PointXYZ(r.p.x(), r.p.y(), r.p.z()));
+          stray.push_back(r.stray);
+          cls.push_back(r.cls);
+          anchor.push_back(r.anchor);
           row.push_back(k);
           if (write_normals) {
-            const Eigen::Vector3f nv(
-                static_cast<float>(readValue(c, k, c.fields[static_cast<std::size_t>(f.nx)])),
-                static_cast<float>(readValue(c, k, c.fields[static_cast<std::size_t>(f.ny)])),
-                static_cast<float>(readValue(c, k, c.fields[static_cast<std::size_t>(f.nz)])));
-            pcl::Normal n;
-            n.getNormalVector3fMap() = nv / nv.norm();
-            normals->push_back(n);
+            pcl::Normal nn;
+            nn.getNormalVector3fMap() = r.n;
+            normals->push_back(nn);
           }
         }
         InterpolationTable table = prolong->table(pts, anchor, stray, cls);
@@ -159,7 +183,10 @@ std::vector<std::string> writeStreamedDeformed(const std::string& path, const Re
         }
         table.has_normals = true;
         const ExactInterpolation exact = d.exactInterpolation(table);
-        for (std::size_t k = 0; k < pts.size(); ++k) {
+        const auto moved_n = static_cast<long long>(pts.size());
+#pragma omp parallel for schedule(static) if (moved_n > kParallelMin)
+        for (long long kk = 0; kk < moved_n; ++kk) {
+          const auto k = static_cast<std::size_t>(kk);
           if (!exact.moves(k)) continue;  // left as the file had it
           const std::size_t r = row[k];
           xyz.set(r, exact.apply(k, xyz.get(r) - level.origin) + level.origin);

@@ -209,6 +209,10 @@ StreamedLevel streamCoarseLevel(const RecordLayout& layout,
     normals_ok = normals_ok && bp.beyond_normals_ok;
   } else {
     streamPass("beyond");  // a few records read alone: not a pass over the file
+    // This rank's (all of them in one process), then met into lo, hi and normals_ok as one
+    // process meets them, in file order.
+    Eigen::Vector3d kept_lo = Eigen::Vector3d::Constant(INFINITY), kept_hi = -kept_lo;
+    bool kept_normals = true;
     pass(
         [&] {
           Blocks one(layout, 1);
@@ -218,14 +222,17 @@ StreamedLevel streamCoarseLevel(const RecordLayout& layout,
             if (b.record < mine.first || b.record >= mine.last ||
                 std::binary_search(out.far_strays.begin(), out.far_strays.end(), b.record))
               continue;
-            lo = lo.cwiseMin(b.w);
-            hi = hi.cwiseMax(b.w);
+            kept_lo = kept_lo.cwiseMin(b.w);
+            kept_hi = kept_hi.cwiseMax(b.w);
             Eigen::Vector3f nv;
             one.load(b.record, 1);
-            normals_ok = normals_ok && one.normal(0, nv);
+            kept_normals = kept_normals && one.normal(0, nv);
           }
         },
-        [&](const std::string& failed) { stream::share(*ranks, failed, lo, hi, normals_ok); });
+        [&](const std::string& failed) { stream::share(*ranks, failed, kept_lo, kept_hi, kept_normals); });
+    lo = lo.cwiseMin(kept_lo);
+    hi = hi.cwiseMax(kept_hi);
+    normals_ok = normals_ok && kept_normals;
   }
   out.points = m - far_count;
   if (zeros > 0) out.warnings.push_back(noReturnWarning(path, zeros, nz_distance, nz.extent));

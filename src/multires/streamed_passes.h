@@ -112,7 +112,8 @@ void share(StreamRanks& ranks, const std::string& failed, FrameSample& s);
 /// (`cap`: the records one process keeps in `beyond`.)
 void share(StreamRanks& ranks, const std::string& failed, BodyPass& b, std::uint64_t cap);
 void share(StreamRanks& ranks, const std::string& failed, std::uint64_t& count);
-/// The bounds and the normals of the beyond points kept, read by their ranks.
+/// The bounds and the normals of the beyond points kept, read by their ranks: each rank's
+/// (from +inf, -inf, true) met into lo, hi, ok in rank order.
 void share(StreamRanks& ranks, const std::string& failed, Eigen::Vector3d& lo, Eigen::Vector3d& hi, bool& ok);
 void share(StreamRanks& ranks, const std::string& failed, std::vector<Eigen::Vector3f>& at,
            std::vector<std::uint16_t>& cls);

@@ -2,6 +2,7 @@
 // each rank packs what it found in its share of the records; every rank merges every part, in
 // rank order (the file's order), into what one process finds reading every record.
 #include <algorithm>
+#include <cmath>
 #include <utility>
 
 #include "hgdeform/io/io.h"
@@ -65,16 +66,12 @@ void share(StreamRanks& ranks, const std::string& failed, BodyPass& b, std::uint
   gatherEach(
       ranks, failed,
       [&](pack::Writer& w) {
-        w.putBytes(b.beyond).put(b.finite).put(b.zeros).put(b.far_count).put(b.beyond_count).put(b.farthest);
+        w.put(b.finite).put(b.zeros).put(b.far_count).put(b.beyond_count).put(b.farthest);
         for (const Eigen::Vector3d* v : {&b.body_lo, &b.body_hi, &b.lo, &b.hi, &b.beyond_lo, &b.beyond_hi})
           w.put(v->x()).put(v->y()).put(v->z());
         w.put(b.normals_ok).put(b.beyond_normals_ok);
       },
       [&](pack::Reader& in) {
-        std::vector<Beyond> beyond;
-        in.getBytes(beyond);
-        for (const Beyond& x : beyond)
-          if (whole.beyond.size() < cap) whole.beyond.push_back(x);  // one process keeps the first `cap`
         whole.finite += in.get<std::uint64_t>();
         whole.zeros += in.get<std::uint64_t>();
         whole.far_count += in.get<std::uint64_t>();
@@ -94,6 +91,15 @@ void share(StreamRanks& ranks, const std::string& failed, BodyPass& b, std::uint
         whole.normals_ok = in.get<bool>() && whole.normals_ok;
         whole.beyond_normals_ok = in.get<bool>() && whole.beyond_normals_ok;
       });
+  // The points beyond, when few enough to be listed (else the list is not used: not sent).
+  if (whole.beyond_count <= cap)
+    gatherEach(
+        ranks, "", [&](pack::Writer& w) { w.putBytes(b.beyond); },
+        [&](pack::Reader& in) {
+          std::vector<Beyond> beyond;
+          in.getBytes(beyond);
+          whole.beyond.insert(whole.beyond.end(), beyond.begin(), beyond.end());
+        });
   b = std::move(whole);
 }
 
@@ -107,7 +113,7 @@ void share(StreamRanks& ranks, const std::string& failed, std::uint64_t& count) 
 
 void share(StreamRanks& ranks, const std::string& failed, Eigen::Vector3d& lo, Eigen::Vector3d& hi,
            bool& ok) {
-  Eigen::Vector3d l = lo, h = hi;
+  Eigen::Vector3d l = Eigen::Vector3d::Constant(INFINITY), h = -l;
   bool all = true;
   gatherEach(
       ranks, failed,

@@ -22,9 +22,11 @@ struct StreamedDeformer {
 
 /// Reads the coarse points and the manipulated handle's in one pass over the file's records and
 /// builds the Deformer on `level` (streamCoarseLevel of the same file and handles, which must not
-/// be empty). `options`: the deformation's; its multi-resolution sizes are the level's.
+/// be empty). `options`: the deformation's; its multi-resolution sizes are the level's. With
+/// `ranks` (a split run), each rank reads its share and the points are gathered (collective).
 StreamedDeformer streamedDeformer(const RecordLayout& layout, const StreamedLevel& level,
-                                  const RecordHandles& handles, const DeformOptions& options);
+                                  const RecordHandles& handles, const DeformOptions& options,
+                                  StreamRanks* ranks = nullptr);
 
 /// Writes the deformed file at `path`: every record of `layout`, block by block, as
 /// Deformer::writeDeformed and writeShape write the file read whole into memory, byte for byte:
