@@ -124,6 +124,20 @@ inline std::string fileBytes(const std::string& path) {
   return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
 }
 
+/// Two outputs of one input (the same size) compared byte for byte: how many bytes differ
+/// between them, and how many of the first differ from the input (that it did deform).
+struct ByteDiff {
+  std::size_t differ = 0, moved = 0;
+};
+inline ByteDiff diffBytes(const std::string& a, const std::string& b, const std::string& input) {
+  ByteDiff d;
+  for (std::size_t k = 0; k < a.size() && k < b.size(); ++k) {
+    d.differ += a[k] != b[k];
+    d.moved += k < input.size() && a[k] != input[k];
+  }
+  return d;
+}
+
 /// A scan's x, y, z and normals as PCL's PointNormal cloud (as a PCL program would save it;
 /// not dense: its NaN points), with `curvature` set to each point's index modulo `curvature_mod`
 /// (0: zero).

@@ -180,16 +180,20 @@ DeformReport streamDeform(const std::string& input, const Scenario& scenario, co
       throw IoError(input + ": " + std::to_string(layout.count) + " points cannot be split across " +
                     std::to_string(ranks->size()) + " ranks");
   };
-  if (ranks) {  // a rank that cannot read the file (not on its node) fails every rank, none waits
-    const std::string failed = stream::attempt(read);
+  // Runs `local` on every rank, then checks that every rank found what rank 0 did (`found`
+  // packs it): a rank that failed fails every rank, and one that differs is named.
+  const auto agree = [&](auto&& local, auto&& found, const std::string& differs) {
+    const std::string failed = stream::attempt(local);
     pack::Writer w;
-    w.put(layout.count).put(layout.offset).put(layout.bytes);
-    const std::vector<std::string> seen = stream::gatherOrThrow(*ranks, failed, w.bytes());
-    for (std::size_t r = 1; r < seen.size(); ++r)
-      if (seen[r] != seen[0])
-        throw IoError(input + ": rank " + std::to_string(r) +
-                      " sees another file than rank 0 (other records or header): the ranks must read "
-                      "the same file");
+    if (failed.empty()) found(w);
+    const std::vector<std::string> all = stream::gatherOrThrow(*ranks, failed, w.bytes());
+    for (std::size_t r = 1; r < all.size(); ++r)
+      if (all[r] != all[0]) throw IoError(input + ": rank " + std::to_string(r) + differs);
+  };
+  if (ranks) {  // a rank that cannot read the file (not on its node) fails every rank, none waits
+    agree(
+        read, [&](pack::Writer& w) { w.put(layout.count).put(layout.offset).put(layout.bytes); },
+        " sees another file than rank 0 (other records or header): the ranks must read the same file");
   } else {
     read();
   }
@@ -245,17 +249,14 @@ DeformReport streamDeform(const std::string& input, const Scenario& scenario, co
     // Every rank solved on its own: the same level gives the same transforms, bit for bit (the
     // build does not depend on the thread count), and a rank whose differ would write its share
     // from another deformation: checked, not assumed.
-    const std::string failed = stream::attempt(moves);
-    pack::Writer w;
-    if (failed.empty())
-      for (const Eigen::Affine3d& t : d.worldTransforms())
-        for (int e = 0; e < 16; ++e) w.put(t.matrix().data()[e]);
-    const std::vector<std::string> solved = stream::gatherOrThrow(*ranks, failed, w.bytes());
-    for (std::size_t r = 1; r < solved.size(); ++r)
-      if (solved[r] != solved[0])
-        throw IoError(input + ": rank " + std::to_string(r) +
-                      " solved other cluster transforms than rank 0 (the ranks must run the same build of "
-                      "hgdeform on the same kind of machine)");
+    agree(
+        moves,
+        [&](pack::Writer& w) {
+          for (const Eigen::Affine3d& t : d.worldTransforms())
+            for (int e = 0; e < 16; ++e) w.put(t.matrix().data()[e]);
+        },
+        " solved other cluster transforms than rank 0 (the ranks must run the same build of hgdeform on "
+        "the same kind of machine)");
   } else {
     moves();
   }
