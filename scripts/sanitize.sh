@@ -31,13 +31,13 @@ status=0
 # ViewerX.* (real X input with xdotool) are not run here: they time the viewer's answers to
 # pointer and key events, which the instrumented build is several times too slow for; the same
 # viewer code runs instrumented in Viewer.* (replays) below.
-ASAN_OPTIONS="$asan" run -j 2 -E '^(BatchMpi\..*|batch_thumbnails_xvfb|install_consumer_static|Viewer\..*|ViewerX\..*|Render\..*|Pictures\..*)$' ||
+ASAN_OPTIONS="$asan" run -j 2 -E '^(BatchMpi\..*|StreamMpi\..*|batch_thumbnails_xvfb|install_consumer_static|Viewer\..*|ViewerX\..*|Render\..*|Pictures\..*)$' ||
   status=1
 
-# `hgdeform batch` under mpirun: OpenMPI never frees what MPI_Init allocates, much of it inside
+# `hgdeform batch` and `deform --mpi` under mpirun: OpenMPI never frees what MPI_Init allocates, much of it inside
 # plugins that MPI_Finalize unloads. Only full stacks (the slow unwinder) reach the libmpi
 # frames that lsan.supp names, so these tests, and only they, get the slow unwinder.
-ASAN_OPTIONS="$asan:fast_unwind_on_malloc=0" run -R '^BatchMpi\.' || status=1
+ASAN_OPTIONS="$asan:fast_unwind_on_malloc=0" run -R '^(BatchMpi|StreamMpi)\.' || status=1
 
 # Thumbnails under Xvfb (PCLVisualizer, VTK, Mesa): libpcl_visualization's addPolygonMesh frees
 # with operator delete what it allocated with malloc (inside the installed library), and Mesa's

@@ -249,7 +249,7 @@ TEST(StreamCli, GeneratedPlaneIsTheWholePlanesBytes) {
 // ranks write is, byte for byte, the file `hgdeform deform` writes holding the scan in memory
 // (and `--stream`'s); rank 0 alone reports. A scenario that selects nothing fails every rank:
 // a non-zero exit, the reason said once (not once a rank), no output.
-TEST(StreamCli, MpiRanksWriteTheFileOneProcessWrites) {
+TEST(StreamMpi, RanksWriteTheFileOneProcessWrites) {
 #ifndef HGD_HAVE_MPI
   GTEST_SKIP() << "built without MPI";
 #else
