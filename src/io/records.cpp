@@ -36,10 +36,6 @@ void streamShare(std::uint64_t first, std::uint64_t last) {
   t_share_last = last;
 }
 
-void RecordSink::skip(std::uint64_t) {
-  throw std::logic_error("RecordSink::skip: this sink's records cannot be written by others");
-}
-
 RecordShare shareOf(std::uint64_t records, int rank, int ranks) {
   const auto n = static_cast<std::uint64_t>(std::max(1, ranks));
   const auto r = static_cast<std::uint64_t>(std::clamp(rank, 0, std::max(0, ranks - 1)));

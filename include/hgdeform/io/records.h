@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -79,7 +80,9 @@ class RecordSink {
   /// ... the byte of it the next record goes to, ...
   virtual std::uint64_t offset() const { return 0; }
   /// ... and a move past `bytes` that the others write (only when file() names one).
-  virtual void skip(std::uint64_t bytes);
+  virtual void skip(std::uint64_t /*bytes*/) {
+    throw std::logic_error("RecordSink::skip: this sink's records cannot be written by others");
+  }
 };
 
 /// Records [first, last) of a file (a rank's share of them).
