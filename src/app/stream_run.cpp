@@ -16,7 +16,7 @@ namespace hgd {
 
 RecordHandles streamHandles(const Scenario& scenario, const RecordLayout& layout, const StreamedLevel& level,
                             StreamRanks* ranks) {
-  if (ranks && ranks->size() < 2) ranks = nullptr;
+  ranks = stream::splitRanks(ranks);
   const std::string name = scenario.path.empty() ? "scenario" : scenario.path;
   const Shape& shape = layout.shape;
   const pcl::PCLPointCloud2& fields = shape.cloud;
@@ -79,52 +79,53 @@ RecordHandles streamHandles(const Scenario& scenario, const RecordLayout& layout
     }
   std::vector<std::vector<std::uint64_t>> picked(regions.size());
   stream::Blocks blocks(layout, 1 << 16);
-  if (ranks) blocks.share(shareOf(layout.count, ranks->rank(), ranks->size()));
+  blocks.share(stream::shareOf(layout.count, ranks));
   const pcl::PCLPointCloud2& c = blocks.cloud();
-  const std::string failed = stream::attempt([&] {
-    blocks.each([&](std::uint64_t i, std::size_t row) {
-      const Eigen::Vector3d w = blocks.world(row);
-      if (!w.allFinite() || !level.kept(i, w)) return;
-      for (std::size_t k = 0; k < regions.size(); ++k) {
-        const Region& r = *regions[k];
-        bool in = false;
-        switch (r.kind) {
-          case Region::Kind::Sphere: in = (w - r.centre).squaredNorm() <= r.radius * r.radius; break;
-          case Region::Kind::Box:
-            in = (w.array() >= r.min.array()).all() && (w.array() <= r.max.array()).all();
-            break;
-          case Region::Kind::Indices:
-            in = std::binary_search(sorted_indices[k].begin(), sorted_indices[k].end(),
-                                    static_cast<long long>(i));
-            break;
-          case Region::Kind::Cylinder: {
-            const Eigen::Vector3d d = r.end - r.start, p = w - r.start;
-            const double t = p.dot(d) / d.squaredNorm();
-            in = t >= 0 && t <= 1 && (p - t * d).squaredNorm() <= r.radius * r.radius;
-            break;
-          }
-          case Region::Kind::Field: {
-            const FieldTest& t = field_tests[k];
-            const pcl::PCLPointField& f = c.fields[static_cast<std::size_t>(t.field)];
-            if (t.packed) {
-              std::uint32_t v;
-              std::memcpy(&v, c.data.data() + row * c.point_step + f.offset, 4);
-              in = (v & t.mask) == t.want;
-            } else {
-              const double v = readValue(c, row, f);
-              in = v >= t.lo && v <= t.hi;
+  stream::runPass(
+      ranks,
+      [&] {
+        blocks.each([&](std::uint64_t i, std::size_t row) {
+          const Eigen::Vector3d w = blocks.world(row);
+          if (!w.allFinite() || !level.kept(i, w)) return;
+          for (std::size_t k = 0; k < regions.size(); ++k) {
+            const Region& r = *regions[k];
+            bool in = false;
+            switch (r.kind) {
+              case Region::Kind::Sphere: in = (w - r.centre).squaredNorm() <= r.radius * r.radius; break;
+              case Region::Kind::Box:
+                in = (w.array() >= r.min.array()).all() && (w.array() <= r.max.array()).all();
+                break;
+              case Region::Kind::Indices:
+                in = std::binary_search(sorted_indices[k].begin(), sorted_indices[k].end(),
+                                        static_cast<long long>(i));
+                break;
+              case Region::Kind::Cylinder: {
+                const Eigen::Vector3d d = r.end - r.start, p = w - r.start;
+                const double t = p.dot(d) / d.squaredNorm();
+                in = t >= 0 && t <= 1 && (p - t * d).squaredNorm() <= r.radius * r.radius;
+                break;
+              }
+              case Region::Kind::Field: {
+                const FieldTest& t = field_tests[k];
+                const pcl::PCLPointField& f = c.fields[static_cast<std::size_t>(t.field)];
+                if (t.packed) {
+                  std::uint32_t v;
+                  std::memcpy(&v, c.data.data() + row * c.point_step + f.offset, 4);
+                  in = (v & t.mask) == t.want;
+                } else {
+                  const double v = readValue(c, row, f);
+                  in = v >= t.lo && v <= t.hi;
+                }
+                break;
+              }
             }
-            break;
+            if (in) picked[k].push_back(i);
           }
-        }
-        if (in) picked[k].push_back(i);
-      }
-    });
-  });
-  if (ranks)
-    stream::share(*ranks, failed, picked);  // each list in record order
-  else if (!failed.empty())
-    throw IoError(failed);
+        });
+      },
+      [&](const std::string& failed) {
+        stream::share(*ranks, failed, picked);
+      });  // each list in record order
   // The checks in resolveHandles' order: each region's emptiness, then its overlap.
   const auto nonEmpty = [&](std::size_t k) {
     if (picked[k].empty())
@@ -170,33 +171,25 @@ bool canStream(const std::string& input, const std::string& output) {
 
 DeformReport streamDeform(const std::string& input, const Scenario& scenario, const RunOptions& options,
                           const std::string& output, StreamRanks* ranks) {
-  if (ranks && ranks->size() < 2) ranks = nullptr;
+  ranks = stream::splitRanks(ranks);
   Stopwatch sw;
   DeformReport rep;
-  RecordLayout layout;
-  const auto read = [&] {
-    layout = readRecordLayout(input);
-    if (ranks && layout.count < static_cast<std::uint64_t>(ranks->size()))
-      throw IoError(input + ": " + std::to_string(layout.count) + " points cannot be split across " +
-                    std::to_string(ranks->size()) + " ranks");
-  };
-  // Runs `local` on every rank, then checks that every rank found what rank 0 did (`found`
+  // Runs `local` (on every rank), then checks that every rank found what rank 0 did (`found`
   // packs it): a rank that failed fails every rank, and one that differs is named.
   const auto agree = [&](auto&& local, auto&& found, const std::string& differs) {
-    const std::string failed = stream::attempt(local);
-    pack::Writer w;
-    if (failed.empty()) found(w);
-    const std::vector<std::string> all = stream::gatherOrThrow(*ranks, failed, w.bytes());
-    for (std::size_t r = 1; r < all.size(); ++r)
-      if (all[r] != all[0]) throw IoError(input + ": rank " + std::to_string(r) + differs);
+    stream::runPass(ranks, local, [&](const std::string& failed) {
+      pack::Writer w;
+      if (failed.empty()) found(w);
+      const std::vector<std::string> all = stream::gatherOrThrow(*ranks, failed, w.bytes());
+      for (std::size_t r = 1; r < all.size(); ++r)
+        if (all[r] != all[0]) throw IoError(input + ": rank " + std::to_string(r) + differs);
+    });
   };
-  if (ranks) {  // a rank that cannot read the file (not on its node) fails every rank, none waits
-    agree(
-        read, [&](pack::Writer& w) { w.put(layout.count).put(layout.offset).put(layout.bytes); },
+  // (A rank that cannot read the file, not on its node, fails every rank: none waits.)
+  RecordLayout layout;
+  agree([&] { layout = readRecordLayout(input); },
+        [&](pack::Writer& w) { w.put(layout.count).put(layout.offset).put(layout.bytes); },
         " sees another file than rank 0 (other records or header): the ranks must read the same file");
-  } else {
-    read();
-  }
   if (!layout.shape.polygons.empty())
     throw IoError(input + ": cannot stream: a mesh's faces are not streamed; read the whole file instead");
   if (formatFromPath(output) != layout.shape.format)  // before the passes, not after them
@@ -216,7 +209,7 @@ DeformReport streamDeform(const std::string& input, const Scenario& scenario, co
   struct Share {
     explicit Share(const RecordShare& s) { streamShare(s.first, s.last); }
     ~Share() { streamShare(0, 0); }
-  } share(ranks ? shareOf(layout.count, ranks->rank(), ranks->size()) : RecordShare{});
+  } share(stream::shareOf(layout.count, ranks));
   RecordHandles handles;
   const StreamedLevel level = streamCoarseLevel(
       layout,
@@ -241,25 +234,20 @@ DeformReport streamDeform(const std::string& input, const Scenario& scenario, co
   rep.build_ms = rep.read_ms;
   const Deformer& d = *s.deformer;
   std::vector<MoveResult> results;
-  const auto moves = [&] {
-    for (std::size_t k = 0; k < scenario.moves.size(); ++k)
-      results.push_back(applyMove(*s.deformer, scenario.moves[k], static_cast<int>(k) + 1));
-  };
-  if (ranks) {
-    // Every rank solved on its own: the same level gives the same transforms, bit for bit (the
-    // build does not depend on the thread count), and a rank whose differ would write its share
-    // from another deformation: checked, not assumed.
-    agree(
-        moves,
-        [&](pack::Writer& w) {
-          for (const Eigen::Affine3d& t : d.worldTransforms())
-            for (int e = 0; e < 16; ++e) w.put(t.matrix().data()[e]);
-        },
-        " solved other cluster transforms than rank 0 (the ranks must run the same build of hgdeform on "
-        "the same kind of machine)");
-  } else {
-    moves();
-  }
+  // Every rank solves on its own: the same level gives the same transforms, bit for bit (the
+  // build does not depend on the thread count), and a rank whose differ would write its share
+  // from another deformation: checked, not assumed.
+  agree(
+      [&] {
+        for (std::size_t k = 0; k < scenario.moves.size(); ++k)
+          results.push_back(applyMove(*s.deformer, scenario.moves[k], static_cast<int>(k) + 1));
+      },
+      [&](pack::Writer& w) {
+        for (const Eigen::Affine3d& t : d.worldTransforms())
+          for (int e = 0; e < 16; ++e) w.put(t.matrix().data()[e]);
+      },
+      " solved other cluster transforms than rank 0 (the ranks must run the same build of hgdeform on "
+      "the same kind of machine)");
   const std::vector<std::string> write_warnings =
       writeStreamedDeformed(output, layout, level, s, 1 << 16, ranks);
   rep.write_ms = sw.lap();

@@ -4,7 +4,6 @@
 #include <stdexcept>
 
 #include "hgdeform/deformer/streamed.h"
-#include "hgdeform/io/io.h"
 #include "multires/record_blocks.h"
 #include "multires/streamed_passes.h"
 #include "util/pack.h"
@@ -14,7 +13,7 @@ namespace hgd {
 StreamedDeformer streamedDeformer(const RecordLayout& layout, const StreamedLevel& level,
                                   const RecordHandles& handles, const DeformOptions& options,
                                   StreamRanks* ranks) {
-  if (ranks && ranks->size() < 2) ranks = nullptr;
+  ranks = stream::splitRanks(ranks);
   if (level.coarse.empty()) throw std::invalid_argument("streamedDeformer: the coarse level is empty");
   // The points held: the coarse points, as Geometry has them; the manipulated handle's points
   // apart, their rest positions only (the Deformer picks among them and takes their centre).
@@ -36,47 +35,48 @@ StreamedDeformer streamedDeformer(const RecordLayout& layout, const StreamedLeve
   std::vector<Held> held;
   std::vector<Manipulated> manipulated;
   manipulated.reserve(handles.manipulated.size());  // (at most: not a point more, no doubling)
-  const std::string failed = stream::attempt([&] {
-    streamPass("held points");
-    stream::Blocks blocks(layout, 1 << 16);
-    if (ranks) blocks.share(shareOf(layout.count, ranks->rank(), ranks->size()));
-    std::size_t r = 0, m = 0;
-    const std::vector<std::uint64_t>& manip = handles.manipulated;
-    blocks.each([&](std::uint64_t i, std::size_t k) {
-      while (r < reps.size() && reps[r].first < i) ++r;
-      while (m < manip.size() && manip[m] < i) ++m;
-      const bool is_rep = r < reps.size() && reps[r].first == i, is_manip = m < manip.size() && manip[m] == i;
-      if (!is_rep && !is_manip) return;
-      const Eigen::Vector3d w = blocks.world(k);
-      if (!w.allFinite() || !level.kept(i, w)) return;
-      const Eigen::Vector3f p = level.local(w);
-      const std::uint32_t key = level.mortonKey(w);
-      if (is_manip) manipulated.push_back({i, p, key});
-      if (!is_rep) return;
-      Held h{i, p, Eigen::Vector3f::Zero(), key};
-      if (level.file_normals) blocks.normal(k, h.n);
-      held.push_back(h);
-    });
-  });
-  if (ranks) {  // every rank's share of them (sorted below: the order they come in does not matter)
-    pack::Writer w;
-    if (failed.empty()) w.putBytes(held).putBytes(manipulated);
-    std::vector<Held> all_held;
-    std::vector<Manipulated> all_manipulated;
-    for (const std::string& part : stream::gatherOrThrow(*ranks, failed, w.bytes())) {
-      pack::Reader in(part);
-      std::vector<Held> h;
-      std::vector<Manipulated> m;
-      in.getBytes(h);
-      in.getBytes(m);
-      all_held.insert(all_held.end(), h.begin(), h.end());
-      all_manipulated.insert(all_manipulated.end(), m.begin(), m.end());
-    }
-    held = std::move(all_held);
-    manipulated = std::move(all_manipulated);
-  } else if (!failed.empty()) {
-    throw IoError(failed);
-  }
+  stream::runPass(
+      ranks,
+      [&] {
+        streamPass("held points");
+        stream::Blocks blocks(layout, 1 << 16);
+        blocks.share(stream::shareOf(layout.count, ranks));
+        std::size_t r = 0, m = 0;
+        const std::vector<std::uint64_t>& manip = handles.manipulated;
+        blocks.each([&](std::uint64_t i, std::size_t k) {
+          while (r < reps.size() && reps[r].first < i) ++r;
+          while (m < manip.size() && manip[m] < i) ++m;
+          const bool is_rep = r < reps.size() && reps[r].first == i,
+                     is_manip = m < manip.size() && manip[m] == i;
+          if (!is_rep && !is_manip) return;
+          const Eigen::Vector3d w = blocks.world(k);
+          if (!w.allFinite() || !level.kept(i, w)) return;
+          const Eigen::Vector3f p = level.local(w);
+          const std::uint32_t key = level.mortonKey(w);
+          if (is_manip) manipulated.push_back({i, p, key});
+          if (!is_rep) return;
+          Held h{i, p, Eigen::Vector3f::Zero(), key};
+          if (level.file_normals) blocks.normal(k, h.n);
+          held.push_back(h);
+        });
+      },
+      [&](const std::string& failed) {  // every rank's (sorted below: the order they come in does not matter)
+        pack::Writer w;
+        if (failed.empty()) w.putBytes(held).putBytes(manipulated);
+        std::vector<Held> all_held;
+        std::vector<Manipulated> all_manipulated;
+        for (const std::string& part : stream::gatherOrThrow(*ranks, failed, w.bytes())) {
+          pack::Reader in(part);
+          std::vector<Held> h;
+          std::vector<Manipulated> m;
+          in.getBytes(h);
+          in.getBytes(m);
+          all_held.insert(all_held.end(), h.begin(), h.end());
+          all_manipulated.insert(all_manipulated.end(), m.begin(), m.end());
+        }
+        held = std::move(all_held);
+        manipulated = std::move(all_manipulated);
+      });
   const auto geometryOrder = [](const auto& a, const auto& b) {  // Geometry's: Morton key, then record
     return a.key != b.key ? a.key < b.key : a.record < b.record;
   };

@@ -144,7 +144,7 @@ std::vector<std::string> writeStreamedDeformed(const std::string& path, const Re
           r.stray = at != level.strays.end() && *at == i;
           r.cls = level.classOf(i);
           r.anchor = r.stray ? level.stray_anchor[static_cast<std::size_t>(at - level.strays.begin())]
-                             : level.anchorOf(i, r.p, r.cls);
+                             : level.cellAnchor(r.p, r.cls);
           if (write_normals) {
             const Eigen::Vector3f nv(
                 static_cast<float>(readValue(c, k, c.fields[static_cast<std::size_t>(f.nx)])),
@@ -201,11 +201,10 @@ std::vector<std::string> writeStreamedDeformed(const std::string& path, const Re
       sink.write(c.data.data(), c.data.size());
     }
   };
-  if (!ranks || ranks->size() < 2) {
+  if (StreamRanks* split = stream::splitRanks(ranks))
+    writeShared(path, layout, *split, records);
+  else
     writeRecords(path, layout, [&](RecordSink& sink) { records(sink, RecordShare{0, layout.count}); });
-    return warnings;
-  }
-  writeShared(path, layout, *ranks, records);
   return warnings;
 }
 

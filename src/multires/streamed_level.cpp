@@ -73,12 +73,9 @@ StreamedLevel streamCoarseLevel(const RecordLayout& layout,
     throw IoError(path + ": " + std::to_string(n_records) + " points, more than 2,147,483,647");
   Blocks blocks(layout, options.block);
   // A split run: this rank reads its share, and each pass's findings are gathered (share()).
-  StreamRanks* const ranks = options.ranks && options.ranks->size() > 1 ? options.ranks : nullptr;
-  if (ranks) blocks.share(shareOf(n_records, ranks->rank(), ranks->size()));
-  const auto pass = [&](auto&& local, auto&& gather) {
-    if (!ranks) return local();
-    gather(stream::attempt(local));
-  };
+  StreamRanks* const ranks = stream::splitRanks(options.ranks);
+  blocks.share(stream::shareOf(n_records, ranks));
+  const auto pass = [&](auto&& local, auto&& gather) { stream::runPass(ranks, local, gather); };
 
   // The frame's sample: the finite records at file indices on a stride (Geometry's).
   streamPass("frame");
@@ -216,8 +213,7 @@ StreamedLevel streamCoarseLevel(const RecordLayout& layout,
     pass(
         [&] {
           Blocks one(layout, 1);
-          const RecordShare mine =
-              ranks ? shareOf(n_records, ranks->rank(), ranks->size()) : RecordShare{0, n_records};
+          const RecordShare mine = stream::shareOf(n_records, ranks);
           for (const Beyond& b : beyond) {
             if (b.record < mine.first || b.record >= mine.last ||
                 std::binary_search(out.far_strays.begin(), out.far_strays.end(), b.record))

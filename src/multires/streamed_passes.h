@@ -32,6 +32,29 @@ std::string attempt(Fn&& local) {
 std::vector<std::string> gatherOrThrow(StreamRanks& ranks, const std::string& failed,
                                        const std::string& mine);
 
+/// The ranks of a split run, or null for one process (no ranks, or a single one).
+inline StreamRanks* splitRanks(StreamRanks* ranks) {
+  return ranks && ranks->size() > 1 ? ranks : nullptr;
+}
+
+/// The records this process reads: its rank's share, or all of them (`ranks` null).
+inline RecordShare shareOf(std::uint64_t records, const StreamRanks* ranks) {
+  return ranks ? hgd::shareOf(records, ranks->rank(), ranks->size()) : RecordShare{0, records};
+}
+
+/// A pass of a streamed run: in one process (`ranks` null) `local` alone, whatever it throws
+/// going on as it is; in a split run `local` on every rank, then `gather(failed)` (what this
+/// rank's `local` threw, or "") on every rank, which gathers the findings and throws any rank's
+/// failure on every rank.
+template <typename Local, typename Gather>
+void runPass(StreamRanks* ranks, Local&& local, Gather&& gather) {
+  if (!ranks) {
+    local();
+    return;
+  }
+  gather(attempt(local));
+}
+
 /// A coarse cell as a pass finds it: its count and its point nearest the centre.
 struct CellAcc {
   std::uint32_t count = 0;

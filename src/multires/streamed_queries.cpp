@@ -27,6 +27,10 @@ bool StreamedLevel::kept(std::uint64_t record, const Eigen::Vector3d& world) con
 std::uint32_t StreamedLevel::anchorOf(std::uint64_t record, const Eigen::Vector3f& p, int cls) const {
   const auto s = std::lower_bound(strays.begin(), strays.end(), record);
   if (s != strays.end() && *s == record) return stray_anchor[static_cast<std::size_t>(s - strays.begin())];
+  return cellAnchor(p, cls);
+}
+
+std::uint32_t StreamedLevel::cellAnchor(const Eigen::Vector3f& p, int cls) const {
   coarse::Grid grid;
   grid.lo = grid_lo;
   grid.h = cell;

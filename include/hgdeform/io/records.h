@@ -105,9 +105,9 @@ class StreamRanks {
   /// Every rank's `mine`, in rank order, on every rank. Collective: every rank makes the same
   /// calls in the same order.
   virtual std::vector<std::string> allgather(const std::string& mine) = 0;
-  /// Collective: writes this rank's bytes into `file` (an existing file every rank can open)
-  /// from byte `at` on, as `part` sends them to its sink. Returns "" or what went wrong on this
-  /// rank (a failing `part` still leaves the collective calls made).
+  /// Writes this rank's bytes into `file` (an existing file every rank can open) from byte `at`
+  /// on, as `part` sends them to its sink, each rank on its own (no collective call: the caller
+  /// gathers the outcome). Returns "" or what went wrong on this rank (`part`'s throw included).
   virtual std::string writeAt(const std::string& file, std::uint64_t at,
                               const std::function<void(RecordSink&)>& part) = 0;
 };

@@ -71,6 +71,8 @@ struct StreamedLevel {
   /// The anchor (CoarseLevel::anchor) of a kept point: its record, local position and class
   /// (classOf).
   std::uint32_t anchorOf(std::uint64_t record, const Eigen::Vector3f& p, int cls) const;
+  /// The anchor of a kept point that is not one of `strays`: the coarse point of its cell.
+  std::uint32_t cellAnchor(const Eigen::Vector3f& p, int cls) const;
   /// Geometry's Morton key of a kept point (its order among the points: by key, then record).
   std::uint32_t mortonKey(const Eigen::Vector3d& world) const;
   /// A record's class in the coarse grid: 0 free, 1 the manipulated handle, 2 + k fixed handle
