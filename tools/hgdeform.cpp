@@ -381,6 +381,22 @@ int runDeform(const DeformArgs& a, hgd::StreamRanks* ranks = nullptr) {
   return 0;
 }
 
+/// Called in a catch block: what the program says of the exception being handled (as
+/// "hgdeform CMD: ..." lines) and its exit status: 2 for a usage error, else 1.
+int failure(const std::string& cmd, std::string& said) {
+  try {
+    throw;
+  } catch (const hgdcli::UsageError& e) {
+    said = "hgdeform " + cmd + ": " + e.what() + "\n(see 'hgdeform " + cmd + " --help')\n";
+    return 2;
+  } catch (const std::bad_alloc&) {
+    said = "hgdeform " + cmd + ": out of memory\n";
+  } catch (const std::exception& e) {
+    said = "hgdeform " + cmd + ": " + e.what() + "\n";
+  }
+  return 1;
+}
+
 /// `deform --mpi`: the run on every rank of an MPI launch, rank 0 reporting. Another rank says
 /// nothing of a failure (rank 0 says it: every rank meets the same error) and exits non-zero.
 int runDeformMpi(const DeformArgs& a) {
@@ -391,23 +407,15 @@ int runDeformMpi(const DeformArgs& a) {
     std::fprintf(stderr, "hgdeform: note: --mpi without an MPI launcher (mpirun, srun): one process\n");
   // Every rank ends in finish(): rank 0 says why a run failed before any rank exits (a launcher
   // ends the whole job at the first rank that exits non-zero, and rank 0 with it).
-  const bool lead = mpi.rank() == 0;
   int status = 0;
   std::string error;
   try {
     status = runDeform(a, mpi.ranks());
-  } catch (const hgdcli::UsageError& e) {
-    if (lead) std::fprintf(stderr, "hgdeform deform: %s\n(see 'hgdeform deform --help')\n", e.what());
-    status = 2;
-    error = e.what();
-  } catch (const std::bad_alloc&) {
-    if (lead) std::fprintf(stderr, "hgdeform deform: out of memory\n");
-    status = 1;
-    error = "out of memory";
   } catch (const std::exception& e) {
-    if (lead) std::fprintf(stderr, "hgdeform deform: %s\n", e.what());
-    status = 1;
-    error = e.what();
+    std::string said;
+    status = failure("deform", said);
+    if (mpi.rank() == 0) std::fputs(said.c_str(), stderr);
+    error = dynamic_cast<const std::bad_alloc*>(&e) ? "out of memory" : e.what();
   }
   std::fflush(stderr);
   std::fflush(stdout);
@@ -464,14 +472,10 @@ int main(int argc, char** argv) {
     }
     std::cerr << "hgdeform: unknown command '" << cmd << "'\n" << kUsage;
     return 2;
-  } catch (const hgdcli::UsageError& e) {
-    std::cerr << "hgdeform " << cmd << ": " << e.what() << "\n(see 'hgdeform " << cmd << " --help')\n";
-    return 2;
-  } catch (const std::bad_alloc&) {
-    std::cerr << "hgdeform " << cmd << ": out of memory\n";
-    return 1;
-  } catch (const std::exception& e) {
-    std::cerr << "hgdeform " << cmd << ": " << e.what() << "\n";
-    return 1;
+  } catch (const std::exception&) {
+    std::string said;
+    const int status = failure(cmd, said);
+    std::cerr << said;
+    return status;
   }
 }
