@@ -80,7 +80,7 @@ struct DeformArgs {
   int k = hgd::FieldOptions().k_neighbors;
   int samples = hgd::DeformOptions().clusters.samples;
   int joint_clusters = hgd::DeformOptions().clusters.joint_isovalues;
-  int reweight = 0;     // GaussNewtonOptions::reweight_rounds
+  int reweight = hgd::DeformOptions().gauss_newton.reweight_rounds;
   bool stream = false;  // --stream
   bool mpi = false;     // --mpi
   std::string blend;    // empty: the scenario's
