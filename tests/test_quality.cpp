@@ -4,6 +4,8 @@
 // a branch no handle is on.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 
@@ -25,7 +27,21 @@ namespace {
 
 struct Outcome {
   double distortion = 0, other = 0, arap = 0, arap_other = 0;
+  double legs = 0, arap_legs = 0;  ///< the largest length change of the planted legs (unsigned)
 };
+
+/// A planted leg by file index: its foot and the ring at its top.
+struct Leg {
+  std::vector<int> foot, top;
+};
+
+// The quadruped's three planted legs (the fixed feet 0, 1 and 3).
+std::vector<Leg> plantedLegs(const hgd::Shape& q) {
+  std::vector<Leg> legs;
+  for (const int leg : {0, 1, 3})
+    legs.push_back({hgd::shapes::quadrupedFoot(q, leg), hgd::shapes::quadrupedLegTop(q, leg)});
+  return legs;
+}
 
 // Deforms `shape` (handles by file index) with default options: the manipulated handle
 // translated by `move` exactly (a frame move); with `arap`, CGAL's ARAP too, on the same
@@ -33,7 +49,8 @@ struct Outcome {
 Outcome deformAndMeasure(const hgd::Shape& shape, const std::vector<std::vector<int>>& fixed_file,
                          const std::vector<int>& manipulated_file, const Eigen::Vector3d& move,
                          const std::vector<int>& other_file, bool arap,
-                         const hgd::DeformOptions& options = hgd::DeformOptions{}) {
+                         const hgd::DeformOptions& options = hgd::DeformOptions{},
+                         const std::vector<Leg>& legs_file = {}) {
   const hgd::Geometry g = hgd::extractGeometry(shape);
   const auto ours = [&](std::vector<int> file) {
     for (int& i : file) i = g.finite_index[static_cast<std::size_t>(i)];
@@ -43,6 +60,15 @@ Outcome deformAndMeasure(const hgd::Shape& shape, const std::vector<std::vector<
   for (const auto& f : fixed_file) h.fixed.push_back(ours(f));
   h.manipulated = ours(manipulated_file);
   const std::vector<int> other = ours(other_file);
+  std::vector<Leg> legs;
+  for (const Leg& l : legs_file) legs.push_back({ours(l.foot), ours(l.top)});
+  const auto legChange = [&](const std::vector<Eigen::Vector3d>& rest_at,
+                             const std::vector<Eigen::Vector3d>& at) {
+    double worst = 0;
+    for (const Leg& l : legs)
+      worst = std::max(worst, std::abs(hgd::quality::lengthChange(rest_at, at, l.foot, l.top)));
+    return worst;
+  };
   std::vector<Eigen::Vector3d> rest(g.size()), deformed(g.size());
   for (std::size_t i = 0; i < g.size(); ++i) rest[i] = g.world(i);
   hgd::Deformer d(g, h, options);
@@ -55,6 +81,7 @@ Outcome deformAndMeasure(const hgd::Shape& shape, const std::vector<std::vector<
   Outcome out;
   out.distortion = hgd::quality::localDistortion(rest, deformed);
   if (!other.empty()) out.other = hgd::quality::meanDisplacement(rest, deformed, other) / move.norm();
+  out.legs = legChange(rest, deformed);
   if (arap && hgdbench::haveCgalArap()) {
     const std::vector<std::array<int, 3>> triangles = hgdbench::fanTriangles(g.faces);
     std::vector<int> all_fixed;
@@ -63,6 +90,7 @@ Outcome deformAndMeasure(const hgd::Shape& shape, const std::vector<std::vector<
                                                hgd::quality::distortionSettles(rest, 0.005, &out.arap));
     if (!other.empty())
       out.arap_other = hgd::quality::meanDisplacement(rest, r.positions, other) / move.norm();
+    out.arap_legs = legChange(rest, r.positions);
     std::printf("ARAP: %d iterations%s\n", r.iterations, r.converged ? "" : " (not settled)");
   }
   return out;
@@ -89,6 +117,37 @@ TEST(Quality, DistortionMeasureIsZeroForRigidAndScaleForScale) {
   EXPECT_LT(shear, 0.2);
 }
 
+// The length measure against hand-computed values: two rings 2 apart; a rigid motion keeps
+// the length, a uniform scale by s changes it by s - 1, one ring slid 0.1 along the axis by
+// 0.05, and slid 0.5 across it by sqrt(4.25) / 2 - 1.
+TEST(Quality, LengthChangeIsThatOfTheCentroidsDistance) {
+  std::vector<Eigen::Vector3d> rest;
+  std::vector<int> a, b;
+  for (int k = 0; k < 24; ++k) {
+    const double t = 2 * M_PI * k / 24;
+    a.push_back(static_cast<int>(rest.size()));
+    rest.emplace_back(0.3 * std::cos(t), 0, 0.3 * std::sin(t));
+    b.push_back(static_cast<int>(rest.size()));
+    rest.emplace_back(0.3 * std::cos(t), -2, 0.3 * std::sin(t));
+  }
+  const Eigen::Affine3d rigid =
+      Eigen::Translation3d(1, 2, 3) * Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized());
+  std::vector<Eigen::Vector3d> moved, scaled, along = rest, across = rest;
+  for (const auto& p : rest) {
+    moved.push_back(rigid * p);
+    scaled.push_back(1.1 * p);
+  }
+  for (const int i : b) {
+    along[static_cast<std::size_t>(i)].y() -= 0.1;
+    across[static_cast<std::size_t>(i)].x() += 0.5;
+  }
+  EXPECT_NEAR(hgd::quality::lengthChange(rest, moved, a, b), 0, 1e-12);
+  EXPECT_NEAR(hgd::quality::lengthChange(rest, scaled, a, b), 0.1, 1e-12);
+  EXPECT_NEAR(hgd::quality::lengthChange(rest, along, a, b), 0.05, 1e-12);
+  EXPECT_NEAR(hgd::quality::lengthChange(rest, across, a, b), std::sqrt(4.25) / 2 - 1, 1e-12);
+  EXPECT_NEAR(hgd::quality::lengthChange(rest, along, b, a), 0.05, 1e-12);  // either end first
+}
+
 // A quadruped, three feet fixed, the right hind foot moved back and up: local distortion no
 // worse than measured, and the other hind shin (no handle on its leg) nearly still.
 TEST(Quality, QuadrupedDistortionAndTheOtherLeg) {
@@ -97,17 +156,24 @@ TEST(Quality, QuadrupedDistortionAndTheOtherLeg) {
       q,
       {hgd::shapes::quadrupedFoot(q, 0), hgd::shapes::quadrupedFoot(q, 1), hgd::shapes::quadrupedFoot(q, 3)},
       hgd::shapes::quadrupedFoot(q, 2), Eigen::Vector3d(-0.25, 0.2, 0), hgd::shapes::quadrupedShin(q, 3),
-      kRunArap);
+      kRunArap, hgd::DeformOptions{}, plantedLegs(q));
   std::printf(
-      "quadruped (%u vertices): distortion %.5f, other hind shin %.2f%% of the move; ARAP %.5f, %.2f%%\n",
-      q.cloud.width, o.distortion, 100 * o.other, o.arap, 100 * o.arap_other);
+      "quadruped (%u vertices): distortion %.5f, other hind shin %.2f%% of the move, planted legs' length "
+      "%.2f%%; ARAP %.5f, %.2f%%, %.2f%%\n",
+      q.cloud.width, o.distortion, 100 * o.other, 100 * o.legs, o.arap, 100 * o.arap_other,
+      100 * o.arap_legs);
   // Measured 0.01440 and 5.49%; bounds 2% and 3% above. CGAL's ARAP, settled: 0.01180 and
   // 2.60% (175 iterations), 1.22x less distortion than ours (bound 1.25x). With
   // DeformOptions::iso_rigidity = 2: 0.01396 and 5.18%.
   EXPECT_LT(o.distortion, 0.01469);
   EXPECT_LT(o.other, 0.0566);
+  // The planted legs (foot to top) lengthen 5.52% as the body rises (bound 3% above); ARAP's
+  // 1.36%: they tilt about the feet instead (bound 1.5%: the measure names the stretch, not
+  // the turn).
+  EXPECT_LT(o.legs, 0.0569);
   if (o.arap > 0) {
     EXPECT_LT(o.distortion, 1.25 * o.arap);
+    EXPECT_LT(o.arap_legs, 0.015);
   }
 }
 
@@ -123,14 +189,17 @@ TEST(Quality, ReweightedPropBendsTheQuadrupedLikeArap) {
       q,
       {hgd::shapes::quadrupedFoot(q, 0), hgd::shapes::quadrupedFoot(q, 1), hgd::shapes::quadrupedFoot(q, 3)},
       hgd::shapes::quadrupedFoot(q, 2), Eigen::Vector3d(-0.25, 0.2, 0), hgd::shapes::quadrupedShin(q, 3),
-      kRunArap, options);
+      kRunArap, options, plantedLegs(q));
   std::printf(
-      "reweighted quadruped: distortion %.5f, other hind shin %.2f%% of the move; ARAP %.5f, %.2f%%\n",
-      o.distortion, 100 * o.other, o.arap, 100 * o.arap_other);
+      "reweighted quadruped: distortion %.5f, other hind shin %.2f%% of the move, planted legs' length "
+      "%.2f%%; ARAP %.5f, %.2f%%, %.2f%%\n",
+      o.distortion, 100 * o.other, 100 * o.legs, o.arap, 100 * o.arap_other, 100 * o.arap_legs);
   // Measured 0.00809 and 0.14% (the default: 0.01440 and 5.49%); bounds 3% above and 0.5% (the
   // issue's goal is 1.5%). CGAL's ARAP, settled: 0.01180, so 0.69x ARAP (bound 0.75x).
   EXPECT_LT(o.distortion, 0.00833);
   EXPECT_LT(o.other, 0.005);
+  // The planted legs keep their length: 0.14% (the default 5.52%); bound 0.5% (the goal is 1%).
+  EXPECT_LT(o.legs, 0.005);
   if (o.arap > 0) {
     EXPECT_LT(o.distortion, 0.75 * o.arap);
   }

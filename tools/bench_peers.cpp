@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <chrono>
+#include <cmath>
 #include <filesystem>
 #include <vector>
 
@@ -62,12 +63,29 @@ std::vector<Eigen::Vector3d> movedShape(const hgd::Geometry& g, const hgd::Handl
   return out;
 }
 
+/// A part that should keep its length: the centroids of its two ends (a planted leg's foot and
+/// top).
+struct Part {
+  std::vector<int> a, b;
+};
+
+/// The largest length change (support/quality.h's lengthChange, in absolute value) over `parts`.
+double largestLengthChange(const std::vector<Eigen::Vector3d>& rest,
+                           const std::vector<Eigen::Vector3d>& deformed, const std::vector<Part>& parts) {
+  double worst = 0;
+  for (const Part& p : parts)
+    worst = std::max(worst, std::abs(hgd::quality::lengthChange(rest, deformed, p.a, p.b)));
+  return worst;
+}
+
 /// One quality case: hgdeform (default options, and the opt-in reweighted mode) and CGAL's ARAP
 /// run to convergence on the same mesh, handles and rigid move (the handle translated by
-/// `move`, exactly, in all). Local distortion (support/quality.h) of each, and the mean motion
-/// of `other` (a branch no handle is on) over the move's length.
+/// `move`, exactly, in all). Local distortion (support/quality.h) of each, the mean motion of
+/// `other` (a branch no handle is on) over the move's length, and the largest length change of
+/// `parts` (limbs that should not stretch).
 nlohmann::json qualityCase(const std::string& name, const hgd::Shape& shape, const hgd::Handles& h,
-                           const Eigen::Vector3d& move, const std::vector<int>& other) {
+                           const Eigen::Vector3d& move, const std::vector<int>& other,
+                           const std::vector<Part>& parts) {
   const hgd::Geometry g = hgd::extractGeometry(shape);
   std::vector<Eigen::Vector3d> rest(g.size());
   for (std::size_t i = 0; i < g.size(); ++i) rest[i] = g.world(i);
@@ -117,6 +135,11 @@ nlohmann::json qualityCase(const std::string& name, const hgd::Shape& shape, con
     out["hgdeform_other_branch"] = hgd::quality::meanDisplacement(rest, ours, other) / move.norm();
     out["arap_other_branch"] = hgd::quality::meanDisplacement(rest, arap.positions, other) / move.norm();
     out["reweighted_other_branch"] = hgd::quality::meanDisplacement(rest, reweighted, other) / move.norm();
+  }
+  if (!parts.empty()) {
+    out["hgdeform_length_change"] = largestLengthChange(rest, ours, parts);
+    out["arap_length_change"] = largestLengthChange(rest, arap.positions, parts);
+    out["reweighted_length_change"] = largestLengthChange(rest, reweighted, parts);
   }
   return out;
 }
@@ -172,9 +195,9 @@ nlohmann::json runQuality(const std::string& armadillo) {
     const hgd::Geometry g = hgd::extractGeometry(shape);
     const hgd::Handles h = armadilloHandles(g);
     const Eigen::AlignedBox3f box = hgd::boundingBox(*g.points);
-    rows.push_back(
-        qualityCase("armadillo", shape, h,
-                    Eigen::Vector3d(0, 0, 0.1 * static_cast<double>((box.max() - box.min()).norm())), {}));
+    rows.push_back(qualityCase(
+        "armadillo", shape, h,
+        Eigen::Vector3d(0, 0, 0.1 * static_cast<double>((box.max() - box.min()).norm())), {}, {}));
   }
   const hgd::Shape q = hgd::shapes::quadruped();
   const hgd::Geometry g = hgd::extractGeometry(q);
@@ -183,10 +206,14 @@ nlohmann::json runQuality(const std::string& armadillo) {
     return file;
   };
   hgd::Handles h;
-  for (const int leg : {0, 1, 3}) h.fixed.push_back(ours(hgd::shapes::quadrupedFoot(q, leg)));
+  std::vector<Part> planted;  // the three fixed legs, foot to top
+  for (const int leg : {0, 1, 3}) {
+    h.fixed.push_back(ours(hgd::shapes::quadrupedFoot(q, leg)));
+    planted.push_back({h.fixed.back(), ours(hgd::shapes::quadrupedLegTop(q, leg))});
+  }
   h.manipulated = ours(hgd::shapes::quadrupedFoot(q, 2));
-  rows.push_back(
-      qualityCase("quadruped", q, h, Eigen::Vector3d(-0.25, 0.2, 0), ours(hgd::shapes::quadrupedShin(q, 3))));
+  rows.push_back(qualityCase("quadruped", q, h, Eigen::Vector3d(-0.25, 0.2, 0),
+                             ours(hgd::shapes::quadrupedShin(q, 3)), planted));
   return rows;
 }
 

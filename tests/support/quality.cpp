@@ -86,5 +86,18 @@ double meanDisplacement(const std::vector<Eigen::Vector3d>& rest,
   return sum / static_cast<double>(points.size());
 }
 
+double lengthChange(const std::vector<Eigen::Vector3d>& rest, const std::vector<Eigen::Vector3d>& deformed,
+                    const std::vector<int>& a, const std::vector<int>& b) {
+  if (a.empty() || b.empty()) return 0;
+  const auto centroid = [](const std::vector<Eigen::Vector3d>& at, const std::vector<int>& set) {
+    Eigen::Vector3d c = Eigen::Vector3d::Zero();
+    for (const int i : set) c += at[static_cast<std::size_t>(i)];
+    return Eigen::Vector3d(c / static_cast<double>(set.size()));
+  };
+  const double before = (centroid(rest, a) - centroid(rest, b)).norm();
+  if (!(before > 0)) return 0;
+  return (centroid(deformed, a) - centroid(deformed, b)).norm() / before - 1;
+}
+
 }  // namespace quality
 }  // namespace hgd

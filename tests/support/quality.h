@@ -29,5 +29,11 @@ std::function<bool(const std::vector<Eigen::Vector3d>&, int)> distortionSettles(
 double meanDisplacement(const std::vector<Eigen::Vector3d>& rest,
                         const std::vector<Eigen::Vector3d>& deformed, const std::vector<int>& points);
 
+/// How much a part lengthened: the distance between the centroids of `a` and of `b` deformed
+/// over the same at rest, minus 1 (0 for a rigid motion, s - 1 for a uniform scale by s,
+/// negative when it shortened). 0 when either set is empty or the centroids coincide at rest.
+double lengthChange(const std::vector<Eigen::Vector3d>& rest, const std::vector<Eigen::Vector3d>& deformed,
+                    const std::vector<int>& a, const std::vector<int>& b);
+
 }  // namespace quality
 }  // namespace hgd

@@ -560,5 +560,9 @@ std::vector<int> quadrupedShin(const Shape& quadruped, int leg) {
   return legPart(quadruped, leg, -0.6f, -0.3f);
 }
 
+std::vector<int> quadrupedLegTop(const Shape& quadruped, int leg) {
+  return legPart(quadruped, leg, -0.34f, -0.3f);
+}
+
 }  // namespace shapes
 }  // namespace hgd

@@ -80,9 +80,11 @@ Shape quadruped(float h = 0.02f);
 
 /// The quadruped's parts by position: foot `leg` (0 front right, 1 front left, 2 hind right,
 /// 3 hind left; right is +z) is the vertices of that leg below y = -0.68; its shin those
-/// between y = -0.6 and -0.3.
+/// between y = -0.6 and -0.3; its top the ring between y = -0.34 and -0.3, just below where
+/// the leg meets the body (the smooth union of body and leg reaches down to y = -0.26).
 std::vector<int> quadrupedFoot(const Shape& quadruped, int leg);
 std::vector<int> quadrupedShin(const Shape& quadruped, int leg);
+std::vector<int> quadrupedLegTop(const Shape& quadruped, int leg);
 
 }  // namespace shapes
 }  // namespace hgd
