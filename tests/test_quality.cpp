@@ -30,14 +30,9 @@ struct Outcome {
   double legs = 0, arap_legs = 0;  ///< the largest length change of the planted legs (unsigned)
 };
 
-/// A planted leg by file index: its foot and the ring at its top.
-struct Leg {
-  std::vector<int> foot, top;
-};
-
-// The quadruped's three planted legs (the fixed feet 0, 1 and 3).
-std::vector<Leg> plantedLegs(const hgd::Shape& q) {
-  std::vector<Leg> legs;
+// The quadruped's three planted legs (the fixed feet 0, 1 and 3), foot to top, by file index.
+std::vector<hgd::quality::Part> plantedLegs(const hgd::Shape& q) {
+  std::vector<hgd::quality::Part> legs;
   for (const int leg : {0, 1, 3})
     legs.push_back({hgd::shapes::quadrupedFoot(q, leg), hgd::shapes::quadrupedLegTop(q, leg)});
   return legs;
@@ -50,7 +45,7 @@ Outcome deformAndMeasure(const hgd::Shape& shape, const std::vector<std::vector<
                          const std::vector<int>& manipulated_file, const Eigen::Vector3d& move,
                          const std::vector<int>& other_file, bool arap,
                          const hgd::DeformOptions& options = hgd::DeformOptions{},
-                         const std::vector<Leg>& legs_file = {}) {
+                         const std::vector<hgd::quality::Part>& legs_file = {}) {
   const hgd::Geometry g = hgd::extractGeometry(shape);
   const auto ours = [&](std::vector<int> file) {
     for (int& i : file) i = g.finite_index[static_cast<std::size_t>(i)];
@@ -60,15 +55,8 @@ Outcome deformAndMeasure(const hgd::Shape& shape, const std::vector<std::vector<
   for (const auto& f : fixed_file) h.fixed.push_back(ours(f));
   h.manipulated = ours(manipulated_file);
   const std::vector<int> other = ours(other_file);
-  std::vector<Leg> legs;
-  for (const Leg& l : legs_file) legs.push_back({ours(l.foot), ours(l.top)});
-  const auto legChange = [&](const std::vector<Eigen::Vector3d>& rest_at,
-                             const std::vector<Eigen::Vector3d>& at) {
-    double worst = 0;
-    for (const Leg& l : legs)
-      worst = std::max(worst, std::abs(hgd::quality::lengthChange(rest_at, at, l.foot, l.top)));
-    return worst;
-  };
+  std::vector<hgd::quality::Part> legs;
+  for (const auto& l : legs_file) legs.push_back({ours(l.a), ours(l.b)});
   std::vector<Eigen::Vector3d> rest(g.size()), deformed(g.size());
   for (std::size_t i = 0; i < g.size(); ++i) rest[i] = g.world(i);
   hgd::Deformer d(g, h, options);
@@ -81,7 +69,7 @@ Outcome deformAndMeasure(const hgd::Shape& shape, const std::vector<std::vector<
   Outcome out;
   out.distortion = hgd::quality::localDistortion(rest, deformed);
   if (!other.empty()) out.other = hgd::quality::meanDisplacement(rest, deformed, other) / move.norm();
-  out.legs = legChange(rest, deformed);
+  out.legs = hgd::quality::largestLengthChange(rest, deformed, legs);
   if (arap && hgdbench::haveCgalArap()) {
     const std::vector<std::array<int, 3>> triangles = hgdbench::fanTriangles(g.faces);
     std::vector<int> all_fixed;
@@ -90,7 +78,7 @@ Outcome deformAndMeasure(const hgd::Shape& shape, const std::vector<std::vector<
                                                hgd::quality::distortionSettles(rest, 0.005, &out.arap));
     if (!other.empty())
       out.arap_other = hgd::quality::meanDisplacement(rest, r.positions, other) / move.norm();
-    out.arap_legs = legChange(rest, r.positions);
+    out.arap_legs = hgd::quality::largestLengthChange(rest, r.positions, legs);
     std::printf("ARAP: %d iterations%s\n", r.iterations, r.converged ? "" : " (not settled)");
   }
   return out;

@@ -63,21 +63,6 @@ std::vector<Eigen::Vector3d> movedShape(const hgd::Geometry& g, const hgd::Handl
   return out;
 }
 
-/// A part that should keep its length: the centroids of its two ends (a planted leg's foot and
-/// top).
-struct Part {
-  std::vector<int> a, b;
-};
-
-/// The largest length change (support/quality.h's lengthChange, in absolute value) over `parts`.
-double largestLengthChange(const std::vector<Eigen::Vector3d>& rest,
-                           const std::vector<Eigen::Vector3d>& deformed, const std::vector<Part>& parts) {
-  double worst = 0;
-  for (const Part& p : parts)
-    worst = std::max(worst, std::abs(hgd::quality::lengthChange(rest, deformed, p.a, p.b)));
-  return worst;
-}
-
 /// One quality case: hgdeform (default options, and the opt-in reweighted mode) and CGAL's ARAP
 /// run to convergence on the same mesh, handles and rigid move (the handle translated by
 /// `move`, exactly, in all). Local distortion (support/quality.h) of each, the mean motion of
@@ -85,7 +70,7 @@ double largestLengthChange(const std::vector<Eigen::Vector3d>& rest,
 /// `parts` (limbs that should not stretch).
 nlohmann::json qualityCase(const std::string& name, const hgd::Shape& shape, const hgd::Handles& h,
                            const Eigen::Vector3d& move, const std::vector<int>& other,
-                           const std::vector<Part>& parts) {
+                           const std::vector<hgd::quality::Part>& parts) {
   const hgd::Geometry g = hgd::extractGeometry(shape);
   std::vector<Eigen::Vector3d> rest(g.size());
   for (std::size_t i = 0; i < g.size(); ++i) rest[i] = g.world(i);
@@ -137,9 +122,9 @@ nlohmann::json qualityCase(const std::string& name, const hgd::Shape& shape, con
     out["reweighted_other_branch"] = hgd::quality::meanDisplacement(rest, reweighted, other) / move.norm();
   }
   if (!parts.empty()) {
-    out["hgdeform_length_change"] = largestLengthChange(rest, ours, parts);
-    out["arap_length_change"] = largestLengthChange(rest, arap.positions, parts);
-    out["reweighted_length_change"] = largestLengthChange(rest, reweighted, parts);
+    out["hgdeform_length_change"] = hgd::quality::largestLengthChange(rest, ours, parts);
+    out["arap_length_change"] = hgd::quality::largestLengthChange(rest, arap.positions, parts);
+    out["reweighted_length_change"] = hgd::quality::largestLengthChange(rest, reweighted, parts);
   }
   return out;
 }
@@ -206,7 +191,7 @@ nlohmann::json runQuality(const std::string& armadillo) {
     return file;
   };
   hgd::Handles h;
-  std::vector<Part> planted;  // the three fixed legs, foot to top
+  std::vector<hgd::quality::Part> planted;  // the three fixed legs, foot to top
   for (const int leg : {0, 1, 3}) {
     h.fixed.push_back(ours(hgd::shapes::quadrupedFoot(q, leg)));
     planted.push_back({h.fixed.back(), ours(hgd::shapes::quadrupedLegTop(q, leg))});

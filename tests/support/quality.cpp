@@ -4,6 +4,7 @@
 #include <pcl/point_types.h>
 
 #include <Eigen/SVD>
+#include <algorithm>
 #include <cmath>
 #include <memory>
 #include <stdexcept>
@@ -97,6 +98,13 @@ double lengthChange(const std::vector<Eigen::Vector3d>& rest, const std::vector<
   const double before = (centroid(rest, a) - centroid(rest, b)).norm();
   if (!(before > 0)) return 0;
   return (centroid(deformed, a) - centroid(deformed, b)).norm() / before - 1;
+}
+
+double largestLengthChange(const std::vector<Eigen::Vector3d>& rest,
+                           const std::vector<Eigen::Vector3d>& deformed, const std::vector<Part>& parts) {
+  double worst = 0;
+  for (const Part& p : parts) worst = std::max(worst, std::abs(lengthChange(rest, deformed, p.a, p.b)));
+  return worst;
 }
 
 }  // namespace quality

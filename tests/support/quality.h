@@ -35,5 +35,14 @@ double meanDisplacement(const std::vector<Eigen::Vector3d>& rest,
 double lengthChange(const std::vector<Eigen::Vector3d>& rest, const std::vector<Eigen::Vector3d>& deformed,
                     const std::vector<int>& a, const std::vector<int>& b);
 
+/// A part that should keep its length, by the points at its two ends (a leg's foot and top).
+struct Part {
+  std::vector<int> a, b;
+};
+
+/// The largest lengthChange, in absolute value, over `parts` (0 for none).
+double largestLengthChange(const std::vector<Eigen::Vector3d>& rest,
+                           const std::vector<Eigen::Vector3d>& deformed, const std::vector<Part>& parts);
+
 }  // namespace quality
 }  // namespace hgd
